@@ -1,0 +1,43 @@
+//! The one error type of the science layer. Messages name the thing, the value
+//! or shape it had and what was wanted, so a CLI can print them as they are.
+
+use thiserror::Error;
+
+#[derive(Debug, Error, Clone, PartialEq)]
+pub enum CassiError {
+    /// A scalar parameter outside its valid range.
+    #[error("invalid parameter {name} = {value}: {reason}")]
+    InvalidParameter {
+        name: &'static str,
+        value: f64,
+        reason: String,
+    },
+    /// An array whose shape does not fit where it is used.
+    #[error("{what} has shape {got}, expected {expected}")]
+    Shape {
+        what: String,
+        got: String,
+        expected: String,
+    },
+    /// NaN or ±Inf inside data that must be finite.
+    #[error("{what} contains a non-finite value ({value}) at {location}")]
+    NonFinite {
+        what: String,
+        value: f32,
+        location: String,
+    },
+}
+
+pub type Result<T> = std::result::Result<T, CassiError>;
+
+pub(crate) fn shape_error(
+    what: impl Into<String>,
+    got: impl Into<String>,
+    expected: impl Into<String>,
+) -> CassiError {
+    CassiError::Shape {
+        what: what.into(),
+        got: got.into(),
+        expected: expected.into(),
+    }
+}

@@ -1,0 +1,21 @@
+//! Science layer of cassi: data types, the CASSI optics model, metrics and
+//! synthetic data. No file I/O and no printing happen here.
+//!
+//! Conventions (DESIGN.md, each pinned by a test): cubes are (bands, rows,
+//! cols) f32 with band 0 the shortest wavelength; dispersion moves band k
+//! toward larger column index; angles are degrees at every public boundary.
+
+pub mod cube;
+pub mod error;
+pub mod instrument;
+pub mod linop;
+pub mod optics;
+pub mod params;
+pub mod rng;
+
+pub use cube::{Cube, Frame, Mask, Measurement};
+pub use error::{CassiError, Result};
+pub use instrument::{Instrument, STANDARD_WAVELENGTHS_NM};
+pub use linop::{LinearOperator, adjoint_mismatch};
+pub use params::{DispersionParams, MaskPose, Mismatch};
+pub use rng::Rng;

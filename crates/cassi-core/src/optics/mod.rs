@@ -1,0 +1,1 @@
+//! The CASSI optics model.

@@ -1,0 +1,204 @@
+//! The mismatch between the nominal model and the true instrument, in the
+//! units users see: pixels and degrees.
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::{CassiError, Result};
+
+/// The largest |θ| and |α| (degrees) accepted: beyond this the small-misalignment
+/// model (and every calibration search range) is meaningless.
+pub const MAX_ANGLE_DEG: f64 = 45.0;
+
+/// Rigid placement of the mask relative to its nominal position (DESIGN.md):
+/// a mask point u = (col, row) moves to `R(θ)(u − c) + c + (dx, dy)`, with c the
+/// mask centre ((W−1)/2, (H−1)/2).
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+pub struct MaskPose {
+    /// Shift along columns, pixels, + = right.
+    pub dx: f64,
+    /// Shift along rows, pixels, + = down.
+    pub dy: f64,
+    /// Rotation in degrees; R(θ) = [[cos, −sin], [sin, cos]] on (col, row),
+    /// so + turns the +col axis toward +row (clockwise on screen).
+    pub theta_deg: f64,
+}
+
+/// Dispersion of the prism: band k lands at column offset `a1·k·cos α` and row
+/// offset `a1·k·sin α` detector pixels.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct DispersionParams {
+    /// Pixels per band along the dispersion axis.
+    pub a1: f64,
+    /// Angle of the dispersion axis from the +col axis toward +row, degrees.
+    pub alpha_deg: f64,
+}
+
+/// All five mismatch parameters ψ = (dx, dy, θ, a1, α).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Mismatch {
+    pub dx: f64,
+    pub dy: f64,
+    pub theta_deg: f64,
+    pub a1: f64,
+    pub alpha_deg: f64,
+}
+
+impl Mismatch {
+    /// No mismatch for an instrument of nominal stride `stride`.
+    pub fn nominal(stride: f64) -> Self {
+        Self {
+            dx: 0.0,
+            dy: 0.0,
+            theta_deg: 0.0,
+            a1: stride,
+            alpha_deg: 0.0,
+        }
+    }
+
+    /// The paper's injected mismatch (§5.1): dx 1.5 px, dy 1.0 px, θ 0.3°, a1 2.04, α 0.5°.
+    pub fn paper() -> Self {
+        Self {
+            dx: 1.5,
+            dy: 1.0,
+            theta_deg: 0.3,
+            a1: 2.04,
+            alpha_deg: 0.5,
+        }
+    }
+
+    pub fn pose(&self) -> MaskPose {
+        MaskPose {
+            dx: self.dx,
+            dy: self.dy,
+            theta_deg: self.theta_deg,
+        }
+    }
+
+    pub fn dispersion(&self) -> DispersionParams {
+        DispersionParams {
+            a1: self.a1,
+            alpha_deg: self.alpha_deg,
+        }
+    }
+
+    /// Scales the deviation from nominal by `factor` (sensitivity sweeps).
+    pub fn scaled_from_nominal(&self, stride: f64, factor: f64) -> Self {
+        Self {
+            dx: self.dx * factor,
+            dy: self.dy * factor,
+            theta_deg: self.theta_deg * factor,
+            a1: stride + (self.a1 - stride) * factor,
+            alpha_deg: self.alpha_deg * factor,
+        }
+    }
+
+    pub fn validate(&self) -> Result<()> {
+        self.pose().validate()?;
+        self.dispersion().validate()
+    }
+}
+
+fn finite(name: &'static str, value: f64) -> Result<()> {
+    if value.is_finite() {
+        Ok(())
+    } else {
+        Err(CassiError::InvalidParameter {
+            name,
+            value,
+            reason: "must be a finite number".into(),
+        })
+    }
+}
+
+fn angle(name: &'static str, value: f64) -> Result<()> {
+    finite(name, value)?;
+    if value.abs() > MAX_ANGLE_DEG {
+        return Err(CassiError::InvalidParameter {
+            name,
+            value,
+            reason: format!("|{name}| must be at most {MAX_ANGLE_DEG}° (angles are in degrees)"),
+        });
+    }
+    Ok(())
+}
+
+impl MaskPose {
+    pub fn validate(&self) -> Result<()> {
+        finite("dx", self.dx)?;
+        finite("dy", self.dy)?;
+        angle("theta_deg", self.theta_deg)
+    }
+
+    pub fn is_identity(&self) -> bool {
+        self.dx == 0.0 && self.dy == 0.0 && self.theta_deg == 0.0
+    }
+}
+
+impl DispersionParams {
+    pub fn validate(&self) -> Result<()> {
+        finite("a1", self.a1)?;
+        if self.a1 <= 0.0 {
+            return Err(CassiError::InvalidParameter {
+                name: "a1",
+                value: self.a1,
+                reason: "the dispersion slope must be positive (pixels per band)".into(),
+            });
+        }
+        angle("alpha_deg", self.alpha_deg)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn json_round_trip_uses_unit_bearing_names() {
+        let m = Mismatch::paper();
+        let s = serde_json::to_string(&m).unwrap();
+        assert_eq!(
+            s,
+            r#"{"dx":1.5,"dy":1.0,"theta_deg":0.3,"a1":2.04,"alpha_deg":0.5}"#
+        );
+        let back: Mismatch = serde_json::from_str(&s).unwrap();
+        assert_eq!(back, m);
+    }
+
+    #[test]
+    fn absurd_values_are_rejected_with_the_parameter_named() {
+        let bad = [
+            Mismatch {
+                theta_deg: 46.0,
+                ..Mismatch::paper()
+            },
+            Mismatch {
+                a1: 0.0,
+                ..Mismatch::paper()
+            },
+            Mismatch {
+                a1: -1.0,
+                ..Mismatch::paper()
+            },
+            Mismatch {
+                alpha_deg: -50.0,
+                ..Mismatch::paper()
+            },
+            Mismatch {
+                dx: f64::NAN,
+                ..Mismatch::paper()
+            },
+        ];
+        let names = ["theta_deg", "a1", "a1", "alpha_deg", "dx"];
+        for (m, name) in bad.iter().zip(names) {
+            let e = m.validate().unwrap_err().to_string();
+            assert!(e.contains(name), "{e}");
+        }
+        assert!(Mismatch::paper().validate().is_ok());
+    }
+
+    #[test]
+    fn scaling_keeps_nominal_a1() {
+        let m = Mismatch::paper().scaled_from_nominal(2.0, 2.0);
+        assert!((m.a1 - 2.08).abs() < 1e-12 && m.dx == 3.0 && m.theta_deg == 0.6);
+    }
+}
