@@ -5,13 +5,16 @@
 //! cols) f32 with band 0 the shortest wavelength; dispersion moves band k
 //! toward larger column index; angles are degrees at every public boundary.
 
+pub mod color;
 pub mod cube;
 pub mod error;
 pub mod instrument;
 pub mod linop;
+pub mod metrics;
 pub mod optics;
 pub mod params;
 pub mod rng;
+pub mod synth;
 
 pub use cube::{Cube, Frame, Mask, Measurement};
 pub use error::{CassiError, Result};

@@ -1,0 +1,1 @@
+//! Wavelength → colour: pseudo-RGB rendering of a cube.
