@@ -1,1 +1,14 @@
-//! The CASSI optics model.
+//! The CASSI optics model: mask misalignment, dispersion, the forward
+//! operator and its adjoint, detector noise, simulation.
+
+pub mod dispersion;
+pub mod noise;
+pub mod operator;
+pub mod simulate;
+pub mod warp;
+
+pub use dispersion::{Dispersion, DispersionModel, Tap};
+pub use noise::NoiseModel;
+pub use operator::{CassiOperator, validate_mask};
+pub use simulate::{SimulationSpec, simulate};
+pub use warp::{WarpWithDerivatives, warp_mask, warp_mask_with_derivatives};

@@ -1,0 +1,344 @@
+//! The prism: where each band lands on the detector.
+//!
+//! Band k is displaced by `d_k = a1·k·cos α` columns (toward larger column
+//! index) and `a1·k·sin α` rows. Two models of the true instrument:
+//! - `Rounded`: both offsets rounded to integers, round-half-to-even (the
+//!   paper's simulation); a1 and α act only through the rounding pattern.
+//! - `Subpixel`: each band's light is split bilinearly between the
+//!   neighbouring detector pixels, so fractional a1 and α act physically.
+//!
+//! Each band is described by a few [`Tap`]s (integer offset + weight); the
+//! operator only ever sees taps, so both models share one code path.
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::{CassiError, Result};
+use crate::params::DispersionParams;
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum DispersionModel {
+    /// Integer offsets, round-half-to-even (the paper's simulation).
+    #[default]
+    Rounded,
+    /// Linear interpolation between neighbouring detector pixels.
+    Subpixel,
+}
+
+impl DispersionModel {
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Rounded => "rounded",
+            Self::Subpixel => "subpixel",
+        }
+    }
+}
+
+impl std::str::FromStr for DispersionModel {
+    type Err = String;
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        match s {
+            "rounded" => Ok(Self::Rounded),
+            "subpixel" => Ok(Self::Subpixel),
+            other => Err(format!(
+                "unknown dispersion model '{other}' (expected 'rounded' or 'subpixel')"
+            )),
+        }
+    }
+}
+
+/// One contribution of a band to the detector: light at mask pixel (r, c)
+/// lands at detector pixel (r + row, c + col) with this weight.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Tap {
+    pub row: i32,
+    pub col: i32,
+    pub weight: f32,
+}
+
+/// Per-band detector offsets for one (a1, α) and model.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Dispersion {
+    model: DispersionModel,
+    params: DispersionParams,
+    /// Continuous (col, row) offset of each band, before any rounding.
+    offsets: Vec<(f64, f64)>,
+    taps: Vec<Vec<Tap>>,
+    extra_cols: usize,
+}
+
+/// Offsets larger than this many pixels are surely a unit mistake.
+const MAX_OFFSET_PX: f64 = 100_000.0;
+
+impl Dispersion {
+    pub fn new(bands: usize, params: DispersionParams, model: DispersionModel) -> Result<Self> {
+        params.validate()?;
+        if bands == 0 {
+            return Err(CassiError::InvalidParameter {
+                name: "bands",
+                value: 0.0,
+                reason: "the dispersion needs at least one band".into(),
+            });
+        }
+        let alpha = params.alpha_deg.to_radians();
+        let offsets: Vec<(f64, f64)> = (0..bands)
+            .map(|k| {
+                let along = params.a1 * k as f64;
+                (along * alpha.cos(), along * alpha.sin())
+            })
+            .collect();
+        let reach = offsets.last().map_or(0.0, |o| o.0.abs().max(o.1.abs()));
+        if reach > MAX_OFFSET_PX {
+            return Err(CassiError::InvalidParameter {
+                name: "a1",
+                value: params.a1,
+                reason: format!(
+                    "band {} would land {reach:.0} px away; a1 is in pixels per band",
+                    bands - 1
+                ),
+            });
+        }
+        let taps: Vec<Vec<Tap>> = offsets
+            .iter()
+            .map(|&(dc, dr)| band_taps(dc, dr, model))
+            .collect();
+        let extra_cols = taps
+            .iter()
+            .flatten()
+            .map(|t| t.col)
+            .max()
+            .unwrap_or(0)
+            .max(0) as usize;
+        Ok(Self {
+            model,
+            params,
+            offsets,
+            taps,
+            extra_cols,
+        })
+    }
+
+    /// The nominal design: integer stride, no tilt.
+    pub fn nominal(bands: usize, stride: f64, model: DispersionModel) -> Result<Self> {
+        Self::new(
+            bands,
+            DispersionParams {
+                a1: stride,
+                alpha_deg: 0.0,
+            },
+            model,
+        )
+    }
+
+    pub fn model(&self) -> DispersionModel {
+        self.model
+    }
+    pub fn params(&self) -> DispersionParams {
+        self.params
+    }
+    pub fn bands(&self) -> usize {
+        self.taps.len()
+    }
+    /// Continuous (col, row) offset of band k.
+    pub fn offset(&self, k: usize) -> (f64, f64) {
+        self.offsets[k]
+    }
+    pub fn taps(&self, k: usize) -> &[Tap] {
+        &self.taps[k]
+    }
+    /// Detector columns beyond the mask width: W + this is the measurement
+    /// width (max_k round(d_k) for `Rounded`, max_k ceil(d_k) for `Subpixel`).
+    pub fn extra_cols(&self) -> usize {
+        self.extra_cols
+    }
+}
+
+fn band_taps(dc: f64, dr: f64, model: DispersionModel) -> Vec<Tap> {
+    match model {
+        DispersionModel::Rounded => vec![Tap {
+            row: dr.round_ties_even() as i32,
+            col: dc.round_ties_even() as i32,
+            weight: 1.0,
+        }],
+        DispersionModel::Subpixel => {
+            let (c0, r0) = (dc.floor(), dr.floor());
+            let (fc, fr) = (dc - c0, dr - r0);
+            let (c0, r0) = (c0 as i32, r0 as i32);
+            [
+                (r0, c0, (1.0 - fr) * (1.0 - fc)),
+                (r0, c0 + 1, (1.0 - fr) * fc),
+                (r0 + 1, c0, fr * (1.0 - fc)),
+                (r0 + 1, c0 + 1, fr * fc),
+            ]
+            .into_iter()
+            .filter(|&(_, _, w)| w > 0.0)
+            .map(|(row, col, w)| Tap {
+                row,
+                col,
+                weight: w as f32,
+            })
+            .collect()
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cols(d: &Dispersion) -> Vec<i32> {
+        (0..d.bands()).map(|k| d.taps(k)[0].col).collect()
+    }
+
+    #[test]
+    fn nominal_stride_two_gives_2k_and_width_w_plus_54() {
+        let d = Dispersion::nominal(28, 2.0, DispersionModel::Rounded).unwrap();
+        assert_eq!(cols(&d), (0..28).map(|k| 2 * k).collect::<Vec<_>>());
+        assert_eq!(d.extra_cols(), 54);
+        // integer offsets: the subpixel model degenerates to the same single taps
+        let s = Dispersion::nominal(28, 2.0, DispersionModel::Subpixel).unwrap();
+        assert!((0..28).all(|k| s.taps(k) == d.taps(k)));
+    }
+
+    #[test]
+    fn paper_dispersion_rounds_half_to_even_and_matches_reference_offsets() {
+        // a1 = 2.04, α = 0.5°: bands 0–12 at 2k, bands 13–27 at 2k+1 (seed-code notes §1.2)
+        let d = Dispersion::new(
+            28,
+            DispersionParams {
+                a1: 2.04,
+                alpha_deg: 0.5,
+            },
+            DispersionModel::Rounded,
+        )
+        .unwrap();
+        let want: Vec<i32> = (0..28)
+            .map(|k| if k <= 12 { 2 * k } else { 2 * k + 1 })
+            .collect();
+        assert_eq!(cols(&d), want);
+        assert_eq!(d.extra_cols(), 55);
+        assert!((0..28).all(|k| d.taps(k)[0].row == 0));
+        let d = Dispersion::new(
+            28,
+            DispersionParams {
+                a1: 1.9,
+                alpha_deg: 0.0,
+            },
+            DispersionModel::Rounded,
+        )
+        .unwrap();
+        assert_eq!(
+            cols(&d),
+            vec![
+                0, 2, 4, 6, 8, 10, 11, 13, 15, 17, 19, 21, 23, 25, 27, 28, 30, 32, 34, 36, 38, 40,
+                42, 44, 46, 48, 49, 51
+            ]
+        );
+        // ties go to even: 2.5 → 2, 3.5 → 4
+        let d = Dispersion::new(
+            3,
+            DispersionParams {
+                a1: 1.25,
+                alpha_deg: 0.0,
+            },
+            DispersionModel::Rounded,
+        )
+        .unwrap();
+        assert_eq!(cols(&d), vec![0, 1, 2]);
+        let d = Dispersion::new(
+            3,
+            DispersionParams {
+                a1: 1.75,
+                alpha_deg: 0.0,
+            },
+            DispersionModel::Rounded,
+        )
+        .unwrap();
+        assert_eq!(cols(&d), vec![0, 2, 4]);
+    }
+
+    #[test]
+    fn subpixel_splits_light_between_neighbours_and_widens_by_ceil() {
+        let d = Dispersion::new(
+            3,
+            DispersionParams {
+                a1: 1.25,
+                alpha_deg: 0.0,
+            },
+            DispersionModel::Subpixel,
+        )
+        .unwrap();
+        // band 1 at 1.25: 0.75 at col 1, 0.25 at col 2
+        assert_eq!(
+            d.taps(1),
+            &[
+                Tap {
+                    row: 0,
+                    col: 1,
+                    weight: 0.75
+                },
+                Tap {
+                    row: 0,
+                    col: 2,
+                    weight: 0.25
+                }
+            ]
+        );
+        assert_eq!(d.extra_cols(), 3); // ceil(2.5)
+        // a tilt sends light down (+row) for α > 0, weights sum to 1
+        let d = Dispersion::new(
+            5,
+            DispersionParams {
+                a1: 2.0,
+                alpha_deg: 10.0,
+            },
+            DispersionModel::Subpixel,
+        )
+        .unwrap();
+        let t = d.taps(4);
+        assert!((t.iter().map(|t| t.weight).sum::<f32>() - 1.0).abs() < 1e-6);
+        assert!(t.iter().any(|t| t.row == 1) && t.iter().all(|t| t.row >= 0));
+    }
+
+    #[test]
+    fn bad_parameters_are_rejected() {
+        assert!(
+            Dispersion::new(
+                0,
+                DispersionParams {
+                    a1: 2.0,
+                    alpha_deg: 0.0
+                },
+                DispersionModel::Rounded
+            )
+            .is_err()
+        );
+        assert!(
+            Dispersion::new(
+                28,
+                DispersionParams {
+                    a1: -2.0,
+                    alpha_deg: 0.0
+                },
+                DispersionModel::Rounded
+            )
+            .is_err()
+        );
+        assert!(
+            Dispersion::new(
+                28,
+                DispersionParams {
+                    a1: 1e9,
+                    alpha_deg: 0.0
+                },
+                DispersionModel::Rounded
+            )
+            .is_err()
+        );
+        assert_eq!(
+            "subpixel".parse::<DispersionModel>(),
+            Ok(DispersionModel::Subpixel)
+        );
+        assert!("linear".parse::<DispersionModel>().is_err());
+    }
+}

@@ -1,0 +1,411 @@
+//! The single-disperser CASSI operator y = Σ_k shift_k(m̃ ⊙ x_k) and its
+//! exact adjoint, behind [`LinearOperator`].
+
+use rayon::prelude::*;
+
+use super::dispersion::{Dispersion, DispersionModel};
+use super::warp::warp_mask;
+use crate::cube::{Cube, Frame, Mask, Measurement};
+use crate::error::{CassiError, Result, shape_error};
+use crate::linop::LinearOperator;
+use crate::params::Mismatch;
+
+/// Tolerance on the [0, 1] mask range (stored masks carry rounding noise).
+const MASK_RANGE_SLACK: f32 = 1e-3;
+
+/// A CASSI forward model for one effective mask (already warped) and one
+/// dispersion. Cubes are (L, H, W) with (H, W) the mask shape; measurements
+/// are (H, W + extra_cols). Light dispersed above row 0 or below row H−1 is
+/// lost (and the adjoint reads nothing from there).
+#[derive(Debug, Clone)]
+pub struct CassiOperator {
+    mask: Mask,
+    dispersion: Dispersion,
+    det_cols: usize,
+}
+
+/// Checks a mask is finite and in [0, 1] (transmission), naming `what`.
+pub fn validate_mask(mask: &Mask, what: &str) -> Result<()> {
+    mask.check_finite(what)?;
+    if mask.rows() == 0 || mask.cols() == 0 {
+        return Err(shape_error(
+            what,
+            format!("{}×{}", mask.rows(), mask.cols()),
+            "at least 1×1",
+        ));
+    }
+    let (lo, hi) = mask
+        .as_slice()
+        .iter()
+        .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &v| {
+            (lo.min(v), hi.max(v))
+        });
+    if lo < -MASK_RANGE_SLACK || hi > 1.0 + MASK_RANGE_SLACK {
+        return Err(CassiError::InvalidParameter {
+            name: "mask",
+            value: if lo < 0.0 { lo as f64 } else { hi as f64 },
+            reason: format!(
+                "{what} values span [{lo}, {hi}]; a coded aperture is a transmission in [0, 1] (divide an 8-bit mask by 255)"
+            ),
+        });
+    }
+    Ok(())
+}
+
+impl CassiOperator {
+    /// The operator for an effective `mask` (what the detector sees, after any
+    /// misalignment) and a `dispersion`.
+    pub fn new(mask: Mask, dispersion: Dispersion) -> Result<Self> {
+        validate_mask(&mask, "mask")?;
+        let det_cols = mask.cols() + dispersion.extra_cols();
+        Ok(Self {
+            mask,
+            dispersion,
+            det_cols,
+        })
+    }
+
+    /// The true operator of an instrument whose mask `nominal_mask` is
+    /// misplaced and whose prism drifted as `mismatch` says.
+    pub fn with_mismatch(
+        nominal_mask: &Mask,
+        bands: usize,
+        mismatch: &Mismatch,
+        model: DispersionModel,
+    ) -> Result<Self> {
+        mismatch.validate()?;
+        validate_mask(nominal_mask, "nominal mask")?;
+        let dispersion = Dispersion::new(bands, mismatch.dispersion(), model)?;
+        Self::new(warp_mask(nominal_mask, &mismatch.pose()), dispersion)
+    }
+
+    pub fn mask(&self) -> &Mask {
+        &self.mask
+    }
+    pub fn dispersion(&self) -> &Dispersion {
+        &self.dispersion
+    }
+    pub fn bands(&self) -> usize {
+        self.dispersion.bands()
+    }
+    /// (bands, rows, cols) of the cubes this operator takes.
+    pub fn cube_shape(&self) -> (usize, usize, usize) {
+        (self.bands(), self.mask.rows(), self.mask.cols())
+    }
+    /// (rows, detector cols) of the measurements it makes.
+    pub fn measurement_shape(&self) -> (usize, usize) {
+        (self.mask.rows(), self.det_cols)
+    }
+
+    /// y = A x for a cube of [`Self::cube_shape`].
+    pub fn forward(&self, cube: &Cube) -> Result<Measurement> {
+        if cube.shape() != self.cube_shape() {
+            let (l, h, w) = self.cube_shape();
+            let (cl, ch, cw) = cube.shape();
+            return Err(shape_error(
+                "scene cube (bands, rows, cols)",
+                format!("({cl}, {ch}, {cw})"),
+                format!("({l}, {h}, {w}) to match the {h}×{w} mask and {l} bands"),
+            ));
+        }
+        let (rows, cols) = self.measurement_shape();
+        let mut y = Frame::zeros(rows, cols);
+        self.apply(cube.as_slice(), y.as_mut_slice());
+        Ok(y)
+    }
+
+    /// x = Aᵀ y for a measurement of [`Self::measurement_shape`].
+    pub fn back_project(&self, measurement: &Measurement) -> Result<Cube> {
+        if measurement.shape() != self.measurement_shape() {
+            let (h, wd) = self.measurement_shape();
+            let (mh, mw) = measurement.shape();
+            return Err(shape_error(
+                "measurement",
+                format!("{mh}×{mw}"),
+                format!("{h}×{wd}"),
+            ));
+        }
+        let (l, h, w) = self.cube_shape();
+        let mut x = Cube::zeros(l, h, w);
+        self.adjoint(measurement.as_slice(), x.as_mut_slice());
+        Ok(x)
+    }
+
+    /// diag(A Aᵀ) as a detector frame: Σ over the (band, pixel, tap) that hit
+    /// each detector pixel of (weight · mask)². GAP's normaliser.
+    pub fn diag_aat(&self) -> Frame {
+        let (rows, det_cols) = self.measurement_shape();
+        let cols = self.mask.cols();
+        let mut d = Frame::zeros(rows, det_cols);
+        for k in 0..self.bands() {
+            for tap in self.dispersion.taps(k) {
+                let w2 = tap.weight * tap.weight;
+                for r in 0..rows {
+                    let Some(yr) = shifted_row(r, tap.row, rows) else {
+                        continue;
+                    };
+                    let c0 = tap.col as usize;
+                    let out = &mut d.row_mut(yr)[c0..c0 + cols];
+                    for (o, &m) in out.iter_mut().zip(self.mask.row(r)) {
+                        *o += w2 * m * m;
+                    }
+                }
+            }
+        }
+        d
+    }
+}
+
+/// Row `r + offset` if it lies on the detector.
+#[inline]
+fn shifted_row(r: usize, offset: i32, rows: usize) -> Option<usize> {
+    let yr = r as i64 + offset as i64;
+    (yr >= 0 && (yr as usize) < rows).then_some(yr as usize)
+}
+
+impl LinearOperator for CassiOperator {
+    fn domain_len(&self) -> usize {
+        let (l, h, w) = self.cube_shape();
+        l * h * w
+    }
+
+    fn range_len(&self) -> usize {
+        let (h, wd) = self.measurement_shape();
+        h * wd
+    }
+
+    fn apply(&self, x: &[f32], y: &mut [f32]) {
+        let (bands, rows, cols) = self.cube_shape();
+        assert_eq!(x.len(), self.domain_len(), "CassiOperator::apply: x length");
+        assert_eq!(y.len(), self.range_len(), "CassiOperator::apply: y length");
+        // Each detector row gathers from the cube rows that land on it, so rows
+        // are independent: no atomics, same result for any thread count.
+        y.par_chunks_mut(self.det_cols)
+            .with_min_len(8)
+            .enumerate()
+            .for_each(|(yr, yrow)| {
+                yrow.fill(0.0);
+                for k in 0..bands {
+                    let band = &x[k * rows * cols..(k + 1) * rows * cols];
+                    for tap in self.dispersion.taps(k) {
+                        // source row r with r + tap.row = yr
+                        let Some(r) = shifted_row(yr, -tap.row, rows) else {
+                            continue;
+                        };
+                        let xrow = &band[r * cols..(r + 1) * cols];
+                        let mrow = self.mask.row(r);
+                        let c0 = tap.col as usize;
+                        let out = &mut yrow[c0..c0 + cols];
+                        if tap.weight == 1.0 {
+                            for ((o, &xv), &mv) in out.iter_mut().zip(xrow).zip(mrow) {
+                                *o += mv * xv;
+                            }
+                        } else {
+                            let wt = tap.weight;
+                            for ((o, &xv), &mv) in out.iter_mut().zip(xrow).zip(mrow) {
+                                *o += wt * (mv * xv);
+                            }
+                        }
+                    }
+                }
+            });
+    }
+
+    fn adjoint(&self, y: &[f32], x: &mut [f32]) {
+        let (_, rows, cols) = self.cube_shape();
+        assert_eq!(
+            y.len(),
+            self.range_len(),
+            "CassiOperator::adjoint: y length"
+        );
+        assert_eq!(
+            x.len(),
+            self.domain_len(),
+            "CassiOperator::adjoint: x length"
+        );
+        let det_cols = self.det_cols;
+        x.par_chunks_mut(cols)
+            .with_min_len(16)
+            .enumerate()
+            .for_each(|(i, xrow)| {
+                let (k, r) = (i / rows, i % rows);
+                xrow.fill(0.0);
+                for tap in self.dispersion.taps(k) {
+                    let Some(yr) = shifted_row(r, tap.row, rows) else {
+                        continue;
+                    };
+                    let c0 = yr * det_cols + tap.col as usize;
+                    let src = &y[c0..c0 + cols];
+                    if tap.weight == 1.0 {
+                        for (o, &v) in xrow.iter_mut().zip(src) {
+                            *o += v;
+                        }
+                    } else {
+                        let wt = tap.weight;
+                        for (o, &v) in xrow.iter_mut().zip(src) {
+                            *o += wt * v;
+                        }
+                    }
+                }
+                for (o, &m) in xrow.iter_mut().zip(self.mask.row(r)) {
+                    *o *= m;
+                }
+            });
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::linop::adjoint_mismatch;
+    use crate::params::DispersionParams;
+    use crate::rng::Rng;
+
+    fn random_mask(rows: usize, cols: usize, seed: u64) -> Mask {
+        let mut rng = Rng::new(seed);
+        Frame::from_vec(
+            rows,
+            cols,
+            (0..rows * cols).map(|_| rng.uniform() as f32).collect(),
+        )
+        .unwrap()
+    }
+
+    #[test]
+    fn adjoint_identity_holds_for_both_models_and_many_geometries() {
+        let cases = [
+            (28, 2.0, 0.0, 17, 23),
+            (28, 2.04, 0.5, 16, 16),
+            (8, 1.37, -3.0, 12, 9),
+            (5, 3.0, 20.0, 30, 11),
+            (1, 2.0, 0.0, 4, 4),
+            (3, 0.6, 44.0, 6, 8),
+        ];
+        for (bands, a1, alpha, rows, cols) in cases {
+            for model in [DispersionModel::Rounded, DispersionModel::Subpixel] {
+                let d = Dispersion::new(
+                    bands,
+                    DispersionParams {
+                        a1,
+                        alpha_deg: alpha,
+                    },
+                    model,
+                )
+                .unwrap();
+                let op = CassiOperator::new(random_mask(rows, cols, 5), d).unwrap();
+                let e = adjoint_mismatch(&op, 9);
+                assert!(
+                    e < 1e-5,
+                    "{model:?} a1={a1} α={alpha}: adjoint mismatch {e}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn one_pixel_one_band_lands_at_its_offset() {
+        // band k of a pixel at (r, c) reaches detector column c + 2k (stride 2)
+        let mut mask = Frame::zeros(4, 5);
+        mask.set(1, 2, 1.0);
+        let op = CassiOperator::new(
+            mask,
+            Dispersion::nominal(3, 2.0, DispersionModel::Rounded).unwrap(),
+        )
+        .unwrap();
+        assert_eq!(op.measurement_shape(), (4, 5 + 4));
+        let mut cube = Cube::zeros(3, 4, 5);
+        cube.set(2, 1, 2, 0.5);
+        cube.set(0, 1, 2, 0.25);
+        cube.set(1, 0, 0, 7.0); // masked out (mask is 0 there)
+        let y = op.forward(&cube).unwrap();
+        assert_eq!(y.get(1, 2), 0.25);
+        assert_eq!(y.get(1, 6), 0.5);
+        assert_eq!(y.as_slice().iter().sum::<f32>(), 0.75);
+    }
+
+    #[test]
+    fn tilted_dispersion_moves_light_down_and_loses_it_past_the_last_row() {
+        // α = 45°, a1 = √2: band 1 moves (1 col, 1 row)
+        let d = Dispersion::new(
+            2,
+            DispersionParams {
+                a1: 2f64.sqrt(),
+                alpha_deg: 45.0,
+            },
+            DispersionModel::Rounded,
+        )
+        .unwrap();
+        let op = CassiOperator::new(Frame::from_vec(3, 3, vec![1.0; 9]).unwrap(), d).unwrap();
+        let mut cube = Cube::zeros(2, 3, 3);
+        cube.set(1, 0, 0, 1.0);
+        cube.set(1, 2, 0, 1.0); // would land on row 3: off the detector
+        let y = op.forward(&cube).unwrap();
+        assert_eq!(y.get(1, 1), 1.0);
+        assert_eq!(y.as_slice().iter().sum::<f32>(), 1.0);
+    }
+
+    #[test]
+    fn diag_aat_matches_explicit_columns() {
+        for model in [DispersionModel::Rounded, DispersionModel::Subpixel] {
+            let d = Dispersion::new(
+                4,
+                DispersionParams {
+                    a1: 1.3,
+                    alpha_deg: 7.0,
+                },
+                model,
+            )
+            .unwrap();
+            let op = CassiOperator::new(random_mask(5, 6, 2), d).unwrap();
+            let diag = op.diag_aat();
+            // (A Aᵀ)_jj = ‖Aᵀ e_j‖²
+            let mut e = vec![0.0f32; op.range_len()];
+            let mut col = vec![0.0f32; op.domain_len()];
+            for j in 0..op.range_len() {
+                e.fill(0.0);
+                e[j] = 1.0;
+                op.adjoint(&e, &mut col);
+                let want: f32 = col.iter().map(|v| v * v).sum();
+                assert!((diag.as_slice()[j] - want).abs() < 1e-5, "{model:?} j={j}");
+            }
+        }
+    }
+
+    #[test]
+    fn shape_and_range_errors_are_reported() {
+        let op = CassiOperator::new(
+            Frame::zeros(4, 4),
+            Dispersion::nominal(2, 2.0, DispersionModel::Rounded).unwrap(),
+        )
+        .unwrap();
+        let e = op.forward(&Cube::zeros(2, 5, 4)).unwrap_err().to_string();
+        assert!(e.contains("(2, 5, 4)") && e.contains("(2, 4, 4)"), "{e}");
+        let e = op
+            .back_project(&Frame::zeros(4, 4))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("4×4") && e.contains("4×6"), "{e}");
+        let bad = Frame::from_vec(1, 2, vec![0.0, 255.0]).unwrap();
+        let e = CassiOperator::new(
+            bad,
+            Dispersion::nominal(2, 2.0, DispersionModel::Rounded).unwrap(),
+        )
+        .unwrap_err();
+        assert!(e.to_string().contains("255"), "{e}");
+    }
+
+    #[test]
+    fn mismatch_operator_uses_the_warped_mask() {
+        let mut mask = Frame::zeros(6, 6);
+        mask.set(2, 2, 1.0);
+        let m = Mismatch {
+            dx: 1.0,
+            dy: 2.0,
+            theta_deg: 0.0,
+            a1: 2.0,
+            alpha_deg: 0.0,
+        };
+        let op = CassiOperator::with_mismatch(&mask, 3, &m, DispersionModel::Rounded).unwrap();
+        assert_eq!(op.mask().get(4, 3), 1.0);
+    }
+}
