@@ -84,7 +84,7 @@ impl Instrument {
                 expected: format!("{} values (one per band)", self.bands),
             });
         }
-        if self.wavelengths_nm.windows(2).any(|w| !(w[1] > w[0]))
+        if self.wavelengths_nm.windows(2).any(|w| w[1] <= w[0])
             || self.wavelengths_nm.iter().any(|w| !w.is_finite())
         {
             return Err(CassiError::InvalidParameter {
