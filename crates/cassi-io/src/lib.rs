@@ -1,1 +1,46 @@
+//! File formats for cassi: MATLAB `.mat` (v5, compressed or not, and v7.3),
+//! NumPy `.npy`/`.npz`, PNG previews.
+//!
+//! * [`load_cube`], [`load_frame`], [`load_array`] read a variable, check its
+//!   shape and that it is finite, and return core types (f32, row-major).
+//! * [`save_cube`], [`save_frame`], [`save_array`] write `.npy`, `.npz` or
+//!   `.mat` (v5, single precision) chosen by extension, atomically.
+//! * [`describe`] lists what a file holds (`cassi info`).
+//! * [`write_frame_png16`], [`write_band_pngs`], [`write_rgb_png`] write PNGs;
+//!   [`write_atomic`] writes any bytes atomically.
+//!
+//! Conventions: MATLAB data are column-major and v7.3 stores them in HDF5 with
+//! the axes reversed; every reader here returns the shape the file's own tool
+//! shows (MATLAB `size`, NumPy `shape`) with values in C order. Cubes are
+//! (bands, rows, cols) in memory; `.mat` files store them as (rows, cols,
+//! bands), `.npy`/`.npz` as (bands, rows, cols) (see [`load_cube`]).
+//!
+//! Every error is an [`IoError`] whose message starts with the file path.
+//! No reader panics on malformed input, and every allocation is bounded by
+//! the data actually present (a lying header cannot trigger a huge one).
 
+mod array;
+mod atomic;
+mod describe;
+mod error;
+mod load;
+mod mat5;
+mod mat73;
+mod npy;
+mod open;
+mod png;
+
+pub use describe::{FileSummary, Stats, VariableSummary, describe};
+pub use error::{IoError, Result};
+pub use load::{
+    Array, CubeLayout, load_array, load_cube, load_frame, save_array, save_cube, save_frame,
+};
+pub use open::FileFormat;
+pub use png::{write_band_pngs, write_frame_png16, write_rgb_png};
+
+/// Writes `bytes` to `path` atomically (temporary file in the same directory,
+/// flushed, then renamed): a crash leaves the old file or the new one, never
+/// a partial one. For side files such as JSON records.
+pub fn write_atomic(path: impl AsRef<std::path::Path>, bytes: &[u8]) -> Result<()> {
+    atomic::write_bytes(path.as_ref(), bytes)
+}

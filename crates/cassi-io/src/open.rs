@@ -1,0 +1,237 @@
+//! Opening a file of any supported format as a list of variables.
+
+use std::path::Path;
+
+use serde::Serialize;
+
+use crate::array::{VarInfo, list_vars};
+use crate::error::{IoError, Result};
+use crate::mat5::Mat5;
+use crate::mat73::Mat73;
+use crate::npy::{Npy, Npz};
+
+/// The file formats cassi reads.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub enum FileFormat {
+    /// MATLAB Level 5 MAT-file (`-v6`/`-v7`, compressed or not).
+    #[serde(rename = "mat-v5")]
+    MatV5,
+    /// MATLAB v7.3 MAT-file (HDF5 behind a 512-byte MATLAB header).
+    #[serde(rename = "mat-v7.3")]
+    MatV73,
+    /// NumPy `.npy`.
+    #[serde(rename = "npy")]
+    Npy,
+    /// NumPy `.npz` (zip of `.npy`).
+    #[serde(rename = "npz")]
+    Npz,
+}
+
+impl std::fmt::Display for FileFormat {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            FileFormat::MatV5 => "MATLAB v5 MAT-file",
+            FileFormat::MatV73 => "MATLAB v7.3 MAT-file (HDF5)",
+            FileFormat::Npy => "NumPy .npy",
+            FileFormat::Npz => "NumPy .npz",
+        })
+    }
+}
+
+/// The format family an extension names (before looking at a .mat's header).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Ext {
+    Mat,
+    Npy,
+    Npz,
+}
+
+pub(crate) fn extension(path: &Path, for_writing: bool) -> Result<Ext> {
+    let ext = path.extension().map(|e| e.to_string_lossy().to_lowercase());
+    match ext.as_deref() {
+        Some("mat") => Ok(Ext::Mat),
+        Some("npy") => Ok(Ext::Npy),
+        Some("npz") => Ok(Ext::Npz),
+        other => {
+            let what = match other {
+                Some(e) => format!("the extension '.{e}' is not one of"),
+                None => "the file name has no extension; expected one of".to_string(),
+            };
+            Err(IoError::UnknownFormat {
+                path: path.to_path_buf(),
+                detail: format!(
+                    "{what} .mat, .npy, .npz{}",
+                    if for_writing {
+                        " (choose the output format by extension)"
+                    } else {
+                        ""
+                    }
+                ),
+            })
+        }
+    }
+}
+
+/// An opened file.
+pub(crate) enum Opened {
+    Mat5(Mat5),
+    Mat73(Mat73),
+    Npy(Npy),
+    Npz(Npz),
+}
+
+fn read_all(path: &Path) -> Result<Vec<u8>> {
+    if path.is_dir() {
+        return Err(IoError::InvalidArgument {
+            path: path.to_path_buf(),
+            reason: "is a directory, not a file".into(),
+        });
+    }
+    std::fs::read(path).map_err(|e| IoError::from_read(path, e))
+}
+
+const HDF5_MAGIC: &[u8; 8] = b"\x89HDF\r\n\x1a\n";
+
+impl Opened {
+    pub(crate) fn open(path: &Path) -> Result<Self> {
+        match extension(path, false)? {
+            Ext::Npy => Ok(Opened::Npy(Npy::parse(path, read_all(path)?)?)),
+            Ext::Npz => {
+                if !path.exists() {
+                    return Err(IoError::NotFound {
+                        path: path.to_path_buf(),
+                    });
+                }
+                Ok(Opened::Npz(Npz::open(path)?))
+            }
+            Ext::Mat => {
+                let bytes = read_all(path)?;
+                let is_hdf5 = |at: usize| bytes.get(at..at + 8) == Some(&HDF5_MAGIC[..]);
+                let v73_text = bytes.starts_with(b"MATLAB 7.3");
+                if is_hdf5(0) || is_hdf5(512) || (v73_text && bytes.len() >= 128) {
+                    return Ok(Opened::Mat73(Mat73::parse(path, bytes)?));
+                }
+                if bytes.len() < 128 {
+                    return Err(if bytes.starts_with(b"MATLAB") || bytes.is_empty() {
+                        IoError::Truncated {
+                            path: path.to_path_buf(),
+                            format: "MATLAB MAT-file",
+                            detail: format!(
+                                "{} bytes, shorter than the 128-byte header",
+                                bytes.len()
+                            ),
+                        }
+                    } else {
+                        IoError::Corrupt {
+                            path: path.to_path_buf(),
+                            format: "MATLAB MAT-file",
+                            detail: format!("only {} bytes and no MATLAB header", bytes.len()),
+                        }
+                    });
+                }
+                if crate::mat5::header_endian(&bytes).is_some() {
+                    return Ok(Opened::Mat5(Mat5::parse(path, bytes)?));
+                }
+                let detail = if bytes.starts_with(b"MATLAB") {
+                    "the MATLAB header has an unknown version (supported: v5/v6/v7 and v7.3)"
+                        .to_string()
+                } else {
+                    "no MATLAB v5 header and no HDF5 signature (MATLAB v4 files and text files are not supported)"
+                        .to_string()
+                };
+                Err(IoError::Corrupt {
+                    path: path.to_path_buf(),
+                    format: "MATLAB MAT-file",
+                    detail,
+                })
+            }
+        }
+    }
+
+    pub(crate) fn format(&self) -> FileFormat {
+        match self {
+            Opened::Mat5(_) => FileFormat::MatV5,
+            Opened::Mat73(_) => FileFormat::MatV73,
+            Opened::Npy(_) => FileFormat::Npy,
+            Opened::Npz(_) => FileFormat::Npz,
+        }
+    }
+
+    pub(crate) fn vars(&self) -> Vec<VarInfo> {
+        match self {
+            Opened::Mat5(m) => m.vars(),
+            Opened::Mat73(m) => m.vars(),
+            Opened::Npy(n) => n.vars(),
+            Opened::Npz(n) => n.vars(),
+        }
+    }
+
+    /// Decodes variable `i` (an index into `vars()`) into C-order f64 values.
+    pub(crate) fn read(&mut self, path: &Path, i: usize) -> Result<Vec<f64>> {
+        match self {
+            Opened::Mat5(m) => m.read(path, i),
+            Opened::Mat73(m) => m.read(path, i),
+            Opened::Npy(n) => n.read(path),
+            Opened::Npz(n) => n.read(path, i),
+        }
+    }
+
+    /// Picks the variable to load: by name, or the only numeric one.
+    pub(crate) fn select(&self, path: &Path, var: Option<&str>) -> Result<(usize, VarInfo)> {
+        let vars = self.vars();
+        let chosen = match var {
+            // A .npy holds one unnamed array: any name selects it.
+            Some(_) if matches!(self, Opened::Npy(_)) => vars.first().map(|v| (0, v.clone())),
+            Some(name) => vars
+                .iter()
+                .position(|v| v.name == name)
+                .map(|i| (i, vars[i].clone())),
+            None => {
+                let numeric: Vec<usize> = (0..vars.len()).filter(|&i| vars[i].numeric).collect();
+                match numeric.as_slice() {
+                    [i] => Some((*i, vars[*i].clone())),
+                    [] if vars.is_empty() => {
+                        return Err(IoError::AmbiguousVariable {
+                            path: path.to_path_buf(),
+                            reason: "the file holds no variables".into(),
+                            present: list_vars(&vars),
+                        });
+                    }
+                    [] => {
+                        return Err(IoError::AmbiguousVariable {
+                            path: path.to_path_buf(),
+                            reason: "the file holds no numeric variable".into(),
+                            present: list_vars(&vars),
+                        });
+                    }
+                    many => {
+                        return Err(IoError::AmbiguousVariable {
+                            path: path.to_path_buf(),
+                            reason: format!(
+                                "no variable name given and the file holds {} numeric variables",
+                                many.len()
+                            ),
+                            present: list_vars(&vars),
+                        });
+                    }
+                }
+            }
+        };
+        let Some((i, info)) = chosen else {
+            return Err(IoError::VariableNotFound {
+                path: path.to_path_buf(),
+                name: var.unwrap_or_default().to_string(),
+                present: list_vars(&vars),
+            });
+        };
+        if !info.numeric {
+            return Err(IoError::UnsupportedType {
+                path: path.to_path_buf(),
+                name: info.name.clone(),
+                dtype: info.dtype.clone(),
+                hint: info.note.clone(),
+            });
+        }
+        Ok((i, info))
+    }
+}
