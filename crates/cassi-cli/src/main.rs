@@ -1,1 +1,58 @@
-fn main() {}
+//! `cassi`: the command line. Each subcommand parses its arguments, calls the
+//! library, and writes files; no science happens here.
+
+mod commands;
+mod report;
+mod sidecar;
+
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+use report::Reporter;
+
+#[derive(Parser)]
+#[command(
+    name = "cassi",
+    version,
+    about = "Coded aperture snapshot spectral imaging: simulate, reconstruct and self-calibrate CASSI",
+    long_about = None
+)]
+struct Cli {
+    /// Print nothing but errors.
+    #[arg(long, short, global = true)]
+    quiet: bool,
+    /// Print one JSON object with the results on stdout (for scripts).
+    #[arg(long, global = true)]
+    json: bool,
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Simulate a CASSI measurement of a scene through a (mis)aligned instrument.
+    Simulate(commands::simulate::SimulateArgs),
+    /// Describe what is in a .mat, .npy or .npz file.
+    Info(commands::info::InfoArgs),
+    /// Run the whole story on the embedded synthetic scene (no files needed).
+    Demo(commands::demo::DemoArgs),
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let reporter = Reporter::new(cli.quiet, cli.json);
+    let result = match &cli.command {
+        Command::Simulate(args) => commands::simulate::run(args, &reporter),
+        Command::Info(args) => commands::info::run(args, &reporter),
+        Command::Demo(args) => commands::demo::run(args, &reporter),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            reporter.clear();
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}

@@ -13,9 +13,22 @@ fn median(mut v: Vec<f64>) -> f64 {
     v[v.len() / 2]
 }
 
-fn case(size: usize, bands: usize, params: DispersionParams, model: DispersionModel, runs: usize) -> serde_json::Value {
+fn case(
+    size: usize,
+    bands: usize,
+    params: DispersionParams,
+    model: DispersionModel,
+    runs: usize,
+) -> serde_json::Value {
     let mut rng = Rng::new(1);
-    let mask = Frame::from_vec(size, size, (0..size * size).map(|_| (rng.uniform() < 0.5) as u8 as f32).collect()).unwrap();
+    let mask = Frame::from_vec(
+        size,
+        size,
+        (0..size * size)
+            .map(|_| (rng.uniform() < 0.5) as u8 as f32)
+            .collect(),
+    )
+    .unwrap();
     let op = CassiOperator::new(mask, Dispersion::new(bands, params, model).unwrap()).unwrap();
     let x: Vec<f32> = (0..op.domain_len()).map(|_| rng.uniform() as f32).collect();
     let mut y = vec![0.0f32; op.range_len()];
@@ -52,8 +65,14 @@ fn case(size: usize, bands: usize, params: DispersionParams, model: DispersionMo
 }
 
 fn main() {
-    let nominal = DispersionParams { a1: 2.0, alpha_deg: 0.0 };
-    let paper = DispersionParams { a1: 2.04, alpha_deg: 0.5 };
+    let nominal = DispersionParams {
+        a1: 2.0,
+        alpha_deg: 0.0,
+    };
+    let paper = DispersionParams {
+        a1: 2.04,
+        alpha_deg: 0.5,
+    };
     let mut rows = Vec::new();
     for (size, runs) in [(256, 200), (660, 40)] {
         rows.push(case(size, 28, nominal, DispersionModel::Rounded, runs));
@@ -62,15 +81,24 @@ fn main() {
     }
     let cpu = std::fs::read_to_string("/proc/cpuinfo")
         .ok()
-        .and_then(|s| s.lines().find(|l| l.starts_with("model name")).map(|l| l.split(':').nth(1).unwrap_or("").trim().to_string()))
+        .and_then(|s| {
+            s.lines()
+                .find(|l| l.starts_with("model name"))
+                .map(|l| l.split(':').nth(1).unwrap_or("").trim().to_string())
+        })
         .unwrap_or_else(|| "unknown".into());
     let out = serde_json::json!({
         "benchmark": "CASSI operator forward + adjoint",
         "machine": { "cpu": cpu, "threads": rayon::current_num_threads() },
         "results": rows,
     });
-    let path = std::env::var("CASSI_BENCH_OUT")
-        .unwrap_or_else(|_| concat!(env!("CARGO_MANIFEST_DIR"), "/../../bench/results/operator.json").into());
+    let path = std::env::var("CASSI_BENCH_OUT").unwrap_or_else(|_| {
+        concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../bench/results/operator.json"
+        )
+        .into()
+    });
     std::fs::write(&path, serde_json::to_string_pretty(&out).unwrap() + "\n").unwrap();
     eprintln!("wrote {path}");
 }

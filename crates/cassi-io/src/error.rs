@@ -17,19 +17,17 @@ pub enum IoError {
     NotFound { path: PathBuf },
 
     /// The operating system refused or failed a read.
-    #[error("{}: cannot read: {source}", .path.display())]
+    #[error("{}: cannot read: {cause}", .path.display())]
     Read {
         path: PathBuf,
-        #[source]
-        source: std::io::Error,
+        cause: std::io::Error,
     },
 
     /// The operating system refused or failed a write (nothing was left at `path`).
-    #[error("{}: cannot write: {source}", .path.display())]
+    #[error("{}: cannot write: {cause}", .path.display())]
     Write {
         path: PathBuf,
-        #[source]
-        source: std::io::Error,
+        cause: std::io::Error,
     },
 
     /// The file ends before the data its headers announce.
@@ -123,12 +121,8 @@ pub enum IoError {
     InvalidArgument { path: PathBuf, reason: String },
 
     /// An error of the science layer while building a core type from file data.
-    #[error("{}: {source}", .path.display())]
-    Core {
-        path: PathBuf,
-        #[source]
-        source: CassiError,
-    },
+    #[error("{}: {cause}", .path.display())]
+    Core { path: PathBuf, cause: CassiError },
 }
 
 fn hint_suffix(hint: &str) -> String {
@@ -170,7 +164,7 @@ impl IoError {
         } else {
             IoError::Read {
                 path: path.to_path_buf(),
-                source,
+                cause: source,
             }
         }
     }
@@ -178,14 +172,14 @@ impl IoError {
     pub(crate) fn write(path: &Path, source: std::io::Error) -> Self {
         IoError::Write {
             path: path.to_path_buf(),
-            source,
+            cause: source,
         }
     }
 
     pub(crate) fn core(path: &Path, source: CassiError) -> Self {
         IoError::Core {
             path: path.to_path_buf(),
-            source,
+            cause: source,
         }
     }
 }

@@ -38,6 +38,12 @@ pub use load::{
 pub use open::FileFormat;
 pub use png::{write_band_pngs, write_frame_png16, write_rgb_png};
 
+/// Checks that `path` has an extension cassi can write (.npy, .npz, .mat),
+/// so a command can refuse a bad output name before doing any work.
+pub fn check_output_format(path: impl AsRef<std::path::Path>) -> Result<()> {
+    open::extension(path.as_ref(), true).map(|_| ())
+}
+
 /// Writes `bytes` to `path` atomically (temporary file in the same directory,
 /// flushed, then renamed): a crash leaves the old file or the new one, never
 /// a partial one. For side files such as JSON records.

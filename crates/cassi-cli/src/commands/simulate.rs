@@ -1,0 +1,127 @@
+//! `cassi simulate`: scene + mask + mismatch + noise → measurement + sidecar.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::Context;
+use cassi_core::optics::{SimulationSpec, simulate};
+use cassi_core::{Cube, Instrument, Mask, Measurement};
+use clap::Args;
+
+use super::inputs::{
+    InstrumentArgs, MaskArgs, MismatchArgs, NoiseArgs, SceneArgs, load_mask, load_scene,
+};
+use crate::report::Reporter;
+use crate::sidecar::{MeasurementInfo, SimulationRecord, Source, sidecar_path};
+
+#[derive(Args)]
+pub struct SimulateArgs {
+    #[command(flatten)]
+    pub scene: SceneArgs,
+    #[command(flatten)]
+    pub mask: MaskArgs,
+    #[command(flatten)]
+    pub instrument: InstrumentArgs,
+    #[command(flatten)]
+    pub mismatch: MismatchArgs,
+    #[command(flatten)]
+    pub noise: NoiseArgs,
+    /// Output measurement (.npy, .npz or .mat); a JSON sidecar goes beside it.
+    #[arg(long, short)]
+    pub output: PathBuf,
+    /// Also write a 16-bit PNG preview of the measurement beside it.
+    #[arg(long)]
+    pub preview: bool,
+}
+
+/// The inputs of one simulation, already loaded.
+pub struct SimulationInputs {
+    pub scene: Cube,
+    pub scene_source: Source,
+    pub mask: Mask,
+    pub mask_source: Source,
+    pub instrument: Instrument,
+    pub spec: SimulationSpec,
+}
+
+/// Simulates, writes the measurement, its sidecar and (optionally) a PNG preview.
+pub fn simulate_and_write(
+    inputs: &SimulationInputs,
+    output: &Path,
+    preview: bool,
+    reporter: &Reporter,
+) -> anyhow::Result<(Measurement, SimulationRecord)> {
+    check_output(output)?;
+    let measurement = reporter.stage("simulating the measurement", || {
+        Ok(simulate(&inputs.scene, &inputs.mask, &inputs.spec)?)
+    })?;
+    reporter.stage("writing the measurement", || {
+        Ok(cassi_io::save_frame(output, &measurement, "measurement")?)
+    })?;
+    let (min, max) = measurement
+        .as_slice()
+        .iter()
+        .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &v| {
+            (lo.min(v), hi.max(v))
+        });
+    let record = SimulationRecord {
+        cassi_version: env!("CARGO_PKG_VERSION").to_string(),
+        scene: inputs.scene_source.clone(),
+        mask: inputs.mask_source.clone(),
+        instrument: inputs.instrument.clone(),
+        simulation: inputs.spec,
+        measurement: MeasurementInfo {
+            path: output.to_path_buf(),
+            shape: [measurement.rows(), measurement.cols()],
+            min,
+            max,
+        },
+    };
+    let text = serde_json::to_string_pretty(&record).context("serialising the sidecar")? + "\n";
+    cassi_io::write_atomic(&sidecar_path(output), text.as_bytes())?;
+    if preview {
+        cassi_io::write_frame_png16(&output.with_extension("png"), &measurement, None)?;
+    }
+    Ok((measurement, record))
+}
+
+/// Refuses an output name cassi cannot write, before any work, and creates
+/// its folder.
+pub fn check_output(output: &Path) -> anyhow::Result<()> {
+    cassi_io::check_output_format(output)?;
+    if let Some(dir) = output.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir)
+            .with_context(|| format!("cannot create the folder {}", dir.display()))?;
+    }
+    Ok(())
+}
+
+pub fn run(args: &SimulateArgs, reporter: &Reporter) -> anyhow::Result<()> {
+    check_output(&args.output)?;
+    // Parameters first: a typo should not cost a scene load.
+    let spec = SimulationSpec {
+        mismatch: args.mismatch.mismatch(args.instrument.stride)?,
+        model: args.mismatch.model,
+        noise: args.noise.noise()?,
+    };
+    let (scene, scene_source) = reporter.stage("loading the scene", || load_scene(&args.scene))?;
+    let (mask, mask_source) = load_mask(&args.mask, scene.rows(), scene.cols())?;
+    let instrument = Instrument::with_bands(scene.bands(), args.instrument.stride)?;
+    let inputs = SimulationInputs {
+        scene,
+        scene_source,
+        mask,
+        mask_source,
+        instrument,
+        spec,
+    };
+    let (measurement, record) = simulate_and_write(&inputs, &args.output, args.preview, reporter)?;
+    reporter.say(&format!(
+        "wrote {} ({}×{}) and {}",
+        args.output.display(),
+        measurement.rows(),
+        measurement.cols(),
+        sidecar_path(&args.output).display()
+    ));
+    reporter.emit(&serde_json::to_value(&record)?);
+    Ok(())
+}

@@ -1,0 +1,79 @@
+//! How the CLI talks to a person or a script: stage timings and spinners on
+//! stderr for people, one JSON object on stdout with `--json`, nothing but
+//! errors with `--quiet`.
+
+use std::io::IsTerminal;
+use std::time::{Duration, Instant};
+
+use indicatif::{ProgressBar, ProgressStyle};
+
+pub struct Reporter {
+    quiet: bool,
+    json: bool,
+    interactive: bool,
+    active: std::cell::RefCell<Option<ProgressBar>>,
+}
+
+impl Reporter {
+    pub fn new(quiet: bool, json: bool) -> Self {
+        Self {
+            quiet,
+            json,
+            interactive: !quiet && std::io::stderr().is_terminal(),
+            active: std::cell::RefCell::new(None),
+        }
+    }
+
+    pub fn json(&self) -> bool {
+        self.json
+    }
+
+    /// Runs `work`, showing a spinner while it runs (on a terminal) and its
+    /// duration after, on stderr.
+    pub fn stage<T>(
+        &self,
+        label: &str,
+        work: impl FnOnce() -> anyhow::Result<T>,
+    ) -> anyhow::Result<T> {
+        if self.interactive {
+            let bar = ProgressBar::new_spinner();
+            bar.set_style(
+                ProgressStyle::with_template("{spinner} {msg} {elapsed}").expect("static template"),
+            );
+            bar.set_message(label.to_string());
+            bar.enable_steady_tick(Duration::from_millis(100));
+            *self.active.borrow_mut() = Some(bar);
+        }
+        let t0 = Instant::now();
+        let out = work();
+        self.clear();
+        if out.is_ok() && !self.quiet {
+            eprintln!("  {label:<36} {:>8.2} s", t0.elapsed().as_secs_f64());
+        }
+        out
+    }
+
+    /// Removes any spinner (before printing an error).
+    pub fn clear(&self) {
+        if let Some(bar) = self.active.borrow_mut().take() {
+            bar.finish_and_clear();
+        }
+    }
+
+    /// Human-readable result text on stdout (not with --quiet or --json).
+    pub fn say(&self, text: &str) {
+        if !self.quiet && !self.json {
+            println!("{text}");
+        }
+    }
+
+    /// The machine-readable result on stdout, with --json.
+    pub fn emit(&self, value: &serde_json::Value) {
+        if self.json {
+            println!(
+                "{}",
+                serde_json::to_string_pretty(value).unwrap_or_else(|_| value.to_string())
+            );
+        }
+    }
+}

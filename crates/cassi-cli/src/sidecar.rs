@@ -1,0 +1,60 @@
+//! The JSON record written beside every simulated measurement: everything
+//! needed to reproduce it.
+
+use std::path::{Path, PathBuf};
+
+use cassi_core::Instrument;
+use cassi_core::optics::SimulationSpec;
+use serde::{Deserialize, Serialize};
+
+/// Where an input array came from.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "lowercase")]
+pub enum Source {
+    File {
+        path: PathBuf,
+        variable: Option<String>,
+        /// The array's shape as used: (bands, rows, cols) or (rows, cols).
+        shape: Vec<usize>,
+    },
+    /// The embedded procedural scene.
+    Synthetic {
+        seed: u64,
+        rows: usize,
+        cols: usize,
+        bands: usize,
+    },
+    /// An i.i.d. binary mask.
+    Random {
+        seed: u64,
+        open_fraction: f64,
+        rows: usize,
+        cols: usize,
+    },
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct MeasurementInfo {
+    pub path: PathBuf,
+    /// (rows, detector cols).
+    pub shape: [usize; 2],
+    pub min: f32,
+    pub max: f32,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct SimulationRecord {
+    pub cassi_version: String,
+    pub scene: Source,
+    pub mask: Source,
+    /// The nominal instrument (what a reconstructor assumes).
+    pub instrument: Instrument,
+    /// The true instrument and the noise.
+    pub simulation: SimulationSpec,
+    pub measurement: MeasurementInfo,
+}
+
+/// `out/meas.npy` → `out/meas.json`.
+pub fn sidecar_path(measurement: &Path) -> PathBuf {
+    measurement.with_extension("json")
+}

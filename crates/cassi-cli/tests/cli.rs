@@ -1,0 +1,367 @@
+//! The `cassi` binary end to end: happy paths, reproducibility, and a clear
+//! error with exit code 1 (never a panic, never a partial output) for each
+//! kind of bad input.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use cassi_core::optics::{DispersionModel, NoiseModel, SimulationSpec, simulate};
+use cassi_core::synth::{SceneSpec, random_binary_mask, synthetic_scene};
+use cassi_core::{Cube, Mismatch};
+
+fn cassi(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_cassi"))
+        .args(args)
+        .output()
+        .expect("the cassi binary runs")
+}
+
+/// A fresh, empty folder for one test.
+fn scratch(name: &str) -> PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join("cli-tests")
+        .join(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// Runs a command that must fail: exit code 1, stderr containing every
+/// `needle`, and `output` not created.
+fn assert_fails(args: &[&str], needles: &[&str], output: &Path) {
+    let out = cassi(args);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(
+        out.status.code(),
+        Some(1),
+        "args {args:?}\nstderr: {stderr}"
+    );
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    for n in needles {
+        assert!(stderr.contains(n), "expected '{n}' in: {stderr}");
+    }
+    assert!(
+        !output.exists(),
+        "{} was written despite the error",
+        output.display()
+    );
+}
+
+#[test]
+fn demo_writes_measurement_sidecar_and_previews() {
+    let dir = scratch("demo");
+    let out = cassi(&["demo", "--out", s(&dir), "--json"]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let report: serde_json::Value =
+        serde_json::from_slice(&out.stdout).expect("--json prints one JSON object");
+    assert_eq!(
+        report["simulation"]["measurement"]["shape"],
+        serde_json::json!([256, 311])
+    );
+    assert!(report["measurement_snr_db"].as_f64().unwrap() > 30.0);
+    for f in [
+        "measurement.npy",
+        "measurement.json",
+        "measurement.png",
+        "scene.npy",
+        "mask.npy",
+        "scene_rgb.png",
+        "mask.png",
+    ] {
+        assert!(dir.join(f).is_file(), "missing {f}");
+    }
+    let sidecar: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("measurement.json")).unwrap()).unwrap();
+    assert_eq!(sidecar["simulation"]["mismatch"]["theta_deg"], 0.3);
+    assert_eq!(sidecar["simulation"]["model"], "rounded");
+}
+
+#[test]
+fn simulate_reproduces_the_library_and_itself() {
+    let dir = scratch("simulate");
+    let meas = dir.join("meas.npy");
+    let args = [
+        "simulate",
+        "--synthetic",
+        "--size",
+        "48",
+        "--bands",
+        "8",
+        "--scene-seed",
+        "3",
+        "--random-mask",
+        "--mask-seed",
+        "4",
+        "--dx",
+        "-0.7",
+        "--dy",
+        "1.2",
+        "--theta",
+        "0.4",
+        "--a1",
+        "2.1",
+        "--alpha",
+        "-0.5",
+        "--model",
+        "subpixel",
+        "--noise-seed",
+        "9",
+        "-o",
+        s(&meas),
+        "--quiet",
+    ];
+    let out = cassi(&args);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        out.stdout.is_empty() && out.stderr.is_empty(),
+        "--quiet printed something"
+    );
+    let first = std::fs::read(&meas).unwrap();
+    assert!(cassi(&args).status.success());
+    assert_eq!(
+        first,
+        std::fs::read(&meas).unwrap(),
+        "same arguments, different bytes"
+    );
+
+    // the file holds exactly what the library computes
+    let wavelengths = cassi_core::Instrument::with_bands(8, 2.0)
+        .unwrap()
+        .wavelengths_nm;
+    let scene = synthetic_scene(&SceneSpec {
+        rows: 48,
+        cols: 48,
+        wavelengths_nm: wavelengths,
+        seed: 3,
+    })
+    .unwrap();
+    let mask = random_binary_mask(48, 48, 0.5, 4).unwrap();
+    let spec = SimulationSpec {
+        mismatch: Mismatch {
+            dx: -0.7,
+            dy: 1.2,
+            theta_deg: 0.4,
+            a1: 2.1,
+            alpha_deg: -0.5,
+        },
+        model: DispersionModel::Subpixel,
+        noise: Some(NoiseModel {
+            seed: 9,
+            ..NoiseModel::default()
+        }),
+    };
+    let want = simulate(&scene, &mask, &spec).unwrap();
+    assert_eq!(cassi_io::load_frame(&meas, None).unwrap(), want);
+
+    let sidecar: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("meas.json")).unwrap()).unwrap();
+    let back: SimulationSpec = serde_json::from_value(sidecar["simulation"].clone()).unwrap();
+    assert_eq!(back, spec, "the sidecar does not record the simulation");
+
+    let info = cassi(&["info", s(&meas)]);
+    let text = String::from_utf8_lossy(&info.stdout);
+    assert!(info.status.success() && text.contains("48×63"), "{text}");
+}
+
+fn write_scene(path: &Path, cube: &Cube) {
+    cassi_io::save_cube(path, cube, "scene").unwrap();
+}
+
+#[test]
+fn missing_truncated_and_corrupt_files_are_clear_errors() {
+    let dir = scratch("bad-files");
+    let out = dir.join("out.npy");
+    assert_fails(
+        &[
+            "simulate",
+            "--scene",
+            s(&dir.join("nope.npy")),
+            "--random-mask",
+            "-o",
+            s(&out),
+        ],
+        &["nope.npy", "no such file"],
+        &out,
+    );
+
+    let good = dir.join("good.npy");
+    write_scene(&good, &Cube::zeros(4, 16, 16));
+    let bytes = std::fs::read(&good).unwrap();
+    let truncated = dir.join("truncated.npy");
+    std::fs::write(&truncated, &bytes[..bytes.len() / 2]).unwrap();
+    assert_fails(
+        &[
+            "simulate",
+            "--scene",
+            s(&truncated),
+            "--random-mask",
+            "-o",
+            s(&out),
+        ],
+        &["truncated.npy", "truncated"],
+        &out,
+    );
+
+    let garbage = dir.join("garbage.mat");
+    std::fs::write(
+        &garbage,
+        b"this is not a MAT-file at all, just some text that goes on",
+    )
+    .unwrap();
+    assert_fails(&["info", s(&garbage)], &["garbage.mat"], &out);
+}
+
+#[test]
+fn unknown_variable_lists_what_the_file_holds() {
+    let dir = scratch("bad-var");
+    let scene = dir.join("scene.npz");
+    write_scene(&scene, &Cube::zeros(4, 16, 16));
+    let out = dir.join("out.npy");
+    assert_fails(
+        &[
+            "simulate",
+            "--scene",
+            s(&scene),
+            "--scene-var",
+            "cube",
+            "--random-mask",
+            "-o",
+            s(&out),
+        ],
+        &["scene.npz", "'cube'", "scene"],
+        &out,
+    );
+}
+
+#[test]
+fn wrong_dimensions_and_size_mismatch_name_both_shapes() {
+    let dir = scratch("bad-shape");
+    let out = dir.join("out.npy");
+    let flat = dir.join("flat.npy");
+    cassi_io::save_array(&flat, "flat", &[16, 16], &[0.0; 256]).unwrap();
+    assert_fails(
+        &[
+            "simulate",
+            "--scene",
+            s(&flat),
+            "--random-mask",
+            "-o",
+            s(&out),
+        ],
+        &["flat.npy", "16×16", "3-D"],
+        &out,
+    );
+
+    let scene = dir.join("scene.npy");
+    write_scene(&scene, &Cube::zeros(4, 16, 16));
+    let mask = dir.join("mask.npy");
+    cassi_io::save_array(&mask, "mask", &[16, 20], &[1.0; 320]).unwrap();
+    assert_fails(
+        &[
+            "simulate",
+            "--scene",
+            s(&scene),
+            "--mask",
+            s(&mask),
+            "-o",
+            s(&out),
+        ],
+        &["16×16", "16×20"],
+        &out,
+    );
+}
+
+#[test]
+fn non_finite_values_are_located() {
+    let dir = scratch("nan");
+    let out = dir.join("out.npy");
+    let scene = dir.join("scene.npy");
+    let mut data = vec![0.5f32; 4 * 16 * 16];
+    data[16 * 16 + 3 * 16 + 5] = f32::NAN; // band 1, row 3, col 5
+    cassi_io::save_array(&scene, "scene", &[4, 16, 16], &data).unwrap();
+    assert_fails(
+        &[
+            "simulate",
+            "--scene",
+            s(&scene),
+            "--random-mask",
+            "-o",
+            s(&out),
+        ],
+        &["scene.npy", "NaN"],
+        &out,
+    );
+}
+
+#[test]
+fn absurd_parameters_are_refused() {
+    let dir = scratch("absurd");
+    let out = dir.join("out.npy");
+    let base = [
+        "simulate",
+        "--synthetic",
+        "--size",
+        "16",
+        "--random-mask",
+        "-o",
+    ];
+    let cases: [(&[&str], &[&str]); 6] = [
+        (&["--theta", "46"], &["theta_deg", "45"]),
+        (&["--a1", "0"], &["a1", "positive"]),
+        (&["--a1", "-2"], &["a1"]),
+        (&["--bands", "0"], &["bands"]),
+        (&["--alpha", "90"], &["alpha_deg"]),
+        (&["--photon-peak", "-1"], &["photon_peak"]),
+    ];
+    for (extra, needles) in cases {
+        let mut args: Vec<&str> = base.to_vec();
+        args.push(s(&out));
+        args.extend_from_slice(extra);
+        assert_fails(&args, needles, &out);
+    }
+    assert_fails(
+        &[
+            "simulate",
+            "--synthetic",
+            "--random-mask",
+            "-o",
+            s(&dir.join("out.txt")),
+        ],
+        &["out.txt", ".npy"],
+        &dir.join("out.txt"),
+    );
+}
+
+#[test]
+fn an_eight_bit_mask_is_refused_with_advice() {
+    let dir = scratch("mask255");
+    let out = dir.join("out.npy");
+    let mask = dir.join("mask.npy");
+    cassi_io::save_array(&mask, "mask", &[16, 16], &[255.0; 256]).unwrap();
+    assert_fails(
+        &[
+            "simulate",
+            "--synthetic",
+            "--size",
+            "16",
+            "--mask",
+            s(&mask),
+            "-o",
+            s(&out),
+        ],
+        &["255"],
+        &out,
+    );
+}
