@@ -169,6 +169,14 @@ impl Frame {
     pub fn max(&self) -> f32 {
         self.data.iter().copied().fold(f32::NEG_INFINITY, f32::max)
     }
+    /// (min, max) of the values; (+∞, −∞) for an empty frame.
+    pub fn min_max(&self) -> (f32, f32) {
+        self.data
+            .iter()
+            .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &v| {
+                (lo.min(v), hi.max(v))
+            })
+    }
 
     /// Errors naming `what` and the first (row, col) that is NaN or ±Inf.
     pub fn check_finite(&self, what: &str) -> Result<()> {

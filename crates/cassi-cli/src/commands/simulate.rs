@@ -57,12 +57,7 @@ pub fn simulate_and_write(
     reporter.stage("writing the measurement", || {
         Ok(cassi_io::save_frame(output, &measurement, "measurement")?)
     })?;
-    let (min, max) = measurement
-        .as_slice()
-        .iter()
-        .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &v| {
-            (lo.min(v), hi.max(v))
-        });
+    let (min, max) = measurement.min_max();
     let record = SimulationRecord {
         cassi_version: env!("CARGO_PKG_VERSION").to_string(),
         scene: inputs.scene_source.clone(),

@@ -34,12 +34,7 @@ pub fn validate_mask(mask: &Mask, what: &str) -> Result<()> {
             "at least 1×1",
         ));
     }
-    let (lo, hi) = mask
-        .as_slice()
-        .iter()
-        .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &v| {
-            (lo.min(v), hi.max(v))
-        });
+    let (lo, hi) = mask.min_max();
     if lo < -MASK_RANGE_SLACK || hi > 1.0 + MASK_RANGE_SLACK {
         return Err(CassiError::InvalidParameter {
             name: "mask",
