@@ -7,6 +7,7 @@
 
 pub mod color;
 pub mod cube;
+pub mod denoise;
 pub mod error;
 pub mod instrument;
 pub mod linop;
@@ -14,9 +15,11 @@ pub mod metrics;
 pub mod optics;
 pub mod params;
 pub mod rng;
+pub mod solvers;
 pub mod synth;
 
 pub use cube::{Cube, Frame, Mask, Measurement};
+pub use denoise::Denoiser;
 pub use error::{CassiError, Result};
 pub use instrument::{Instrument, STANDARD_WAVELENGTHS_NM};
 pub use linop::{LinearOperator, adjoint_mismatch};

@@ -1,0 +1,14 @@
+//! Denoisers: the prior step of plug-and-play solvers. TV (2-D per band,
+//! and spatio-spectral 3-D) now; learned denoisers plug in the same way.
+
+/// A denoiser of hyperspectral cubes, used as the prior step of GAP / ADMM.
+/// Holds its own scratch buffers (hence `&mut self`), so a solver loop
+/// allocates nothing.
+pub trait Denoiser: Send {
+    /// Denoises `cube` in place. `strength` is the denoiser's regularisation
+    /// knob (the TV weight λ for TV; the noise σ for a learned denoiser).
+    fn denoise(&mut self, cube: &mut crate::Cube, strength: f32);
+
+    /// A short name for reports ("tv-chambolle-2d").
+    fn name(&self) -> String;
+}

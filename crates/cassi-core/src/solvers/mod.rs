@@ -1,0 +1,1 @@
+//! Iterative reconstruction: GAP, ADMM and plug-and-play, written against [`crate::LinearOperator`].
