@@ -13,6 +13,10 @@ pub trait LinearOperator: Sync {
     fn apply(&self, x: &[f32], y: &mut [f32]);
     /// x ← Aᵀ y (overwrites x).
     fn adjoint(&self, y: &[f32], x: &mut [f32]);
+    /// diag(A Aᵀ), length m, where it is cheap to compute (GAP's normaliser).
+    fn diag_aat(&self) -> Option<Vec<f32>> {
+        None
+    }
 }
 
 /// The adjoint dot-product test: returns |⟨Ax, y⟩ − ⟨x, Aᵀy⟩| / (‖Ax‖‖y‖)

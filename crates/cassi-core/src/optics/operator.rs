@@ -169,6 +169,10 @@ impl LinearOperator for CassiOperator {
         h * wd
     }
 
+    fn diag_aat(&self) -> Option<Vec<f32>> {
+        Some(CassiOperator::diag_aat(self).into_vec())
+    }
+
     fn apply(&self, x: &[f32], y: &mut [f32]) {
         let (bands, rows, cols) = self.cube_shape();
         assert_eq!(x.len(), self.domain_len(), "CassiOperator::apply: x length");
