@@ -68,11 +68,11 @@ pub fn run(args: &DemoArgs, reporter: &Reporter) -> anyhow::Result<()> {
     let meas_path = args.out.join("measurement.npy");
     let (measurement, record) = simulate_and_write(&inputs, &meas_path, true, reporter)?;
     reporter.stage("writing previews", || {
-        cassi_io::save_cube(&args.out.join("scene.npy"), &inputs.scene, "scene")?;
-        cassi_io::save_frame(&args.out.join("mask.npy"), &inputs.mask, "mask")?;
-        cassi_io::write_frame_png16(&args.out.join("mask.png"), &inputs.mask, Some(1.0))?;
+        cassi_io::save_cube(args.out.join("scene.npy"), &inputs.scene, "scene")?;
+        cassi_io::save_frame(args.out.join("mask.npy"), &inputs.mask, "mask")?;
+        cassi_io::write_frame_png16(args.out.join("mask.png"), &inputs.mask, Some(1.0))?;
         let rgb = pseudo_rgb(&inputs.scene, &inputs.instrument.wavelengths_nm)?;
-        cassi_io::write_rgb_png(&args.out.join("scene_rgb.png"), &rgb)?;
+        cassi_io::write_rgb_png(args.out.join("scene_rgb.png"), &rgb)?;
         Ok(())
     })?;
     // How much the noise costs: SNR of the noisy snapshot against the clean one.
