@@ -32,7 +32,7 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     /// Simulate a CASSI measurement of a scene through a (mis)aligned instrument.
-    Simulate(commands::simulate::SimulateArgs),
+    Simulate(Box<commands::simulate::SimulateArgs>),
     /// Describe what is in a .mat, .npy or .npz file.
     Info(commands::info::InfoArgs),
     /// Run the whole story on the embedded synthetic scene (no files needed).

@@ -72,9 +72,9 @@ pub fn simulate_and_write(
         },
     };
     let text = serde_json::to_string_pretty(&record).context("serialising the sidecar")? + "\n";
-    cassi_io::write_atomic(&sidecar_path(output), text.as_bytes())?;
+    cassi_io::write_atomic(sidecar_path(output), text.as_bytes())?;
     if preview {
-        cassi_io::write_frame_png16(&output.with_extension("png"), &measurement, None)?;
+        cassi_io::write_frame_png16(output.with_extension("png"), &measurement, None)?;
     }
     Ok((measurement, record))
 }
