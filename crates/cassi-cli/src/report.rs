@@ -53,6 +53,24 @@ impl Reporter {
         out
     }
 
+    /// A progress bar over `len` steps (iterations), shown on a terminal only;
+    /// the returned closure advances it and the bar is cleared on drop.
+    pub fn progress(&self, label: &str, len: u64) -> Progress {
+        let bar = if self.interactive {
+            let bar = ProgressBar::new(len);
+            bar.set_style(
+                ProgressStyle::with_template("{msg} [{bar:30}] {pos}/{len} {elapsed} (ETA {eta})")
+                    .expect("static template")
+                    .progress_chars("=> "),
+            );
+            bar.set_message(label.to_string());
+            Some(bar)
+        } else {
+            None
+        };
+        Progress { bar }
+    }
+
     /// Removes any spinner (before printing an error).
     pub fn clear(&self) {
         if let Some(bar) = self.active.borrow_mut().take() {
@@ -74,6 +92,27 @@ impl Reporter {
                 "{}",
                 serde_json::to_string_pretty(value).unwrap_or_else(|_| value.to_string())
             );
+        }
+    }
+}
+
+/// A progress bar handle (a no-op when not on a terminal).
+pub struct Progress {
+    bar: Option<ProgressBar>,
+}
+
+impl Progress {
+    pub fn set(&self, pos: u64) {
+        if let Some(bar) = &self.bar {
+            bar.set_position(pos);
+        }
+    }
+}
+
+impl Drop for Progress {
+    fn drop(&mut self) {
+        if let Some(bar) = self.bar.take() {
+            bar.finish_and_clear();
         }
     }
 }

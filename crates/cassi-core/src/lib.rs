@@ -14,6 +14,7 @@ pub mod linop;
 pub mod metrics;
 pub mod optics;
 pub mod params;
+pub mod recon;
 pub mod rng;
 pub mod solvers;
 pub mod synth;

@@ -1,4 +1,5 @@
 pub mod demo;
 pub mod info;
 pub mod inputs;
+pub mod reconstruct;
 pub mod simulate;

@@ -12,3 +12,11 @@ pub trait Denoiser: Send {
     /// A short name for reports ("tv-chambolle-2d").
     fn name(&self) -> String;
 }
+
+pub mod tv;
+pub mod tv3d;
+pub use tv::{
+    TvChambolle2d, TvChambolleParams, TvScratch2d, isotropic_tv_2d, isotropic_tv_3d,
+    tv_chambolle_2d,
+};
+pub use tv3d::{TvChambolle3d, TvScratch3d, tv_chambolle_3d};

@@ -110,7 +110,6 @@ impl Admm {
         let t0 = Instant::now();
         let mut stop = StopReason::MaxIterations;
         let mut done = 0;
-        let mut last_residual = f64::NAN;
         for it in 0..p.iterations {
             // v = θ + b, kept in `x` until the update below
             for ((v, &t), &b) in self.x.iter_mut().zip(theta.as_slice()).zip(&self.dual) {
@@ -123,7 +122,7 @@ impl Admm {
                 res_sq += e as f64 * e as f64;
                 self.residual[i] = e * inv[i];
             }
-            last_residual = res_sq.sqrt() / y_norm;
+            let last_residual = res_sq.sqrt() / y_norm;
             // x = v + Aᵀ r (the step lands in θ's storage first: θ_old = v − b)
             op.adjoint(&self.residual, theta.as_mut_slice());
             for ((t, xv), &b) in theta
@@ -163,11 +162,19 @@ impl Admm {
                 break;
             }
         }
+        // the returned cube's own residual (the per-iteration one is of the
+        // point where the data term was linearised)
+        op.apply(theta.as_slice(), &mut self.y_hat);
+        let res_sq: f64 = y
+            .iter()
+            .zip(&self.y_hat)
+            .map(|(a, b)| ((a - b) as f64).powi(2))
+            .sum();
         Ok(Solution {
             cube: theta,
             iterations: done,
             stop,
-            relative_residual: last_residual,
+            relative_residual: res_sq.sqrt() / y_norm,
         })
     }
 }

@@ -103,7 +103,6 @@ impl Gap {
         let t0 = Instant::now();
         let mut stop = StopReason::MaxIterations;
         let mut done = 0;
-        let mut last_residual = f64::NAN;
         for it in 0..p.iterations {
             op.apply(x.as_slice(), &mut self.y_hat);
             let mut res_sq = 0.0f64;
@@ -118,7 +117,7 @@ impl Gap {
                 };
                 self.residual[i] = target * inv_phi[i];
             }
-            last_residual = res_sq.sqrt() / y_norm;
+            let last_residual = res_sq.sqrt() / y_norm;
             op.adjoint(&self.residual, &mut self.step);
             let (mut step_sq, mut x_sq) = (0.0f64, 0.0f64);
             for (xv, &s) in x.as_mut_slice().iter_mut().zip(&self.step) {
@@ -146,11 +145,19 @@ impl Gap {
                 break;
             }
         }
+        // the returned cube's own residual (the per-iteration one is of the
+        // point where the data term was linearised)
+        op.apply(x.as_slice(), &mut self.y_hat);
+        let res_sq: f64 = y
+            .iter()
+            .zip(&self.y_hat)
+            .map(|(a, b)| ((a - b) as f64).powi(2))
+            .sum();
         Ok(Solution {
             cube: x,
             iterations: done,
             stop,
-            relative_residual: last_residual,
+            relative_residual: res_sq.sqrt() / y_norm,
         })
     }
 }

@@ -37,7 +37,7 @@ pub struct Solution {
     pub cube: crate::Cube,
     pub iterations: usize,
     pub stop: StopReason,
-    /// ‖y − A x‖ / ‖y‖ at the last iteration's start.
+    /// ‖y − A x‖ / ‖y‖ of the returned cube.
     pub relative_residual: f64,
 }
 

@@ -9,7 +9,8 @@ pub struct IterationInfo {
     /// 1-based iteration number.
     pub iteration: usize,
     pub max_iterations: usize,
-    /// ‖y − A x‖ / ‖y‖ of the iterate entering this iteration.
+    /// ‖y − A v‖ / ‖y‖ at the point v where this iteration linearised the
+    /// data term (GAP: the incoming iterate; ADMM: θ + b).
     pub relative_residual: f64,
     /// ‖x_new − x_old‖ / ‖x_old‖.
     pub relative_change: f64,

@@ -1,0 +1,252 @@
+//! `cassi reconstruct`: measurement + mask (+ calibration) → cube, preview,
+//! and metrics against a truth cube when one is given.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{Context, bail};
+use cassi_core::color::pseudo_rgb;
+use cassi_core::metrics::{Metrics, evaluate};
+use cassi_core::optics::DispersionModel;
+use cassi_core::recon::{METHOD_NAMES, Method, reconstruct};
+use cassi_core::solvers::{Control, IterationInfo};
+use cassi_core::{Cube, Instrument, Mismatch};
+use clap::Args;
+use serde::Serialize;
+
+use super::inputs::LayoutArg;
+use super::simulate::check_output;
+use crate::report::Reporter;
+
+#[derive(Args)]
+pub struct ReconstructArgs {
+    /// The measurement (.mat, .npy, .npz): (rows, detector cols).
+    pub measurement: PathBuf,
+    /// Variable name inside the measurement file.
+    #[arg(long)]
+    pub meas_var: Option<String>,
+    /// The nominal coded aperture.
+    #[arg(long)]
+    pub mask: PathBuf,
+    #[arg(long)]
+    pub mask_var: Option<String>,
+    /// A calibration JSON (from `cassi calibrate`) or a simulation sidecar
+    /// (its true parameters: the oracle model). Without it: the nominal model.
+    #[arg(long)]
+    pub calibration: Option<PathBuf>,
+    /// Reconstruction method.
+    #[arg(long, default_value = "gap-tv", value_parser = METHOD_NAMES)]
+    pub method: String,
+    /// Override the method's iteration count.
+    #[arg(long)]
+    pub iterations: Option<usize>,
+    /// Override the method's denoiser strength (TV weight), constant.
+    #[arg(long)]
+    pub weight: Option<f32>,
+    /// Number of bands (default: from the measurement width and the stride).
+    #[arg(long)]
+    pub bands: Option<usize>,
+    /// Nominal dispersion stride, px per band.
+    #[arg(long, default_value_t = 2.0)]
+    pub stride: f64,
+    /// Dispersion model assumed for reconstruction (a calibration may set it).
+    #[arg(long)]
+    pub model: Option<DispersionModel>,
+    /// Output cube (.npy, .npz or .mat); a pseudo-RGB .png and a .json report go beside it.
+    #[arg(long, short)]
+    pub output: PathBuf,
+    /// Ground-truth cube, to report PSNR / SSIM / SAM.
+    #[arg(long)]
+    pub truth: Option<PathBuf>,
+    #[arg(long)]
+    pub truth_var: Option<String>,
+    /// Axis order of the truth cube.
+    #[arg(long, value_enum, default_value = "auto")]
+    pub layout: LayoutArg,
+}
+
+/// The model parameters and dispersion model a calibration or sidecar file gives.
+pub fn read_model_file(path: &Path) -> anyhow::Result<(Mismatch, Option<DispersionModel>)> {
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let v: serde_json::Value = serde_json::from_str(&text)
+        .with_context(|| format!("{}: not valid JSON", path.display()))?;
+    // a calibration has "parameters" (+ "model"); a simulation sidecar has "simulation"
+    let (params, model) = if let Some(p) = v.get("parameters") {
+        (p.clone(), v.get("model").cloned())
+    } else if let Some(sim) = v.get("simulation") {
+        (sim["mismatch"].clone(), sim.get("model").cloned())
+    } else {
+        bail!(
+            "{}: no \"parameters\" (calibration) or \"simulation\" (sidecar) object",
+            path.display()
+        );
+    };
+    let m: Mismatch = serde_json::from_value(params).with_context(|| {
+        format!(
+            "{}: the parameters need dx, dy, theta_deg, a1, alpha_deg",
+            path.display()
+        )
+    })?;
+    m.validate()
+        .with_context(|| format!("{}", path.display()))?;
+    let model = model
+        .map(serde_json::from_value)
+        .transpose()
+        .with_context(|| format!("{}: model", path.display()))?;
+    Ok((m, model))
+}
+
+#[derive(Serialize)]
+struct ReconstructionReport {
+    measurement: PathBuf,
+    mask: PathBuf,
+    calibration: Option<PathBuf>,
+    model_parameters: Mismatch,
+    dispersion_model: DispersionModel,
+    method: Method,
+    bands: usize,
+    iterations: usize,
+    stop: cassi_core::solvers::StopReason,
+    relative_residual: f64,
+    seconds: f64,
+    width_fitted: Option<(usize, usize)>,
+    /// Metrics of the reconstruction clipped to [0, 1] against the truth.
+    metrics: Option<Metrics>,
+    metric_definitions: Option<&'static str>,
+}
+
+pub fn run(args: &ReconstructArgs, reporter: &Reporter) -> anyhow::Result<()> {
+    check_output(&args.output)?;
+    let measurement = cassi_io::load_frame(&args.measurement, args.meas_var.as_deref())?;
+    let mask = cassi_io::load_frame(&args.mask, args.mask_var.as_deref())?;
+    cassi_core::optics::validate_mask(&mask, &format!("mask {}", args.mask.display()))?;
+    let (params, file_model) = match &args.calibration {
+        Some(path) => {
+            let (m, model) = read_model_file(path)?;
+            (m, model)
+        }
+        None => (Mismatch::nominal(args.stride), None),
+    };
+    let model = args.model.or(file_model).unwrap_or_default();
+    let bands = match args.bands {
+        Some(b) => b,
+        None => infer_bands(measurement.cols(), mask.cols(), args.stride).with_context(|| {
+            format!(
+                "{}: cannot infer the band count; pass --bands",
+                args.measurement.display()
+            )
+        })?,
+    };
+    let instrument = Instrument::with_bands(bands, args.stride)?;
+    let truth = match &args.truth {
+        Some(path) => Some(cassi_io::load_cube(
+            path,
+            args.truth_var.as_deref(),
+            args.layout.into(),
+        )?),
+        None => None,
+    };
+    let method = Method::by_name(&args.method)?.with_overrides(args.iterations, args.weight);
+    let max_iter = match method {
+        Method::GapTv { gap, .. } | Method::PnpTv { gap, .. } => gap.iterations,
+        Method::AdmmTv { admm, .. } => admm.iterations,
+    };
+
+    let progress = reporter.progress(&format!("{} ", method.name()), max_iter as u64);
+    let mut observer = |info: &IterationInfo| {
+        progress.set(info.iteration as u64);
+        Control::Continue
+    };
+    let t0 = Instant::now();
+    let recon = reporter.stage(&format!("reconstructing ({})", method.name()), || {
+        Ok(reconstruct(
+            &measurement,
+            &mask,
+            bands,
+            &params,
+            model,
+            &method,
+            &mut observer,
+        )?)
+    })?;
+    drop(progress);
+    let seconds = t0.elapsed().as_secs_f64();
+
+    let metrics = match &truth {
+        Some(t) => {
+            Some(evaluate(t, &clipped(&recon.cube)).with_context(|| "comparing with --truth")?)
+        }
+        None => None,
+    };
+    reporter.stage("writing the cube and preview", || {
+        cassi_io::save_cube(&args.output, &recon.cube, "cube")?;
+        let rgb = pseudo_rgb(&recon.cube, &instrument.wavelengths_nm)?;
+        cassi_io::write_rgb_png(args.output.with_extension("png"), &rgb)?;
+        Ok(())
+    })?;
+    let report = ReconstructionReport {
+        measurement: args.measurement.clone(),
+        mask: args.mask.clone(),
+        calibration: args.calibration.clone(),
+        model_parameters: params,
+        dispersion_model: model,
+        method,
+        bands,
+        iterations: recon.solution_iterations,
+        stop: recon.stop,
+        relative_residual: recon.relative_residual,
+        seconds,
+        width_fitted: recon.width_fitted,
+        metrics,
+        metric_definitions: metrics.map(|_| cassi_core::metrics::METRIC_DEFINITIONS),
+    };
+    let text = serde_json::to_string_pretty(&report)? + "\n";
+    cassi_io::write_atomic(args.output.with_extension("json"), text.as_bytes())?;
+
+    if let Some((got, want)) = recon.width_fitted {
+        reporter.say(&format!(
+            "note: the measurement has {got} columns, the model {want}: fitted on the right"
+        ));
+    }
+    let mut summary = format!(
+        "wrote {} ({}×{}×{}), {} iterations, residual {:.2e}, {seconds:.2} s",
+        args.output.display(),
+        bands,
+        mask.rows(),
+        mask.cols(),
+        recon.solution_iterations,
+        recon.relative_residual
+    );
+    if let Some(m) = metrics {
+        summary += &format!(
+            "\nPSNR {:.2} dB   SSIM {:.4}   SAM {:.2}°",
+            m.psnr, m.ssim, m.sam_deg
+        );
+    }
+    reporter.say(&summary);
+    reporter.emit(&serde_json::to_value(&report)?);
+    Ok(())
+}
+
+/// L such that (L − 1)·stride best explains the extra detector columns.
+fn infer_bands(det_cols: usize, mask_cols: usize, stride: f64) -> anyhow::Result<usize> {
+    if det_cols < mask_cols {
+        bail!(
+            "the measurement ({det_cols} columns) is narrower than the mask ({mask_cols} columns)"
+        );
+    }
+    if !(stride.is_finite() && stride > 0.0) {
+        bail!("--stride must be positive");
+    }
+    Ok(((det_cols - mask_cols) as f64 / stride).floor() as usize + 1)
+}
+
+/// A copy clipped to [0, 1], as the metrics' convention asks.
+pub fn clipped(cube: &Cube) -> Cube {
+    let mut c = cube.clone();
+    c.as_mut_slice()
+        .iter_mut()
+        .for_each(|v| *v = v.clamp(0.0, 1.0));
+    c
+}

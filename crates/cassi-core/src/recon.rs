@@ -1,0 +1,204 @@
+//! Reconstruction recipes: a measurement, the nominal mask and a model of
+//! the instrument (nominal or calibrated) in, a cube out. Each [`Method`]
+//! is a solver from [`crate::solvers`] with a denoiser and tuned defaults.
+
+use serde::{Deserialize, Serialize};
+
+use crate::cube::{Cube, Frame, Mask, Measurement};
+use crate::denoise::{Denoiser, TvChambolle2d, TvChambolle3d, TvChambolleParams};
+use crate::error::{CassiError, Result};
+use crate::optics::{CassiOperator, DispersionModel};
+use crate::params::Mismatch;
+use crate::solvers::{Admm, AdmmParams, Gap, GapParams, Observer, Solution, Strength};
+
+/// A reconstruction method with all its settings.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "method", rename_all = "kebab-case")]
+pub enum Method {
+    /// Accelerated GAP with per-band 2-D TV (Chambolle).
+    GapTv {
+        gap: GapParams,
+        tv_iterations: usize,
+    },
+    /// ADMM with per-band 2-D TV.
+    AdmmTv {
+        admm: AdmmParams,
+        tv_iterations: usize,
+    },
+    /// Plug-and-play GAP with spatio-spectral 3-D TV and a decreasing strength.
+    PnpTv {
+        gap: GapParams,
+        tv_iterations: usize,
+        /// Weight of the spectral gradient relative to the spatial ones.
+        spectral_weight: f32,
+    },
+}
+
+/// The names the CLI accepts.
+pub const METHOD_NAMES: [&str; 3] = ["gap-tv", "admm-tv", "pnp-tv"];
+
+impl Method {
+    /// The tuned defaults of a method by name (`gap-tv`, `admm-tv`, `pnp-tv`).
+    pub fn by_name(name: &str) -> Result<Self> {
+        match name {
+            "gap-tv" => Ok(Method::GapTv {
+                gap: GapParams::default(),
+                tv_iterations: 5,
+            }),
+            "admm-tv" => Ok(Method::AdmmTv {
+                admm: AdmmParams::default(),
+                tv_iterations: 5,
+            }),
+            "pnp-tv" => Ok(Method::PnpTv {
+                gap: GapParams {
+                    strength: Strength::Geometric {
+                        start: 0.3,
+                        end: 0.05,
+                    },
+                    ..GapParams::default()
+                },
+                tv_iterations: 5,
+                spectral_weight: 0.5,
+            }),
+            other => Err(CassiError::InvalidParameter {
+                name: "method",
+                value: f64::NAN,
+                reason: format!(
+                    "unknown method '{other}' (known: {})",
+                    METHOD_NAMES.join(", ")
+                ),
+            }),
+        }
+    }
+
+    pub fn name(&self) -> &'static str {
+        match self {
+            Method::GapTv { .. } => "gap-tv",
+            Method::AdmmTv { .. } => "admm-tv",
+            Method::PnpTv { .. } => "pnp-tv",
+        }
+    }
+
+    /// Overrides the iteration count and, if given, a constant strength.
+    pub fn with_overrides(mut self, iterations: Option<usize>, strength: Option<f32>) -> Self {
+        let apply = |it: &mut usize, s: &mut Strength| {
+            if let Some(n) = iterations {
+                *it = n;
+            }
+            if let Some(v) = strength {
+                *s = Strength::Constant { value: v };
+            }
+        };
+        match &mut self {
+            Method::GapTv { gap, .. } | Method::PnpTv { gap, .. } => {
+                apply(&mut gap.iterations, &mut gap.strength)
+            }
+            Method::AdmmTv { admm, .. } => apply(&mut admm.iterations, &mut admm.strength),
+        }
+        self
+    }
+}
+
+/// A reconstruction and the facts a report needs.
+#[derive(Debug, Clone)]
+pub struct Reconstruction {
+    pub cube: Cube,
+    pub solution_iterations: usize,
+    pub stop: crate::solvers::StopReason,
+    pub relative_residual: f64,
+    /// Detector columns of the measurement and of the model, when they
+    /// differed and the measurement was cropped or zero-padded on the right.
+    pub width_fitted: Option<(usize, usize)>,
+}
+
+/// Crops or zero-pads `measurement` on the right to `cols` columns: the
+/// model's detector width (a drifted a1 changes it by a column or two).
+pub fn fit_width(measurement: &Measurement, cols: usize) -> Frame {
+    let rows = measurement.rows();
+    let keep = cols.min(measurement.cols());
+    let mut out = Frame::zeros(rows, cols);
+    for r in 0..rows {
+        out.row_mut(r)[..keep].copy_from_slice(&measurement.row(r)[..keep]);
+    }
+    out
+}
+
+/// Reconstructs a cube of `bands` bands from `measurement`, taking the
+/// instrument to be `nominal_mask` moved and dispersed as `model_params`
+/// says (the nominal parameters, or a calibration's).
+pub fn reconstruct(
+    measurement: &Measurement,
+    nominal_mask: &Mask,
+    bands: usize,
+    model_params: &Mismatch,
+    model: DispersionModel,
+    method: &Method,
+    observer: &mut dyn Observer,
+) -> Result<Reconstruction> {
+    measurement.check_finite("measurement")?;
+    if measurement.rows() != nominal_mask.rows() {
+        return Err(crate::error::shape_error(
+            "measurement rows",
+            format!("{}", measurement.rows()),
+            format!("{} (the mask's rows)", nominal_mask.rows()),
+        ));
+    }
+    let op = CassiOperator::with_mismatch(nominal_mask, bands, model_params, model)?;
+    let (rows, det_cols) = op.measurement_shape();
+    let width_fitted = (measurement.cols() != det_cols).then_some((measurement.cols(), det_cols));
+    let fitted;
+    let y = if width_fitted.is_some() {
+        fitted = fit_width(measurement, det_cols);
+        &fitted
+    } else {
+        measurement
+    };
+    debug_assert_eq!(y.rows(), rows);
+    let shape = op.cube_shape();
+    let tv2d = |iters: usize| {
+        TvChambolle2d::new(TvChambolleParams {
+            max_iter: iters,
+            ..Default::default()
+        })
+    };
+    let solution: Solution = match *method {
+        Method::GapTv { gap, tv_iterations } => {
+            let mut d = tv2d(tv_iterations);
+            Gap::new(gap).solve(
+                &op,
+                y.as_slice(),
+                shape,
+                &mut d as &mut dyn Denoiser,
+                observer,
+            )?
+        }
+        Method::AdmmTv {
+            admm,
+            tv_iterations,
+        } => {
+            let mut d = tv2d(tv_iterations);
+            Admm::new(admm).solve(&op, y.as_slice(), shape, &mut d, observer)?
+        }
+        Method::PnpTv {
+            gap,
+            tv_iterations,
+            spectral_weight,
+        } => {
+            let mut d = TvChambolle3d::new(
+                TvChambolleParams {
+                    max_iter: tv_iterations,
+                    ..Default::default()
+                },
+                spectral_weight,
+            );
+            Gap::new(gap).solve(&op, y.as_slice(), shape, &mut d, observer)?
+        }
+    };
+    Ok(Reconstruction {
+        cube: solution.cube,
+        solution_iterations: solution.iterations,
+        stop: solution.stop,
+        relative_residual: solution.relative_residual,
+        width_fitted,
+    })
+}
