@@ -20,6 +20,14 @@ use cassi_core::solvers::Silent;
 use cassi_core::synth::{SceneSpec, random_binary_mask, synthetic_scene};
 use cassi_core::{Cube, Mismatch};
 
+/// The constant TV weight of a GAP-TV method (the reference runs the same).
+fn gap_weight(m: &Method) -> f32 {
+    match m {
+        Method::GapTv { gap, .. } => gap.strength.at(0, gap.iterations),
+        _ => f32::NAN,
+    }
+}
+
 fn clipped(c: &Cube) -> Cube {
     let mut c = c.clone();
     c.as_mut_slice()
@@ -165,6 +173,10 @@ fn main() -> anyhow::Result<()> {
                 &mask_path.to_string_lossy(),
             ])
             .args(["--out", &out_json.to_string_lossy()])
+            .args([
+                "--weight",
+                &gap_weight(&Method::by_name("gap-tv")?).to_string(),
+            ])
             .env("OMP_NUM_THREADS", "2")
             .env("OPENBLAS_NUM_THREADS", "2")
             .status()
@@ -174,7 +186,12 @@ fn main() -> anyhow::Result<()> {
                 "the NumPy reference failed (needs numpy, scipy, scikit-image; set CASSI_PYTHON)"
             );
         }
-        serde_json::from_str(&std::fs::read_to_string(&out_json)?)?
+        let text = std::fs::read_to_string(&out_json)?;
+        // kept apart too: the accuracy test compares against it
+        let kept =
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("../../bench/results/gap_tv_reference.json");
+        std::fs::write(kept, &text)?;
+        serde_json::from_str(&text)?
     };
     let comparison = if reference.is_null() {
         serde_json::Value::Null
