@@ -14,7 +14,9 @@ use std::time::Instant;
 
 use serde::{Deserialize, Serialize};
 
-use super::common::{check_iterations, check_problem, norm_sq};
+use rayon::prelude::*;
+
+use super::common::{CHUNK, check_iterations, check_problem, lanes_dist_sq, lanes_dot, norm_sq};
 use super::observer::{Control, IterationInfo, Observer};
 use super::schedule::Strength;
 use super::{Solution, StopReason};
@@ -112,9 +114,16 @@ impl Admm {
         let mut done = 0;
         for it in 0..p.iterations {
             // v = θ + b, kept in `x` until the update below
-            for ((v, &t), &b) in self.x.iter_mut().zip(theta.as_slice()).zip(&self.dual) {
-                *v = t + b;
-            }
+            self.x
+                .par_chunks_mut(CHUNK)
+                .zip(theta.as_slice().par_chunks(CHUNK))
+                .zip(self.dual.par_chunks(CHUNK))
+                .for_each(|((v, t), b)| {
+                    v.iter_mut()
+                        .zip(t)
+                        .zip(b)
+                        .for_each(|((v, &t), &b)| *v = t + b)
+                });
             op.apply(&self.x, &mut self.y_hat);
             let mut res_sq = 0.0f64;
             for i in 0..m {
@@ -125,25 +134,36 @@ impl Admm {
             let last_residual = res_sq.sqrt() / y_norm;
             // x = v + Aᵀ r (the step lands in θ's storage first: θ_old = v − b)
             op.adjoint(&self.residual, theta.as_mut_slice());
-            for ((t, xv), &b) in theta
+            let nonnegative = p.nonnegative;
+            theta
                 .as_mut_slice()
-                .iter_mut()
-                .zip(self.x.iter_mut())
-                .zip(&self.dual)
-            {
-                *xv += *t;
-                let input = *xv - b;
-                *t = if p.nonnegative { input.max(0.0) } else { input };
-            }
+                .par_chunks_mut(CHUNK)
+                .zip(self.x.par_chunks_mut(CHUNK))
+                .zip(self.dual.par_chunks(CHUNK))
+                .for_each(|((t, x), b)| {
+                    for ((t, xv), &b) in t.iter_mut().zip(x.iter_mut()).zip(b) {
+                        *xv += *t;
+                        let input = *xv - b;
+                        *t = if nonnegative { input.max(0.0) } else { input };
+                    }
+                });
             denoiser.denoise(&mut theta, p.strength.at(it, p.iterations));
             // b ← b − (x − θ), and the primal residual ‖x − θ‖ / ‖x‖
-            let (mut gap_sq, mut x_sq) = (0.0f64, 0.0f64);
-            for ((d, &xv), &t) in self.dual.iter_mut().zip(&self.x).zip(theta.as_slice()) {
-                let g = xv - t;
-                *d -= g;
-                gap_sq += g as f64 * g as f64;
-                x_sq += xv as f64 * xv as f64;
-            }
+            let sums: Vec<(f64, f64)> = self
+                .dual
+                .par_chunks_mut(CHUNK)
+                .zip(self.x.par_chunks(CHUNK))
+                .zip(theta.as_slice().par_chunks(CHUNK))
+                .map(|((d, x), t)| {
+                    for ((d, &xv), &t) in d.iter_mut().zip(x).zip(t) {
+                        *d -= xv - t;
+                    }
+                    (lanes_dist_sq(x, t), lanes_dot(x, x))
+                })
+                .collect();
+            let (gap_sq, x_sq) = sums
+                .iter()
+                .fold((0.0, 0.0), |(a, b), &(g, x)| (a + g, b + x));
             done = it + 1;
             let relative_change = gap_sq.sqrt() / x_sq.sqrt().max(f64::MIN_POSITIVE);
             let info = IterationInfo {

@@ -55,3 +55,58 @@ pub(crate) fn inverse_or_zero(d: &[f32]) -> Vec<f32> {
 pub(crate) fn norm_sq(v: &[f32]) -> f64 {
     v.iter().map(|&a| a as f64 * a as f64).sum()
 }
+
+/// Elements per parallel chunk of the element-wise passes (a few L2-sized
+/// pieces per band; chunk sums are combined in a fixed order, so results do
+/// not depend on the thread count).
+pub(crate) const CHUNK: usize = 1 << 14;
+
+/// Σ a·b over a slice with 8 independent f32 lanes (vectorisable), as f64.
+#[inline]
+pub(crate) fn lanes_dot(a: &[f32], b: &[f32]) -> f64 {
+    let mut acc = [0.0f32; 8];
+    let (ca, cb) = (a.chunks_exact(8), b.chunks_exact(8));
+    let (ra, rb) = (ca.remainder(), cb.remainder());
+    for (x, y) in ca.zip(cb) {
+        for i in 0..8 {
+            acc[i] += x[i] * y[i];
+        }
+    }
+    let tail: f32 = ra.iter().zip(rb).map(|(x, y)| x * y).sum();
+    acc.iter().map(|&v| v as f64).sum::<f64>() + tail as f64
+}
+
+/// x ← max(x + step, 0) (or without the clamp), in parallel chunks;
+/// returns (‖step‖², ‖x_new‖²).
+pub(crate) fn add_step(x: &mut [f32], step: &[f32], nonnegative: bool) -> (f64, f64) {
+    use rayon::prelude::*;
+    let sums: Vec<(f64, f64)> = x
+        .par_chunks_mut(CHUNK)
+        .zip(step.par_chunks(CHUNK))
+        .map(|(xc, sc)| {
+            for (xv, &s) in xc.iter_mut().zip(sc) {
+                let v = *xv + s;
+                *xv = if nonnegative { v.max(0.0) } else { v };
+            }
+            (lanes_dot(sc, sc), lanes_dot(xc, xc))
+        })
+        .collect();
+    sums.iter()
+        .fold((0.0, 0.0), |(a, b), &(s, x)| (a + s, b + x))
+}
+
+/// Σ (a − b)² with 8 independent f32 lanes, as f64.
+#[inline]
+pub(crate) fn lanes_dist_sq(a: &[f32], b: &[f32]) -> f64 {
+    let mut acc = [0.0f32; 8];
+    let (ca, cb) = (a.chunks_exact(8), b.chunks_exact(8));
+    let (ra, rb) = (ca.remainder(), cb.remainder());
+    for (x, y) in ca.zip(cb) {
+        for i in 0..8 {
+            let d = x[i] - y[i];
+            acc[i] += d * d;
+        }
+    }
+    let tail: f32 = ra.iter().zip(rb).map(|(x, y)| (x - y) * (x - y)).sum();
+    acc.iter().map(|&v| v as f64).sum::<f64>() + tail as f64
+}

@@ -14,7 +14,7 @@ use std::time::Instant;
 
 use serde::{Deserialize, Serialize};
 
-use super::common::{check_iterations, check_problem, inverse_or_zero, norm_sq};
+use super::common::{add_step, check_iterations, check_problem, inverse_or_zero, norm_sq};
 use super::observer::{Control, IterationInfo, Observer};
 use super::schedule::Strength;
 use super::{Solution, StopReason};
@@ -119,13 +119,7 @@ impl Gap {
             }
             let last_residual = res_sq.sqrt() / y_norm;
             op.adjoint(&self.residual, &mut self.step);
-            let (mut step_sq, mut x_sq) = (0.0f64, 0.0f64);
-            for (xv, &s) in x.as_mut_slice().iter_mut().zip(&self.step) {
-                step_sq += s as f64 * s as f64;
-                let v = *xv + s;
-                *xv = if p.nonnegative { v.max(0.0) } else { v };
-                x_sq += *xv as f64 * *xv as f64;
-            }
+            let (step_sq, x_sq) = add_step(x.as_mut_slice(), &self.step, p.nonnegative);
             denoiser.denoise(&mut x, p.strength.at(it, p.iterations));
             done = it + 1;
             let relative_step = step_sq.sqrt() / x_sq.sqrt().max(f64::MIN_POSITIVE);
