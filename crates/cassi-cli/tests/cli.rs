@@ -67,6 +67,21 @@ fn demo_writes_measurement_sidecar_and_previews() {
         serde_json::json!([256, 311])
     );
     assert!(report["measurement_snr_db"].as_f64().unwrap() > 30.0);
+    // the true model must reconstruct clearly better than the nominal one
+    let recons = report["reconstructions"]
+        .as_array()
+        .expect("reconstructions listed");
+    let psnr = |i: usize| recons[i]["metrics"]["psnr"].as_f64().unwrap();
+    assert!(
+        psnr(1) > psnr(0) + 1.0,
+        "oracle {} dB vs nominal {} dB",
+        psnr(1),
+        psnr(0)
+    );
+    assert!(psnr(1) > 15.0, "oracle GAP-TV only {} dB", psnr(1));
+    for f in ["recon_nominal_rgb.png", "recon_oracle_rgb.png"] {
+        assert!(dir.join(f).is_file(), "missing {f}");
+    }
     for f in [
         "measurement.npy",
         "measurement.json",
