@@ -5,6 +5,7 @@
 //! cols) f32 with band 0 the shortest wavelength; dispersion moves band k
 //! toward larger column index; angles are degrees at every public boundary.
 
+pub mod calib;
 pub mod color;
 pub mod cube;
 pub mod denoise;

@@ -1,0 +1,372 @@
+//! Self-calibration: recover the mismatch ψ = (dx, dy, θ, a1, α) from one
+//! measurement and the nominal mask, with no ground truth, by minimising
+//! the residual of a short proxy reconstruction (paper §3.3, Eq. 3).
+//!
+//! The `default` preset: a correlation estimate of the mask shift (global,
+//! milliseconds), a Nelder–Mead refinement of (dx, dy, θ) on the proxy
+//! score, an a1 search (over the exact rounding-pattern intervals for the
+//! `rounded` model; jointly with α in the simplex for `subpixel`), then a
+//! final joint refinement. Each stage reports its evaluations, time and
+//! best ψ.
+
+pub mod init;
+pub mod nelder_mead;
+pub mod score;
+pub mod smooth;
+
+use std::time::Instant;
+
+use serde::{Deserialize, Serialize};
+
+pub use score::{CalibrationProblem, ProxyParams};
+
+use crate::error::Result;
+use crate::optics::DispersionModel;
+use crate::params::Mismatch;
+use nelder_mead::nelder_mead;
+
+/// What one stage did.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct StageReport {
+    pub name: String,
+    pub evaluations: usize,
+    pub seconds: f64,
+    pub parameters: Mismatch,
+    /// Proxy score at `parameters` with this stage's proxy.
+    pub score: f64,
+}
+
+/// The result of a calibration.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct Calibration {
+    pub preset: String,
+    pub model: DispersionModel,
+    pub parameters: Mismatch,
+    /// Score of `parameters` with the final proxy.
+    pub score: f64,
+    /// Score of the nominal parameters with the final proxy.
+    pub nominal_score: f64,
+    /// Curvature-based standard error per parameter (pixels / degrees /
+    /// px-per-band), from a quadratic fit of the score along each axis,
+    /// treating the score as a mean squared residual of N measurement pixels.
+    /// It reflects how sharply the data pin each parameter, not model error.
+    /// `None` where the score is flat along that axis (a1 in the rounded
+    /// model within its rounding interval; α when not estimated).
+    pub uncertainty: Uncertainty,
+    pub stages: Vec<StageReport>,
+    pub seconds: f64,
+    pub evaluations: usize,
+}
+
+#[derive(Debug, Clone, Copy, Default, Serialize, Deserialize)]
+pub struct Uncertainty {
+    pub dx: Option<f64>,
+    pub dy: Option<f64>,
+    pub theta_deg: Option<f64>,
+    pub a1: Option<f64>,
+    pub alpha_deg: Option<f64>,
+}
+
+/// Settings of the `default` preset.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct DefaultPreset {
+    pub stride: f64,
+    /// Largest |dx|, |dy| searched by the correlation stage, pixels.
+    pub shift_range: usize,
+    pub proxy: ProxyParams,
+    /// a1 searched over [stride − span, stride + span].
+    pub a1_span: f64,
+    pub max_evaluations: usize,
+}
+
+impl Default for DefaultPreset {
+    fn default() -> Self {
+        Self {
+            stride: 2.0,
+            shift_range: 5,
+            proxy: ProxyParams::default(),
+            a1_span: 0.12,
+            max_evaluations: 400,
+        }
+    }
+}
+
+/// The breakpoints where some band's rounded offset changes: a1 values with
+/// a1·k·cos α = j + ½. Between two consecutive ones the rounded model is the
+/// same operator.
+fn rounding_intervals(bands: usize, alpha_deg: f64, lo: f64, hi: f64) -> Vec<(f64, f64)> {
+    let c = alpha_deg.to_radians().cos();
+    let mut cuts = vec![lo, hi];
+    for k in 1..bands {
+        let kc = k as f64 * c;
+        let (jlo, jhi) = (
+            (lo * kc - 0.5).floor() as i64,
+            (hi * kc - 0.5).ceil() as i64,
+        );
+        for j in jlo..=jhi {
+            let a = (j as f64 + 0.5) / kc;
+            if a > lo && a < hi {
+                cuts.push(a);
+            }
+        }
+    }
+    cuts.sort_by(f64::total_cmp);
+    cuts.dedup_by(|a, b| (*a - *b).abs() < 1e-12);
+    cuts.windows(2).map(|w| (w[0], w[1])).collect()
+}
+
+/// `from` with slope `a1`, dx moved so the mean band position is unchanged:
+/// the data pin dx + a1·k̄ (k̄ = (L−1)/2) far better than dx and a1 apart,
+/// so a1 must be searched along that line.
+fn along_mean_dispersion(from: &Mismatch, a1: f64, bands: usize) -> Mismatch {
+    let k_mean = (bands as f64 - 1.0) / 2.0;
+    let c = from.alpha_deg.to_radians().cos();
+    Mismatch {
+        a1,
+        dx: from.dx - (a1 - from.a1) * k_mean * c,
+        ..*from
+    }
+}
+
+fn psi(v: &[f64], base: &Mismatch) -> Mismatch {
+    Mismatch {
+        dx: v[0],
+        dy: v[1],
+        theta_deg: v[2],
+        a1: v.get(3).copied().unwrap_or(base.a1),
+        alpha_deg: v.get(4).copied().unwrap_or(base.alpha_deg),
+    }
+}
+
+/// Runs the `default` preset. `on_stage` sees each stage as it finishes.
+pub fn calibrate_default(
+    problem: &CalibrationProblem<'_>,
+    preset: &DefaultPreset,
+    on_stage: &mut dyn FnMut(&StageReport),
+) -> Result<Calibration> {
+    problem.validate()?;
+    let t_all = Instant::now();
+    let proxy = preset.proxy;
+    let mut stages = Vec::new();
+    let mut push = |stages: &mut Vec<StageReport>, r: StageReport| {
+        on_stage(&r);
+        stages.push(r);
+    };
+    let score = |m: &Mismatch| problem.score(m, &proxy).unwrap_or(f64::INFINITY);
+
+    // 1. global shift estimate
+    let t = Instant::now();
+    let (dx0, dy0) = init::correlation_shift(
+        problem.measurement,
+        problem.nominal_mask,
+        problem.bands,
+        preset.stride,
+        preset.shift_range,
+    )?;
+    let mut best = Mismatch {
+        dx: dx0,
+        dy: dy0,
+        ..Mismatch::nominal(preset.stride)
+    };
+    let s0 = score(&best);
+    push(
+        &mut stages,
+        StageReport {
+            name: "correlation".into(),
+            evaluations: 1,
+            seconds: t.elapsed().as_secs_f64(),
+            parameters: best,
+            score: s0,
+        },
+    );
+
+    // 2. (dx, dy, θ) from three rotation starts
+    let t = Instant::now();
+    let mut evals = 0;
+    let mut starts: Vec<(f64, Mismatch)> = [-0.5, 0.0, 0.5]
+        .iter()
+        .map(|&th| {
+            let m = Mismatch {
+                theta_deg: th,
+                ..best
+            };
+            evals += 1;
+            (score(&m), m)
+        })
+        .collect();
+    starts.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let start = starts[0].1;
+    let (v, s, n) = nelder_mead(
+        |v| score(&psi(v, &start)),
+        &[start.dx, start.dy, start.theta_deg],
+        &[0.25, 0.25, 0.25],
+        preset.max_evaluations / 3,
+        &[0.005, 0.005, 0.005],
+        1e-6,
+    );
+    evals += n;
+    best = psi(&v, &start);
+    push(
+        &mut stages,
+        StageReport {
+            name: "refine dx, dy, θ".into(),
+            evaluations: evals,
+            seconds: t.elapsed().as_secs_f64(),
+            parameters: best,
+            score: s,
+        },
+    );
+
+    // 3. dispersion
+    let t = Instant::now();
+    let (lo, hi) = (
+        preset.stride - preset.a1_span,
+        preset.stride + preset.a1_span,
+    );
+    let mut evals = 0;
+    match problem.model {
+        DispersionModel::Rounded => {
+            let mut best_s = f64::INFINITY;
+            let from = best;
+            for (a, b) in rounding_intervals(problem.bands, best.alpha_deg, lo, hi) {
+                let m = along_mean_dispersion(&from, 0.5 * (a + b), problem.bands);
+                let s = score(&m);
+                evals += 1;
+                if s < best_s {
+                    best_s = s;
+                    best = m;
+                }
+            }
+        }
+        DispersionModel::Subpixel => {
+            let mut best_s = f64::INFINITY;
+            let from = best;
+            let mut a1 = lo;
+            while a1 <= hi + 1e-12 {
+                let m = along_mean_dispersion(&from, a1, problem.bands);
+                let s = score(&m);
+                evals += 1;
+                if s < best_s {
+                    best_s = s;
+                    best = m;
+                }
+                a1 += 0.01;
+            }
+        }
+    }
+    push(
+        &mut stages,
+        StageReport {
+            name: "dispersion a1".into(),
+            evaluations: evals,
+            seconds: t.elapsed().as_secs_f64(),
+            parameters: best,
+            score: score(&best),
+        },
+    );
+
+    // 4. joint refinement (a1 and α in the simplex for the subpixel model)
+    let t = Instant::now();
+    let base = best;
+    let (x0, steps, tol): (Vec<f64>, Vec<f64>, Vec<f64>) = match problem.model {
+        DispersionModel::Rounded => (
+            vec![base.dx, base.dy, base.theta_deg],
+            vec![0.05, 0.05, 0.05],
+            vec![0.002, 0.002, 0.002],
+        ),
+        DispersionModel::Subpixel => (
+            vec![base.dx, base.dy, base.theta_deg, base.a1, base.alpha_deg],
+            vec![0.05, 0.05, 0.05, 0.005, 0.3],
+            vec![0.002, 0.002, 0.002, 0.0005, 0.02],
+        ),
+    };
+    let (v, s, n) = nelder_mead(
+        |v| score(&psi(v, &base)),
+        &x0,
+        &steps,
+        preset.max_evaluations / 2,
+        &tol,
+        1e-7,
+    );
+    best = psi(&v, &base);
+    push(
+        &mut stages,
+        StageReport {
+            name: "joint refinement".into(),
+            evaluations: n,
+            seconds: t.elapsed().as_secs_f64(),
+            parameters: best,
+            score: s,
+        },
+    );
+
+    let uncertainty = curvature_uncertainty(problem, &best, s, &proxy);
+    let nominal_score = score(&Mismatch::nominal(preset.stride));
+    let evaluations = stages.iter().map(|s| s.evaluations).sum::<usize>() + 11;
+    Ok(Calibration {
+        preset: "default".into(),
+        model: problem.model,
+        parameters: best,
+        score: s,
+        nominal_score,
+        uncertainty,
+        stages,
+        seconds: t_all.elapsed().as_secs_f64(),
+        evaluations,
+    })
+}
+
+/// σ_i = sqrt(2 f₀ / (N · f_ii)) from central second differences f_ii.
+fn curvature_uncertainty(
+    problem: &CalibrationProblem<'_>,
+    at: &Mismatch,
+    f0: f64,
+    proxy: &ProxyParams,
+) -> Uncertainty {
+    let n = problem.measurement.as_slice().len() as f64;
+    let axis = |h: f64, set: &dyn Fn(&mut Mismatch, f64)| -> Option<f64> {
+        let (mut p, mut m) = (*at, *at);
+        set(&mut p, h);
+        set(&mut m, -h);
+        let (fp, fm) = (
+            problem.score(&p, proxy).ok()?,
+            problem.score(&m, proxy).ok()?,
+        );
+        let c = (fp + fm - 2.0 * f0) / (h * h);
+        (c > 0.0).then(|| (2.0 * f0 / (n * c)).sqrt())
+    };
+    let subpixel = problem.model == DispersionModel::Subpixel;
+    Uncertainty {
+        dx: axis(0.05, &|m, d| m.dx += d),
+        dy: axis(0.05, &|m, d| m.dy += d),
+        theta_deg: axis(0.05, &|m, d| m.theta_deg += d),
+        a1: if subpixel {
+            axis(0.005, &|m, d| m.a1 += d)
+        } else {
+            None
+        },
+        alpha_deg: if subpixel {
+            axis(0.2, &|m, d| m.alpha_deg += d)
+        } else {
+            None
+        },
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rounding_intervals_cover_the_range_and_break_where_offsets_change() {
+        let iv = rounding_intervals(28, 0.0, 1.9, 2.1);
+        assert_eq!(iv.first().unwrap().0, 1.9);
+        assert_eq!(iv.last().unwrap().1, 2.1);
+        // a1 = 2.04 lies in the interval [26.5/13, 24.5/12] = [2.03846, 2.04167]
+        let hit = iv.iter().find(|(a, b)| *a <= 2.04 && 2.04 < *b).unwrap();
+        assert!(
+            (hit.0 - 26.5 / 13.0).abs() < 1e-12 && (hit.1 - 24.5 / 12.0).abs() < 1e-12,
+            "{hit:?}"
+        );
+    }
+}
