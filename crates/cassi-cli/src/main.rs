@@ -33,6 +33,8 @@ struct Cli {
 enum Command {
     /// Simulate a CASSI measurement of a scene through a (mis)aligned instrument.
     Simulate(Box<commands::simulate::SimulateArgs>),
+    /// Self-calibrate: estimate the mask misalignment and dispersion drift from one measurement.
+    Calibrate(Box<commands::calibrate::CalibrateArgs>),
     /// Reconstruct a spectral cube from a measurement (GAP-TV, ADMM-TV, PnP-TV).
     Reconstruct(Box<commands::reconstruct::ReconstructArgs>),
     /// Describe what is in a .mat, .npy or .npz file.
@@ -46,6 +48,7 @@ fn main() -> ExitCode {
     let reporter = Reporter::new(cli.quiet, cli.json);
     let result = match &cli.command {
         Command::Simulate(args) => commands::simulate::run(args, &reporter),
+        Command::Calibrate(args) => commands::calibrate::run(args, &reporter),
         Command::Reconstruct(args) => commands::reconstruct::run(args, &reporter),
         Command::Info(args) => commands::info::run(args, &reporter),
         Command::Demo(args) => commands::demo::run(args, &reporter),

@@ -380,3 +380,75 @@ fn an_eight_bit_mask_is_refused_with_advice() {
         &out,
     );
 }
+
+#[test]
+fn calibrate_recovers_the_simulated_mismatch_and_feeds_reconstruct() {
+    let dir = scratch("calibrate");
+    let meas = dir.join("meas.npy");
+    let sim = [
+        "simulate",
+        "--synthetic",
+        "--size",
+        "96",
+        "--bands",
+        "8",
+        "--random-mask",
+        "--dx",
+        "1.3",
+        "--dy",
+        "-0.8",
+        "--theta",
+        "0.35",
+        "--no-noise",
+        "-o",
+        s(&meas),
+        "--quiet",
+    ];
+    assert!(cassi(&sim).status.success());
+    // the random mask is regenerated from its seed for calibrate/reconstruct
+    let mask = dir.join("mask.npy");
+    cassi_io::save_frame(&mask, &random_binary_mask(96, 96, 0.5, 1).unwrap(), "mask").unwrap();
+    let calib = dir.join("calib.json");
+    let out = cassi(&[
+        "calibrate",
+        s(&meas),
+        "--mask",
+        s(&mask),
+        "-o",
+        s(&calib),
+        "--json",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let cal: serde_json::Value = serde_json::from_slice(&std::fs::read(&calib).unwrap()).unwrap();
+    let p = &cal["parameters"];
+    assert!((p["dx"].as_f64().unwrap() - 1.3).abs() < 0.1, "{p}");
+    assert!((p["dy"].as_f64().unwrap() + 0.8).abs() < 0.1, "{p}");
+    assert!(
+        (p["theta_deg"].as_f64().unwrap() - 0.35).abs() < 0.15,
+        "{p}"
+    );
+    let cube = dir.join("cube.npy");
+    let out = cassi(&[
+        "reconstruct",
+        s(&meas),
+        "--mask",
+        s(&mask),
+        "--calibration",
+        s(&calib),
+        "-o",
+        s(&cube),
+        "--quiet",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("cube.json")).unwrap()).unwrap();
+    assert_eq!(report["model_parameters"], cal["parameters"]);
+}

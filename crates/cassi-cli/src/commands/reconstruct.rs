@@ -230,7 +230,7 @@ pub fn run(args: &ReconstructArgs, reporter: &Reporter) -> anyhow::Result<()> {
 }
 
 /// L such that (L − 1)·stride best explains the extra detector columns.
-fn infer_bands(det_cols: usize, mask_cols: usize, stride: f64) -> anyhow::Result<usize> {
+pub fn infer_bands(det_cols: usize, mask_cols: usize, stride: f64) -> anyhow::Result<usize> {
     if det_cols < mask_cols {
         bail!(
             "the measurement ({det_cols} columns) is narrower than the mask ({mask_cols} columns)"

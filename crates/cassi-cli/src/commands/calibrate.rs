@@ -1,0 +1,113 @@
+//! `cassi calibrate`: measurement + nominal mask → mismatch parameters.
+
+use std::path::PathBuf;
+
+use anyhow::Context;
+use cassi_core::calib::{CalibrationProblem, DefaultPreset, StageReport, calibrate_default};
+use cassi_core::optics::{DispersionModel, warp_mask};
+use clap::Args;
+
+use super::simulate::check_output;
+use crate::report::Reporter;
+
+#[derive(Args)]
+pub struct CalibrateArgs {
+    /// The measurement (.mat, .npy, .npz): (rows, detector cols).
+    pub measurement: PathBuf,
+    #[arg(long)]
+    pub meas_var: Option<String>,
+    /// The nominal coded aperture.
+    #[arg(long)]
+    pub mask: PathBuf,
+    #[arg(long)]
+    pub mask_var: Option<String>,
+    /// Search preset.
+    #[arg(long, default_value = "default", value_parser = ["default"])]
+    pub preset: String,
+    /// Dispersion model of candidate instruments (`subpixel` also estimates α).
+    #[arg(long, default_value = "rounded")]
+    pub model: DispersionModel,
+    /// Number of bands (default: from the measurement width and the stride).
+    #[arg(long)]
+    pub bands: Option<usize>,
+    /// Nominal dispersion stride, px per band.
+    #[arg(long, default_value_t = 2.0)]
+    pub stride: f64,
+    /// Output calibration JSON (for `cassi reconstruct --calibration`).
+    #[arg(long, short)]
+    pub output: PathBuf,
+    /// Also write the calibrated (warped) mask here (.npy, .npz, .mat).
+    #[arg(long)]
+    pub write_mask: Option<PathBuf>,
+}
+
+pub fn run(args: &CalibrateArgs, reporter: &Reporter) -> anyhow::Result<()> {
+    if let Some(p) = &args.write_mask {
+        check_output(p)?;
+    }
+    let measurement = cassi_io::load_frame(&args.measurement, args.meas_var.as_deref())?;
+    let mask = cassi_io::load_frame(&args.mask, args.mask_var.as_deref())?;
+    cassi_core::optics::validate_mask(&mask, &format!("mask {}", args.mask.display()))?;
+    let bands = match args.bands {
+        Some(b) => b,
+        None => super::reconstruct::infer_bands(measurement.cols(), mask.cols(), args.stride)
+            .with_context(|| format!("{}: pass --bands", args.measurement.display()))?,
+    };
+    let problem = CalibrationProblem {
+        measurement: &measurement,
+        nominal_mask: &mask,
+        bands,
+        model: args.model,
+    };
+    let preset = DefaultPreset {
+        stride: args.stride,
+        ..DefaultPreset::default()
+    };
+    let mut on_stage = |s: &StageReport| {
+        let p = s.parameters;
+        reporter.say(&format!(
+            "  {:<20} dx {:+.3}  dy {:+.3}  θ {:+.3}°  a1 {:.4}  α {:+.2}°  score {:.4e}  ({} evals, {:.2} s)",
+            s.name, p.dx, p.dy, p.theta_deg, p.a1, p.alpha_deg, s.score, s.evaluations, s.seconds
+        ));
+    };
+    let cal = reporter.stage("calibrating", || {
+        Ok(calibrate_default(&problem, &preset, &mut on_stage)?)
+    })?;
+    let text = serde_json::to_string_pretty(&cal)? + "\n";
+    check_output_json(&args.output)?;
+    cassi_io::write_atomic(&args.output, text.as_bytes())?;
+    if let Some(p) = &args.write_mask {
+        cassi_io::save_frame(p, &warp_mask(&mask, &cal.parameters.pose()), "mask")?;
+    }
+    let p = cal.parameters;
+    reporter.say(&format!(
+        "calibrated: dx {:+.3} px  dy {:+.3} px  θ {:+.3}°  a1 {:.4}  α {:+.2}°\n\
+         residual score {:.4e} (nominal model {:.4e}), {} evaluations, {:.1} s → {}",
+        p.dx,
+        p.dy,
+        p.theta_deg,
+        p.a1,
+        p.alpha_deg,
+        cal.score,
+        cal.nominal_score,
+        cal.evaluations,
+        cal.seconds,
+        args.output.display()
+    ));
+    reporter.emit(&serde_json::to_value(&cal)?);
+    Ok(())
+}
+
+fn check_output_json(path: &std::path::Path) -> anyhow::Result<()> {
+    if path.extension().and_then(|e| e.to_str()) != Some("json") {
+        anyhow::bail!(
+            "{}: the calibration is written as JSON; use a .json name",
+            path.display()
+        );
+    }
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir)
+            .with_context(|| format!("cannot create the folder {}", dir.display()))?;
+    }
+    Ok(())
+}
