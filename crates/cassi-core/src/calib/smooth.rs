@@ -4,9 +4,10 @@
 
 use rayon::prelude::*;
 
-/// Normalised 1-D Gaussian taps of radius ceil(3σ) (at least 1).
+/// Normalised 1-D Gaussian taps of radius round(3σ) (at least 1): 5 taps
+/// for σ = 0.5 and 0.7, 7 for σ = 1, as the paper's kernels.
 pub fn gaussian_taps(sigma: f32) -> Vec<f32> {
-    let r = (3.0 * sigma).ceil().max(1.0) as i32;
+    let r = (3.0 * sigma).round().max(1.0) as i32;
     let mut t: Vec<f32> = (-r..=r)
         .map(|i| (-0.5 * (i as f32 / sigma).powi(2)).exp())
         .collect();
@@ -17,44 +18,81 @@ pub fn gaussian_taps(sigma: f32) -> Vec<f32> {
 
 /// Smooths each (rows × cols) band of `data` in place.
 pub fn smooth_bands(data: &mut [f32], rows: usize, cols: usize, taps: &[f32]) {
+    smooth_step(data, None, rows, cols, taps, false);
+}
+
+/// The proxy's prior step in one pass per band: x ← clamp(G(x + step), 0, 1)
+/// (no step and no clamp when `step` is `None` and `clamp` is false).
+pub fn smooth_step(
+    data: &mut [f32],
+    step: Option<&[f32]>,
+    rows: usize,
+    cols: usize,
+    taps: &[f32],
+    clamp: bool,
+) {
     let r = taps.len() / 2;
-    data.par_chunks_mut(rows * cols).for_each_init(
-        || vec![0.0f32; rows * cols],
-        |tmp, band| {
-            tmp.resize(rows * cols, 0.0);
-            // horizontal, tap-major over contiguous slices (vectorises);
-            // only the r columns at each end need the edge clamp
-            for row in 0..rows {
-                let src = &band[row * cols..(row + 1) * cols];
-                let dst = &mut tmp[row * cols..(row + 1) * cols];
-                dst.fill(0.0);
-                for (j, &w) in taps.iter().enumerate() {
-                    let off = j as isize - r as isize;
-                    let lo = (-off).max(0) as usize;
-                    let hi = (cols as isize - off.max(0)).max(lo as isize) as usize;
-                    let shifted = &src[(lo as isize + off) as usize..(hi as isize + off) as usize];
-                    for (d, &v) in dst[lo..hi].iter_mut().zip(shifted) {
-                        *d += w * v;
-                    }
-                    for c in (0..lo).chain(hi..cols) {
-                        dst[c] += w * src[(c as isize + off).clamp(0, cols as isize - 1) as usize];
+    let n = rows * cols;
+    let body = |tmp: &mut Vec<f32>, band: &mut [f32], add: Option<&[f32]>| {
+        tmp.resize(2 * cols + n, 0.0);
+        let (src_row, tmp) = tmp.split_at_mut(2 * cols);
+        let src_row = &mut src_row[..cols];
+        // horizontal, tap-major over contiguous slices (vectorises);
+        // only the r columns at each end need the edge clamp
+        for row in 0..rows {
+            let x = &band[row * cols..(row + 1) * cols];
+            match add {
+                Some(a) => {
+                    for ((s, &xv), &av) in src_row
+                        .iter_mut()
+                        .zip(x)
+                        .zip(&a[row * cols..(row + 1) * cols])
+                    {
+                        *s = xv + av;
                     }
                 }
+                None => src_row.copy_from_slice(x),
             }
-            // vertical: band = tmp * taps along rows, row-wise
-            for row in 0..rows {
-                let dst = &mut band[row * cols..(row + 1) * cols];
-                dst.fill(0.0);
-                for (j, &w) in taps.iter().enumerate() {
-                    let rr = (row as isize + j as isize - r as isize).clamp(0, rows as isize - 1)
-                        as usize;
-                    for (d, &s) in dst.iter_mut().zip(&tmp[rr * cols..(rr + 1) * cols]) {
-                        *d += w * s;
-                    }
+            let dst = &mut tmp[row * cols..(row + 1) * cols];
+            dst.fill(0.0);
+            for (j, &w) in taps.iter().enumerate() {
+                let off = j as isize - r as isize;
+                let lo = ((-off).max(0) as usize).min(cols);
+                let hi = (cols as isize - off.max(0)).max(lo as isize) as usize;
+                let shifted = &src_row[(lo as isize + off) as usize..(hi as isize + off) as usize];
+                for (d, &v) in dst[lo..hi].iter_mut().zip(shifted) {
+                    *d += w * v;
+                }
+                for c in (0..lo).chain(hi..cols) {
+                    dst[c] += w * src_row[(c as isize + off).clamp(0, cols as isize - 1) as usize];
                 }
             }
-        },
-    );
+        }
+        // vertical: band = tmp * taps along rows, row-wise
+        for row in 0..rows {
+            let dst = &mut band[row * cols..(row + 1) * cols];
+            dst.fill(0.0);
+            for (j, &w) in taps.iter().enumerate() {
+                let rr =
+                    (row as isize + j as isize - r as isize).clamp(0, rows as isize - 1) as usize;
+                for (d, &s) in dst.iter_mut().zip(&tmp[rr * cols..(rr + 1) * cols]) {
+                    *d += w * s;
+                }
+            }
+            if clamp {
+                dst.iter_mut().for_each(|v| *v = v.clamp(0.0, 1.0));
+            }
+        }
+    };
+    match step {
+        Some(st) => data
+            .par_chunks_mut(n)
+            .zip(st.par_chunks(n))
+            .for_each_init(Vec::new, |tmp, (band, add)| body(tmp, band, Some(add))),
+        None => data
+            .par_chunks_mut(n)
+            .for_each_init(Vec::new, |tmp, band| body(tmp, band, None)),
+    }
 }
 
 #[cfg(test)]
