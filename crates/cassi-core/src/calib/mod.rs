@@ -226,15 +226,32 @@ pub fn calibrate_default(
     let mut evals = 0;
     match problem.model {
         DispersionModel::Rounded => {
+            // With a1 off, stage 2 aligned dx with *some* group of bands;
+            // a candidate a1 moves band k by δ_k, so the matching dx is
+            // dx − δ for one of the distinct δ_k: try each.
             let mut best_s = f64::INFINITY;
             let from = best;
+            let c = from.alpha_deg.to_radians().cos();
+            let offset = |a1: f64, k: usize| (a1 * k as f64 * c).round_ties_even();
             for (a, b) in rounding_intervals(problem.bands, best.alpha_deg, lo, hi) {
-                let m = along_mean_dispersion(&from, 0.5 * (a + b), problem.bands);
-                let s = score(&m);
-                evals += 1;
-                if s < best_s {
-                    best_s = s;
-                    best = m;
+                let a1 = 0.5 * (a + b);
+                let mut deltas: Vec<f64> = (0..problem.bands)
+                    .map(|k| offset(a1, k) - offset(from.a1, k))
+                    .collect();
+                deltas.sort_by(f64::total_cmp);
+                deltas.dedup();
+                for delta in deltas {
+                    let m = Mismatch {
+                        a1,
+                        dx: from.dx - delta,
+                        ..from
+                    };
+                    let s = score(&m);
+                    evals += 1;
+                    if s < best_s {
+                        best_s = s;
+                        best = m;
+                    }
                 }
             }
         }
