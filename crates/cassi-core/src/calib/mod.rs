@@ -77,6 +77,9 @@ pub struct DefaultPreset {
     /// a1 searched over [stride − span, stride + span].
     pub a1_span: f64,
     pub max_evaluations: usize,
+    /// Proxy iterations of the search stages (2–3); `proxy` is used for the
+    /// final refinement and the reported score.
+    pub search_iterations: usize,
 }
 
 impl Default for DefaultPreset {
@@ -87,6 +90,7 @@ impl Default for DefaultPreset {
             proxy: ProxyParams::default(),
             a1_span: 0.12,
             max_evaluations: 400,
+            search_iterations: 5,
         }
     }
 }
@@ -153,6 +157,11 @@ pub fn calibrate_default(
         stages.push(r);
     };
     let score = |m: &Mismatch| problem.score(m, &proxy).unwrap_or(f64::INFINITY);
+    let search_proxy = ProxyParams {
+        iterations: preset.search_iterations,
+        ..proxy
+    };
+    let search = |m: &Mismatch| problem.score(m, &search_proxy).unwrap_or(f64::INFINITY);
 
     // 1. global shift estimate
     let t = Instant::now();
@@ -191,13 +200,13 @@ pub fn calibrate_default(
                 ..best
             };
             evals += 1;
-            (score(&m), m)
+            (search(&m), m)
         })
         .collect();
     starts.sort_by(|a, b| a.0.total_cmp(&b.0));
     let start = starts[0].1;
     let (v, s, n) = nelder_mead(
-        |v| score(&psi(v, &start)),
+        |v| search(&psi(v, &start)),
         &[start.dx, start.dy, start.theta_deg],
         &[0.25, 0.25, 0.25],
         preset.max_evaluations / 3,
@@ -261,7 +270,7 @@ pub fn calibrate_default(
             let mut a1 = lo;
             while a1 <= hi + 1e-12 {
                 let m = along_mean_dispersion(&from, a1, problem.bands);
-                let s = score(&m);
+                let s = search(&m);
                 evals += 1;
                 if s < best_s {
                     best_s = s;

@@ -33,7 +33,7 @@ pub struct ProxyParams {
 impl Default for ProxyParams {
     fn default() -> Self {
         Self {
-            iterations: 8,
+            iterations: 10,
             sigma: 0.7,
         }
     }
