@@ -242,25 +242,49 @@ pub fn calibrate_default(
             let from = best;
             let c = from.alpha_deg.to_radians().cos();
             let offset = |a1: f64, k: usize| (a1 * k as f64 * c).round_ties_even();
-            for (a, b) in rounding_intervals(problem.bands, best.alpha_deg, lo, hi) {
-                let a1 = 0.5 * (a + b);
-                let mut deltas: Vec<f64> = (0..problem.bands)
-                    .map(|k| offset(a1, k) - offset(from.a1, k))
-                    .collect();
-                deltas.sort_by(f64::total_cmp);
-                deltas.dedup();
-                for delta in deltas {
-                    let m = Mismatch {
-                        a1,
-                        dx: from.dx - delta,
-                        ..from
-                    };
-                    let s = score(&m);
-                    evals += 1;
-                    if s < best_s {
-                        best_s = s;
-                        best = m;
+            let intervals = rounding_intervals(problem.bands, best.alpha_deg, lo, hi);
+            // coarse: the intervals holding an a1 grid of step 0.01; fine: every
+            // interval within ±0.012 of the best coarse one
+            let mut tried = vec![false; intervals.len()];
+            let mut try_interval =
+                |i: usize, best: &mut Mismatch, best_s: &mut f64, evals: &mut usize| {
+                    if tried[i] {
+                        return;
                     }
+                    tried[i] = true;
+                    let (a, b) = intervals[i];
+                    let a1 = 0.5 * (a + b);
+                    let mut deltas: Vec<f64> = (0..problem.bands)
+                        .map(|k| offset(a1, k) - offset(from.a1, k))
+                        .collect();
+                    deltas.sort_by(f64::total_cmp);
+                    deltas.dedup();
+                    for delta in deltas {
+                        let m = Mismatch {
+                            a1,
+                            dx: from.dx - delta,
+                            ..from
+                        };
+                        let s = search(&m);
+                        *evals += 1;
+                        if s < *best_s {
+                            *best_s = s;
+                            *best = m;
+                        }
+                    }
+                };
+            let steps = ((hi - lo) / 0.01).round() as usize;
+            for j in 0..=steps {
+                let g = lo + (hi - lo) * j as f64 / steps as f64;
+                if let Some(i) = intervals.iter().position(|&(a, b)| a <= g && g <= b) {
+                    try_interval(i, &mut best, &mut best_s, &mut evals);
+                }
+            }
+            let centre = best.a1;
+            for i in 0..intervals.len() {
+                let (a, b) = intervals[i];
+                if b >= centre - 0.012 && a <= centre + 0.012 {
+                    try_interval(i, &mut best, &mut best_s, &mut evals);
                 }
             }
         }
