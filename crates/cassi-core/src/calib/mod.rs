@@ -281,11 +281,11 @@ pub fn calibrate_default(
                 }
             }
             let centre = best.a1;
-            for i in 0..intervals.len() {
-                let (a, b) = intervals[i];
-                if b >= centre - 0.012 && a <= centre + 0.012 {
-                    try_interval(i, &mut best, &mut best_s, &mut evals);
-                }
+            let near: Vec<usize> = (0..intervals.len())
+                .filter(|&i| intervals[i].1 >= centre - 0.012 && intervals[i].0 <= centre + 0.012)
+                .collect();
+            for i in near {
+                try_interval(i, &mut best, &mut best_s, &mut evals);
             }
         }
         DispersionModel::Subpixel => {
