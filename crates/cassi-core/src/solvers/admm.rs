@@ -16,8 +16,10 @@ use serde::{Deserialize, Serialize};
 
 use rayon::prelude::*;
 
-use super::common::{CHUNK, check_iterations, check_problem, lanes_dist_sq, lanes_dot, norm_sq};
-use super::observer::{Control, IterationInfo, Observer};
+use super::common::{
+    CHUNK, check_iterations, check_problem, check_stop, finish, lanes_dist_sq, lanes_dot, norm_sq,
+};
+use super::observer::{IterationInfo, Observer};
 use super::schedule::Strength;
 use super::{Solution, StopReason};
 use crate::cube::Cube;
@@ -173,28 +175,11 @@ impl Admm {
                 relative_change,
                 elapsed: t0.elapsed(),
             };
-            if observer.on_iteration(&info) == Control::Stop {
-                stop = StopReason::Observer;
-                break;
-            }
-            if relative_change < p.tolerance {
-                stop = StopReason::Converged;
+            if let Some(reason) = check_stop(observer, &info, p.tolerance) {
+                stop = reason;
                 break;
             }
         }
-        // the returned cube's own residual (the per-iteration one is of the
-        // point where the data term was linearised)
-        op.apply(theta.as_slice(), &mut self.y_hat);
-        let res_sq: f64 = y
-            .iter()
-            .zip(&self.y_hat)
-            .map(|(a, b)| ((a - b) as f64).powi(2))
-            .sum();
-        Ok(Solution {
-            cube: theta,
-            iterations: done,
-            stop,
-            relative_residual: res_sq.sqrt() / y_norm,
-        })
+        Ok(finish(op, y, theta, &mut self.y_hat, done, stop))
     }
 }

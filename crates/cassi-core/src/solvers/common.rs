@@ -110,3 +110,44 @@ pub(crate) fn lanes_dist_sq(a: &[f32], b: &[f32]) -> f64 {
     let tail: f32 = ra.iter().zip(rb).map(|(x, y)| (x - y) * (x - y)).sum();
     acc.iter().map(|&v| v as f64).sum::<f64>() + tail as f64
 }
+
+/// Reports an iteration to the observer and applies the stopping rules
+/// (observer first, then `change < tolerance`); `Some` ends the solve.
+pub(crate) fn check_stop(
+    observer: &mut dyn super::Observer,
+    info: &super::IterationInfo,
+    tolerance: f64,
+) -> Option<super::StopReason> {
+    if observer.on_iteration(info) == super::Control::Stop {
+        Some(super::StopReason::Observer)
+    } else if info.relative_change < tolerance {
+        Some(super::StopReason::Converged)
+    } else {
+        None
+    }
+}
+
+/// The solution, with the returned cube's own residual ‖y − A x‖/‖y‖ (the
+/// per-iteration one is of the point where the data term was linearised);
+/// `y_hat` is scratch of the range's length.
+pub(crate) fn finish(
+    op: &dyn LinearOperator,
+    y: &[f32],
+    cube: crate::Cube,
+    y_hat: &mut [f32],
+    iterations: usize,
+    stop: super::StopReason,
+) -> super::Solution {
+    op.apply(cube.as_slice(), y_hat);
+    let res_sq: f64 = y
+        .iter()
+        .zip(y_hat.iter())
+        .map(|(a, b)| ((a - b) as f64).powi(2))
+        .sum();
+    super::Solution {
+        cube,
+        iterations,
+        stop,
+        relative_residual: res_sq.sqrt() / norm_sq(y).sqrt().max(f64::MIN_POSITIVE),
+    }
+}

@@ -14,8 +14,10 @@ use std::time::Instant;
 
 use serde::{Deserialize, Serialize};
 
-use super::common::{add_step, check_iterations, check_problem, inverse_or_zero, norm_sq};
-use super::observer::{Control, IterationInfo, Observer};
+use super::common::{
+    add_step, check_iterations, check_problem, check_stop, finish, inverse_or_zero, norm_sq,
+};
+use super::observer::{IterationInfo, Observer};
 use super::schedule::Strength;
 use super::{Solution, StopReason};
 use crate::cube::Cube;
@@ -130,28 +132,11 @@ impl Gap {
                 relative_change: relative_step,
                 elapsed: t0.elapsed(),
             };
-            if observer.on_iteration(&info) == Control::Stop {
-                stop = StopReason::Observer;
-                break;
-            }
-            if relative_step < p.tolerance {
-                stop = StopReason::Converged;
+            if let Some(reason) = check_stop(observer, &info, p.tolerance) {
+                stop = reason;
                 break;
             }
         }
-        // the returned cube's own residual (the per-iteration one is of the
-        // point where the data term was linearised)
-        op.apply(x.as_slice(), &mut self.y_hat);
-        let res_sq: f64 = y
-            .iter()
-            .zip(&self.y_hat)
-            .map(|(a, b)| ((a - b) as f64).powi(2))
-            .sum();
-        Ok(Solution {
-            cube: x,
-            iterations: done,
-            stop,
-            relative_residual: res_sq.sqrt() / y_norm,
-        })
+        Ok(finish(op, y, x, &mut self.y_hat, done, stop))
     }
 }
