@@ -7,32 +7,20 @@ use cassi_core::calib::{CalibrationProblem, DefaultPreset, StageReport, calibrat
 use cassi_core::optics::{DispersionModel, warp_mask};
 use clap::Args;
 
+use super::inputs::MeasurementArgs;
 use super::simulate::check_output;
 use crate::report::Reporter;
 
 #[derive(Args)]
 pub struct CalibrateArgs {
-    /// The measurement (.mat, .npy, .npz): (rows, detector cols).
-    pub measurement: PathBuf,
-    #[arg(long)]
-    pub meas_var: Option<String>,
-    /// The nominal coded aperture.
-    #[arg(long)]
-    pub mask: PathBuf,
-    #[arg(long)]
-    pub mask_var: Option<String>,
+    #[command(flatten)]
+    pub input: MeasurementArgs,
     /// Search preset.
     #[arg(long, default_value = "default", value_parser = ["default"])]
     pub preset: String,
     /// Dispersion model of candidate instruments (`subpixel` also estimates α).
     #[arg(long, default_value = "rounded")]
     pub model: DispersionModel,
-    /// Number of bands (default: from the measurement width and the stride).
-    #[arg(long)]
-    pub bands: Option<usize>,
-    /// Nominal dispersion stride, px per band.
-    #[arg(long, default_value_t = 2.0)]
-    pub stride: f64,
     /// Output calibration JSON (for `cassi reconstruct --calibration`).
     #[arg(long, short)]
     pub output: PathBuf,
@@ -45,14 +33,7 @@ pub fn run(args: &CalibrateArgs, reporter: &Reporter) -> anyhow::Result<()> {
     if let Some(p) = &args.write_mask {
         check_output(p)?;
     }
-    let measurement = cassi_io::load_frame(&args.measurement, args.meas_var.as_deref())?;
-    let mask = cassi_io::load_frame(&args.mask, args.mask_var.as_deref())?;
-    cassi_core::optics::validate_mask(&mask, &format!("mask {}", args.mask.display()))?;
-    let bands = match args.bands {
-        Some(b) => b,
-        None => super::reconstruct::infer_bands(measurement.cols(), mask.cols(), args.stride)
-            .with_context(|| format!("{}: pass --bands", args.measurement.display()))?,
-    };
+    let (measurement, mask, bands) = args.input.load()?;
     let problem = CalibrationProblem {
         measurement: &measurement,
         nominal_mask: &mask,
@@ -60,7 +41,7 @@ pub fn run(args: &CalibrateArgs, reporter: &Reporter) -> anyhow::Result<()> {
         model: args.model,
     };
     let preset = DefaultPreset {
-        stride: args.stride,
+        stride: args.input.stride,
         ..DefaultPreset::default()
     };
     let mut on_stage = |s: &StageReport| {

@@ -220,3 +220,59 @@ pub fn load_mask(args: &MaskArgs, rows: usize, cols: usize) -> anyhow::Result<(M
     };
     Ok((mask, source))
 }
+
+/// A measurement and the nominal mask it was taken with (calibrate, reconstruct).
+#[derive(Args)]
+pub struct MeasurementArgs {
+    /// The measurement (.mat, .npy, .npz): (rows, detector cols).
+    pub measurement: PathBuf,
+    /// Variable name inside the measurement file.
+    #[arg(long)]
+    pub meas_var: Option<String>,
+    /// The nominal coded aperture.
+    #[arg(long)]
+    pub mask: PathBuf,
+    /// Variable name inside the mask file.
+    #[arg(long)]
+    pub mask_var: Option<String>,
+    /// Number of bands (default: from the measurement width and the stride).
+    #[arg(long)]
+    pub bands: Option<usize>,
+    /// Nominal dispersion stride, px per band.
+    #[arg(long, default_value_t = 2.0, allow_hyphen_values = true)]
+    pub stride: f64,
+}
+
+impl MeasurementArgs {
+    /// Loads and checks both files; returns them with the band count.
+    pub fn load(&self) -> anyhow::Result<(cassi_core::Measurement, Mask, usize)> {
+        let measurement = cassi_io::load_frame(&self.measurement, self.meas_var.as_deref())?;
+        let mask = cassi_io::load_frame(&self.mask, self.mask_var.as_deref())?;
+        cassi_core::optics::validate_mask(&mask, &format!("mask {}", self.mask.display()))?;
+        let bands = match self.bands {
+            Some(b) => b,
+            None => {
+                infer_bands(measurement.cols(), mask.cols(), self.stride).with_context(|| {
+                    format!(
+                        "{}: cannot infer the band count; pass --bands",
+                        self.measurement.display()
+                    )
+                })?
+            }
+        };
+        Ok((measurement, mask, bands))
+    }
+}
+
+/// L such that (L − 1)·stride best explains the extra detector columns.
+fn infer_bands(det_cols: usize, mask_cols: usize, stride: f64) -> anyhow::Result<usize> {
+    if det_cols < mask_cols {
+        bail!(
+            "the measurement ({det_cols} columns) is narrower than the mask ({mask_cols} columns)"
+        );
+    }
+    if !(stride.is_finite() && stride > 0.0) {
+        bail!("--stride must be positive");
+    }
+    Ok(((det_cols - mask_cols) as f64 / stride).floor() as usize + 1)
+}

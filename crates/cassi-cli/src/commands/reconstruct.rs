@@ -14,22 +14,14 @@ use cassi_core::{Cube, Instrument, Mismatch};
 use clap::Args;
 use serde::Serialize;
 
-use super::inputs::LayoutArg;
+use super::inputs::{LayoutArg, MeasurementArgs};
 use super::simulate::check_output;
 use crate::report::Reporter;
 
 #[derive(Args)]
 pub struct ReconstructArgs {
-    /// The measurement (.mat, .npy, .npz): (rows, detector cols).
-    pub measurement: PathBuf,
-    /// Variable name inside the measurement file.
-    #[arg(long)]
-    pub meas_var: Option<String>,
-    /// The nominal coded aperture.
-    #[arg(long)]
-    pub mask: PathBuf,
-    #[arg(long)]
-    pub mask_var: Option<String>,
+    #[command(flatten)]
+    pub input: MeasurementArgs,
     /// A calibration JSON (from `cassi calibrate`) or a simulation sidecar
     /// (its true parameters: the oracle model). Without it: the nominal model.
     #[arg(long)]
@@ -43,12 +35,6 @@ pub struct ReconstructArgs {
     /// Override the method's denoiser strength (TV weight), constant.
     #[arg(long)]
     pub weight: Option<f32>,
-    /// Number of bands (default: from the measurement width and the stride).
-    #[arg(long)]
-    pub bands: Option<usize>,
-    /// Nominal dispersion stride, px per band.
-    #[arg(long, default_value_t = 2.0)]
-    pub stride: f64,
     /// Dispersion model assumed for reconstruction (a calibration may set it).
     #[arg(long)]
     pub model: Option<DispersionModel>,
@@ -118,27 +104,16 @@ struct ReconstructionReport {
 
 pub fn run(args: &ReconstructArgs, reporter: &Reporter) -> anyhow::Result<()> {
     check_output(&args.output)?;
-    let measurement = cassi_io::load_frame(&args.measurement, args.meas_var.as_deref())?;
-    let mask = cassi_io::load_frame(&args.mask, args.mask_var.as_deref())?;
-    cassi_core::optics::validate_mask(&mask, &format!("mask {}", args.mask.display()))?;
+    let (measurement, mask, bands) = args.input.load()?;
     let (params, file_model) = match &args.calibration {
         Some(path) => {
             let (m, model) = read_model_file(path)?;
             (m, model)
         }
-        None => (Mismatch::nominal(args.stride), None),
+        None => (Mismatch::nominal(args.input.stride), None),
     };
     let model = args.model.or(file_model).unwrap_or_default();
-    let bands = match args.bands {
-        Some(b) => b,
-        None => infer_bands(measurement.cols(), mask.cols(), args.stride).with_context(|| {
-            format!(
-                "{}: cannot infer the band count; pass --bands",
-                args.measurement.display()
-            )
-        })?,
-    };
-    let instrument = Instrument::with_bands(bands, args.stride)?;
+    let instrument = Instrument::with_bands(bands, args.input.stride)?;
     let truth = match &args.truth {
         Some(path) => Some(cassi_io::load_cube(
             path,
@@ -186,8 +161,8 @@ pub fn run(args: &ReconstructArgs, reporter: &Reporter) -> anyhow::Result<()> {
         Ok(())
     })?;
     let report = ReconstructionReport {
-        measurement: args.measurement.clone(),
-        mask: args.mask.clone(),
+        measurement: args.input.measurement.clone(),
+        mask: args.input.mask.clone(),
         calibration: args.calibration.clone(),
         model_parameters: params,
         dispersion_model: model,
@@ -227,19 +202,6 @@ pub fn run(args: &ReconstructArgs, reporter: &Reporter) -> anyhow::Result<()> {
     reporter.say(&summary);
     reporter.emit(&serde_json::to_value(&report)?);
     Ok(())
-}
-
-/// L such that (L − 1)·stride best explains the extra detector columns.
-pub fn infer_bands(det_cols: usize, mask_cols: usize, stride: f64) -> anyhow::Result<usize> {
-    if det_cols < mask_cols {
-        bail!(
-            "the measurement ({det_cols} columns) is narrower than the mask ({mask_cols} columns)"
-        );
-    }
-    if !(stride.is_finite() && stride > 0.0) {
-        bail!("--stride must be positive");
-    }
-    Ok(((det_cols - mask_cols) as f64 / stride).floor() as usize + 1)
 }
 
 /// A copy clipped to [0, 1], as the metrics' convention asks.
