@@ -25,14 +25,20 @@ fn high_pass(img: &Frame) -> Vec<f32> {
         .collect()
 }
 
-/// Estimated (dx, dy) of the mask in pixels, searched over ±`range` px.
-pub fn correlation_shift(
+/// High-passed measurement and white-scene prediction on the common columns.
+struct Textures {
+    a: Vec<f32>,
+    b: Vec<f32>,
+    rows: usize,
+    cols: usize,
+}
+
+fn textures(
     measurement: &Measurement,
     nominal_mask: &Mask,
     bands: usize,
     stride: f64,
-    range: usize,
-) -> Result<(f64, f64)> {
+) -> Result<Textures> {
     let (h, w) = nominal_mask.shape();
     let op = CassiOperator::with_mismatch(
         nominal_mask,
@@ -49,20 +55,36 @@ pub fn correlation_shift(
         }
         out
     };
-    let a = high_pass(&crop(measurement));
-    let b = high_pass(&crop(&white));
+    Ok(Textures {
+        a: high_pass(&crop(measurement)),
+        b: high_pass(&crop(&white)),
+        rows: h,
+        cols,
+    })
+}
+
+/// Correlation peak (sub-pixel) of the texture shift over rows `r0..r1`,
+/// cols `c0..c1`, searching ±`range` px.
+fn peak(
+    t: &Textures,
+    (r0, r1): (usize, usize),
+    (c0, c1): (usize, usize),
+    range: usize,
+) -> (f64, f64) {
     let r = range as isize;
     let side = 2 * range + 1;
+    let cols = t.cols;
+    let (row_lo, row_hi) = (r0.max(range), r1.min(t.rows - range));
+    let (lo, hi) = (c0.max(range), c1.min(cols - range));
     let mut corr = vec![0.0f64; side * side];
     // c(sx, sy) = Σ a(p) b(p − s): the measurement's texture is the white one moved by s
     for sy in -r..=r {
         for sx in -r..=r {
             let mut acc = 0.0f64;
-            for row in r..(h as isize - r) {
-                let (ra, rb) = (row as usize * cols, (row - sy) as usize * cols);
-                let (lo, hi) = (r as usize, cols - r as usize);
-                let sa = &a[ra + lo..ra + hi];
-                let sb = &b[(rb as isize + lo as isize - sx) as usize
+            for row in row_lo..row_hi {
+                let (ra, rb) = (row * cols, (row as isize - sy) as usize * cols);
+                let sa = &t.a[ra + lo..ra + hi];
+                let sb = &t.b[(rb as isize + lo as isize - sx) as usize
                     ..(rb as isize + hi as isize - sx) as usize];
                 acc += sa.iter().zip(sb).map(|(&p, &q)| p * q).sum::<f32>() as f64;
             }
@@ -96,5 +118,68 @@ pub fn correlation_shift(
     } else {
         0.0
     };
-    Ok((ix as f64 - r as f64 + fx, iy as f64 - r as f64 + fy))
+    (ix as f64 - r as f64 + fx, iy as f64 - r as f64 + fy)
+}
+
+/// Estimated (dx, dy) of the mask in pixels, searched over ±`range` px.
+pub fn correlation_shift(
+    measurement: &Measurement,
+    nominal_mask: &Mask,
+    bands: usize,
+    stride: f64,
+    range: usize,
+) -> Result<(f64, f64)> {
+    let t = textures(measurement, nominal_mask, bands, stride)?;
+    Ok(peak(&t, (0, t.rows), (0, t.cols), range))
+}
+
+/// Estimated (dx, dy, θ°): local shifts on a 3×3 grid of windows, fitted by
+/// a small-angle rigid motion s = d + θ·(−(row − c_row), col − c_col). A
+/// drifted a1 adds the same column shift everywhere, so θ is unaffected.
+pub fn correlation_pose(
+    measurement: &Measurement,
+    nominal_mask: &Mask,
+    bands: usize,
+    stride: f64,
+    range: usize,
+) -> Result<(f64, f64, f64)> {
+    let t = textures(measurement, nominal_mask, bands, stride)?;
+    let (h, w) = nominal_mask.shape();
+    let (cy, cx) = ((h as f64 - 1.0) / 2.0, (w as f64 - 1.0) / 2.0);
+    // windows over the mask's columns (plus the dispersion spread)
+    let spread = t.cols - w;
+    let mut rows_fit = Vec::new();
+    for i in 0..3 {
+        for j in 0..3 {
+            let (r0, r1) = (i * h / 3, (i + 1) * h / 3);
+            let (c0, c1) = (j * w / 3, (j + 1) * w / 3 + spread);
+            let (sx, sy) = peak(&t, (r0, r1), (c0, c1), range);
+            let (row, col) = (
+                (r0 + r1) as f64 / 2.0 - cy,
+                (c0 + c1 - spread) as f64 / 2.0 - cx,
+            );
+            rows_fit.push((row, col, sx, sy));
+        }
+    }
+    // least squares: sx = dx − θ·row, sy = dy + θ·col (θ in radians)
+    let n = rows_fit.len() as f64;
+    let mean = |f: &dyn Fn(&(f64, f64, f64, f64)) -> f64| rows_fit.iter().map(f).sum::<f64>() / n;
+    let (mr, mc, msx, msy) = (
+        mean(&|v| v.0),
+        mean(&|v| v.1),
+        mean(&|v| v.2),
+        mean(&|v| v.3),
+    );
+    let num: f64 = rows_fit
+        .iter()
+        .map(|v| -(v.0 - mr) * (v.2 - msx) + (v.1 - mc) * (v.3 - msy))
+        .sum();
+    let den: f64 = rows_fit
+        .iter()
+        .map(|v| (v.0 - mr).powi(2) + (v.1 - mc).powi(2))
+        .sum();
+    let theta = if den > 0.0 { num / den } else { 0.0 };
+    let dx = msx + theta * mr;
+    let dy = msy - theta * mc;
+    Ok((dx, dy, theta.to_degrees()))
 }

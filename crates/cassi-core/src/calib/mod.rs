@@ -165,7 +165,7 @@ pub fn calibrate_default(
 
     // 1. global shift estimate
     let t = Instant::now();
-    let (dx0, dy0) = init::correlation_shift(
+    let (dx0, dy0, theta0) = init::correlation_pose(
         problem.measurement,
         problem.nominal_mask,
         problem.bands,
@@ -175,6 +175,7 @@ pub fn calibrate_default(
     let mut best = Mismatch {
         dx: dx0,
         dy: dy0,
+        theta_deg: theta0.clamp(-crate::params::MAX_ANGLE_DEG, crate::params::MAX_ANGLE_DEG),
         ..Mismatch::nominal(preset.stride)
     };
     let s0 = score(&best);
@@ -192,29 +193,50 @@ pub fn calibrate_default(
     // 2. (dx, dy, θ) from three rotation starts
     let t = Instant::now();
     let mut evals = 0;
-    let mut starts: Vec<(f64, Mismatch)> = [-0.5, 0.0, 0.5]
-        .iter()
-        .map(|&th| {
+    // θ starts: around the correlation fit and at fixed angles (the fit can
+    // miss on scenes with little texture)
+    let fitted = best.theta_deg;
+    let thetas = [fitted - 0.25, fitted, fitted + 0.25, -0.5, 0.0, 0.5];
+    // (dx, dy) starts: the pose fit's and the global correlation peak's
+    let (gdx, gdy) = init::correlation_shift(
+        problem.measurement,
+        problem.nominal_mask,
+        problem.bands,
+        preset.stride,
+        preset.shift_range,
+    )?;
+    let mut starts: Vec<(f64, Mismatch)> = Vec::new();
+    for (sdx, sdy) in [(best.dx, best.dy), (gdx, gdy)] {
+        for &th in &thetas {
             let m = Mismatch {
+                dx: sdx,
+                dy: sdy,
                 theta_deg: th,
                 ..best
             };
             evals += 1;
-            (search(&m), m)
-        })
-        .collect();
+            starts.push((search(&m), m));
+        }
+    }
     starts.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let start = starts[0].1;
-    let (v, s, n) = nelder_mead(
-        |v| search(&psi(v, &start)),
-        &[start.dx, start.dy, start.theta_deg],
-        &[0.25, 0.25, 0.25],
-        preset.max_evaluations / 3,
-        &[0.005, 0.005, 0.005],
-        1e-6,
-    );
-    evals += n;
-    best = psi(&v, &start);
+    // refine the two most promising starts: the best-looking start can sit
+    // in the wrong basin
+    let mut s = f64::INFINITY;
+    for (_, start) in starts.iter().take(2) {
+        let (v, sv, n) = nelder_mead(
+            |v| search(&psi(v, start)),
+            &[start.dx, start.dy, start.theta_deg],
+            &[0.25, 0.25, 0.25],
+            preset.max_evaluations / 4,
+            &[0.005, 0.005, 0.005],
+            1e-6,
+        );
+        evals += n;
+        if sv < s {
+            s = sv;
+            best = psi(&v, start);
+        }
+    }
     push(
         &mut stages,
         StageReport {
