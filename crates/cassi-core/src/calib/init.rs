@@ -133,6 +133,14 @@ pub fn correlation_shift(
     Ok(peak(&t, (0, t.rows), (0, t.cols), range))
 }
 
+/// A window's centre (relative to the mask centre) and its texture shift.
+struct WindowShift {
+    row: f64,
+    col: f64,
+    sx: f64,
+    sy: f64,
+}
+
 /// Estimated (dx, dy, θ°): local shifts on a 3×3 grid of windows, fitted by
 /// a small-angle rigid motion s = d + θ·(−(row − c_row), col − c_col). A
 /// drifted a1 adds the same column shift everywhere, so θ is unaffected.
@@ -158,25 +166,25 @@ pub fn correlation_pose(
                 (r0 + r1) as f64 / 2.0 - cy,
                 (c0 + c1 - spread) as f64 / 2.0 - cx,
             );
-            rows_fit.push((row, col, sx, sy));
+            rows_fit.push(WindowShift { row, col, sx, sy });
         }
     }
     // least squares: sx = dx − θ·row, sy = dy + θ·col (θ in radians)
     let n = rows_fit.len() as f64;
-    let mean = |f: &dyn Fn(&(f64, f64, f64, f64)) -> f64| rows_fit.iter().map(f).sum::<f64>() / n;
+    let mean = |f: fn(&WindowShift) -> f64| rows_fit.iter().map(f).sum::<f64>() / n;
     let (mr, mc, msx, msy) = (
-        mean(&|v| v.0),
-        mean(&|v| v.1),
-        mean(&|v| v.2),
-        mean(&|v| v.3),
+        mean(|v| v.row),
+        mean(|v| v.col),
+        mean(|v| v.sx),
+        mean(|v| v.sy),
     );
     let num: f64 = rows_fit
         .iter()
-        .map(|v| -(v.0 - mr) * (v.2 - msx) + (v.1 - mc) * (v.3 - msy))
+        .map(|v| -(v.row - mr) * (v.sx - msx) + (v.col - mc) * (v.sy - msy))
         .sum();
     let den: f64 = rows_fit
         .iter()
-        .map(|v| (v.0 - mr).powi(2) + (v.1 - mc).powi(2))
+        .map(|v| (v.row - mr).powi(2) + (v.col - mc).powi(2))
         .sum();
     let theta = if den > 0.0 { num / den } else { 0.0 };
     let dx = msx + theta * mr;
