@@ -129,8 +129,9 @@ fn main() -> anyhow::Result<()> {
         "rmse": { "dx": rmse[0], "dy": rmse[1], "theta_deg": rmse[2], "a1": rmse[3], "alpha_deg": rmse[4] },
         "median_seconds": median(secs), "scenes": rows,
     });
+    let suffix = random.map(|s| format!("_random{s}")).unwrap_or_default();
     let path = format!(
-        "{}/../../bench/results/calibrate_default_{}.json",
+        "{}/../../bench/results/calibrate_default_{}{suffix}.json",
         env!("CARGO_MANIFEST_DIR"),
         model.name()
     );
