@@ -80,6 +80,14 @@ impl Cube {
         self.data[(band * self.rows + row) * self.cols + col] = value;
     }
 
+    /// A copy clipped to [0, 1]: what reconstructions are scored as (the
+    /// metrics' convention; scenes live in [0, 1]).
+    pub fn clipped_to_unit(&self) -> Cube {
+        let mut c = self.clone();
+        c.data.iter_mut().for_each(|v| *v = v.clamp(0.0, 1.0));
+        c
+    }
+
     /// Errors naming `what` and the first (band, row, col) that is NaN or ±Inf.
     pub fn check_finite(&self, what: &str) -> Result<()> {
         match self.data.iter().position(|v| !v.is_finite()) {

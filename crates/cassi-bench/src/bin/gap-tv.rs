@@ -13,12 +13,12 @@ use std::time::Instant;
 
 use anyhow::{Context, bail};
 use cassi_bench::{cpu_model, median, peak_rss_mib, shared_data};
+use cassi_core::Mismatch;
 use cassi_core::metrics::psnr;
 use cassi_core::optics::{CassiOperator, DispersionModel};
 use cassi_core::recon::{Method, reconstruct};
 use cassi_core::solvers::Silent;
 use cassi_core::synth::{SceneSpec, random_binary_mask, synthetic_scene};
-use cassi_core::{Cube, Mismatch};
 
 /// The constant TV weight of a GAP-TV method (the reference runs the same).
 fn gap_weight(m: &Method) -> f32 {
@@ -26,14 +26,6 @@ fn gap_weight(m: &Method) -> f32 {
         Method::GapTv { gap, .. } => gap.strength.at(0, gap.iterations),
         _ => f32::NAN,
     }
-}
-
-fn clipped(c: &Cube) -> Cube {
-    let mut c = c.clone();
-    c.as_mut_slice()
-        .iter_mut()
-        .for_each(|v| *v = v.clamp(0.0, 1.0));
-    c
 }
 
 /// One solve on a synthetic scene of `size`², in this process: (seconds, peak MiB).
@@ -100,7 +92,7 @@ fn rust_scenes(scenes: &[PathBuf], mask_path: &Path) -> anyhow::Result<serde_jso
             &mut Silent,
         )?;
         let secs = t0.elapsed().as_secs_f64();
-        let p = psnr(&truth, &clipped(&r.cube))?;
+        let p = psnr(&truth, &r.cube.clipped_to_unit())?;
         let name = path
             .file_stem()
             .unwrap_or_default()

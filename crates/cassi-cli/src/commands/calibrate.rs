@@ -2,13 +2,12 @@
 
 use std::path::PathBuf;
 
-use anyhow::Context;
 use cassi_core::calib::{CalibrationProblem, DefaultPreset, StageReport, calibrate_default};
 use cassi_core::optics::{DispersionModel, warp_mask};
 use clap::Args;
 
 use super::inputs::MeasurementArgs;
-use super::simulate::check_output;
+use super::simulate::{check_output, create_parent_dir};
 use crate::report::Reporter;
 
 #[derive(Args)]
@@ -86,9 +85,5 @@ fn check_output_json(path: &std::path::Path) -> anyhow::Result<()> {
             path.display()
         );
     }
-    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir)
-            .with_context(|| format!("cannot create the folder {}", dir.display()))?;
-    }
-    Ok(())
+    create_parent_dir(path)
 }

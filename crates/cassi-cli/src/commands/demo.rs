@@ -13,7 +13,6 @@ use cassi_core::synth::{SceneSpec, random_binary_mask, synthetic_scene};
 use cassi_core::{Instrument, Mismatch};
 use clap::Args;
 
-use super::reconstruct::clipped;
 use super::simulate::{SimulationInputs, simulate_and_write};
 use crate::report::Reporter;
 use crate::sidecar::Source;
@@ -140,7 +139,7 @@ pub fn run(args: &DemoArgs, reporter: &Reporter) -> anyhow::Result<()> {
                 &mut Silent,
             )?)
         })?;
-        let metrics = evaluate(&inputs.scene, &clipped(&recon.cube))?;
+        let metrics = evaluate(&inputs.scene, &recon.cube.clipped_to_unit())?;
         let rgb = pseudo_rgb(&recon.cube, &inputs.instrument.wavelengths_nm)?;
         cassi_io::write_rgb_png(args.out.join(format!("{file}_rgb.png")), &rgb)?;
         scored.push((label, params, metrics));

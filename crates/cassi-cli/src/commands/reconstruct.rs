@@ -10,7 +10,7 @@ use cassi_core::metrics::{Metrics, evaluate};
 use cassi_core::optics::DispersionModel;
 use cassi_core::recon::{METHOD_NAMES, Method, reconstruct};
 use cassi_core::solvers::{Control, IterationInfo};
-use cassi_core::{Cube, Instrument, Mismatch};
+use cassi_core::{Instrument, Mismatch};
 use clap::Args;
 use serde::Serialize;
 
@@ -149,9 +149,9 @@ pub fn run(args: &ReconstructArgs, reporter: &Reporter) -> anyhow::Result<()> {
     let seconds = t0.elapsed().as_secs_f64();
 
     let metrics = match &truth {
-        Some(t) => {
-            Some(evaluate(t, &clipped(&recon.cube)).with_context(|| "comparing with --truth")?)
-        }
+        Some(t) => Some(
+            evaluate(t, &recon.cube.clipped_to_unit()).with_context(|| "comparing with --truth")?,
+        ),
         None => None,
     };
     reporter.stage("writing the cube and preview", || {
@@ -202,13 +202,4 @@ pub fn run(args: &ReconstructArgs, reporter: &Reporter) -> anyhow::Result<()> {
     reporter.say(&summary);
     reporter.emit(&serde_json::to_value(&report)?);
     Ok(())
-}
-
-/// A copy clipped to [0, 1], as the metrics' convention asks.
-pub fn clipped(cube: &Cube) -> Cube {
-    let mut c = cube.clone();
-    c.as_mut_slice()
-        .iter_mut()
-        .for_each(|v| *v = v.clamp(0.0, 1.0));
-    c
 }

@@ -83,7 +83,12 @@ pub fn simulate_and_write(
 /// its folder.
 pub fn check_output(output: &Path) -> anyhow::Result<()> {
     cassi_io::check_output_format(output)?;
-    if let Some(dir) = output.parent().filter(|d| !d.as_os_str().is_empty()) {
+    create_parent_dir(output)
+}
+
+/// Creates the folder an output file goes into.
+pub fn create_parent_dir(path: &Path) -> anyhow::Result<()> {
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir)
             .with_context(|| format!("cannot create the folder {}", dir.display()))?;
     }

@@ -372,9 +372,10 @@ pub fn calibrate_default(
         },
     );
 
-    let uncertainty = curvature_uncertainty(problem, &best, s, &proxy);
+    let (uncertainty, uncertainty_evals) = curvature_uncertainty(problem, &best, s, &proxy);
     let nominal_score = score(&Mismatch::nominal(preset.stride));
-    let evaluations = stages.iter().map(|s| s.evaluations).sum::<usize>() + 11;
+    // + the uncertainty probes and the nominal score
+    let evaluations = stages.iter().map(|s| s.evaluations).sum::<usize>() + uncertainty_evals + 1;
     Ok(Calibration {
         preset: "default".into(),
         model: problem.model,
@@ -388,15 +389,18 @@ pub fn calibrate_default(
     })
 }
 
-/// σ_i = sqrt(2 f₀ / (N · f_ii)) from central second differences f_ii.
+/// σ_i = sqrt(2 f₀ / (N · f_ii)) from central second differences f_ii; also
+/// returns how many scores it evaluated.
 fn curvature_uncertainty(
     problem: &CalibrationProblem<'_>,
     at: &Mismatch,
     f0: f64,
     proxy: &ProxyParams,
-) -> Uncertainty {
+) -> (Uncertainty, usize) {
     let n = problem.measurement.as_slice().len() as f64;
+    let evaluations = std::cell::Cell::new(0);
     let axis = |h: f64, set: &dyn Fn(&mut Mismatch, f64)| -> Option<f64> {
+        evaluations.set(evaluations.get() + 2);
         let (mut p, mut m) = (*at, *at);
         set(&mut p, h);
         set(&mut m, -h);
@@ -408,7 +412,7 @@ fn curvature_uncertainty(
         (c > 0.0).then(|| (2.0 * f0 / (n * c)).sqrt())
     };
     let subpixel = problem.model == DispersionModel::Subpixel;
-    Uncertainty {
+    let u = Uncertainty {
         dx: axis(0.05, &|m, d| m.dx += d),
         dy: axis(0.05, &|m, d| m.dy += d),
         theta_deg: axis(0.05, &|m, d| m.theta_deg += d),
@@ -422,7 +426,8 @@ fn curvature_uncertainty(
         } else {
             None
         },
-    }
+    };
+    (u, evaluations.get())
 }
 
 #[cfg(test)]

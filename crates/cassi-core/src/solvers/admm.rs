@@ -16,9 +16,7 @@ use serde::{Deserialize, Serialize};
 
 use rayon::prelude::*;
 
-use super::common::{
-    CHUNK, check_iterations, check_problem, check_stop, finish, lanes_dist_sq, lanes_dot, norm_sq,
-};
+use super::common::{CHUNK, check_stop, finish, lanes_dist_sq, lanes_dot, norm_sq, prepare};
 use super::observer::{IterationInfo, Observer};
 use super::schedule::Strength;
 use super::{Solution, StopReason};
@@ -79,9 +77,6 @@ impl Admm {
         observer: &mut dyn Observer,
     ) -> Result<Solution> {
         let p = self.params;
-        check_problem(op, y, shape)?;
-        check_iterations(p.iterations)?;
-        p.strength.validate()?;
         if !(p.gamma.is_finite() && p.gamma > 0.0) {
             return Err(CassiError::InvalidParameter {
                 name: "gamma",
@@ -89,13 +84,7 @@ impl Admm {
                 reason: "the ADMM penalty must be a positive number".into(),
             });
         }
-        let phi = op.diag_aat().ok_or_else(|| CassiError::InvalidParameter {
-            name: "operator",
-            value: f64::NAN,
-            reason:
-                "ADMM's closed-form update needs diag(A Aᵀ), which this operator does not provide"
-                    .into(),
-        })?;
+        let phi = prepare(op, y, shape, p.iterations, &p.strength, "ADMM")?;
         let inv: Vec<f32> = phi.iter().map(|&d| 1.0 / (d + p.gamma)).collect();
         let (m, n) = (op.range_len(), op.domain_len());
         self.y_hat.clear();

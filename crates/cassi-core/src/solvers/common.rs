@@ -151,3 +151,24 @@ pub(crate) fn finish(
         relative_residual: res_sq.sqrt() / norm_sq(y).sqrt().max(f64::MIN_POSITIVE),
     }
 }
+
+/// The checks every diag-normalised solver makes, and its normaliser:
+/// shapes and finiteness, the iteration count, the strength schedule, and
+/// diag(A Aᵀ), which `solver` needs and `op` must provide.
+pub(crate) fn prepare(
+    op: &dyn LinearOperator,
+    y: &[f32],
+    shape: (usize, usize, usize),
+    iterations: usize,
+    strength: &super::Strength,
+    solver: &str,
+) -> Result<Vec<f32>> {
+    check_problem(op, y, shape)?;
+    check_iterations(iterations)?;
+    strength.validate()?;
+    op.diag_aat().ok_or_else(|| CassiError::InvalidParameter {
+        name: "operator",
+        value: f64::NAN,
+        reason: format!("{solver} needs diag(A Aᵀ), which this operator does not provide"),
+    })
+}

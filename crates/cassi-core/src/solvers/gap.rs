@@ -14,15 +14,13 @@ use std::time::Instant;
 
 use serde::{Deserialize, Serialize};
 
-use super::common::{
-    add_step, check_iterations, check_problem, check_stop, finish, inverse_or_zero, norm_sq,
-};
+use super::common::{add_step, check_stop, finish, inverse_or_zero, norm_sq, prepare};
 use super::observer::{IterationInfo, Observer};
 use super::schedule::Strength;
 use super::{Solution, StopReason};
 use crate::cube::Cube;
 use crate::denoise::Denoiser;
-use crate::error::{CassiError, Result};
+use crate::error::Result;
 use crate::linop::LinearOperator;
 
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -81,14 +79,7 @@ impl Gap {
         observer: &mut dyn Observer,
     ) -> Result<Solution> {
         let p = self.params;
-        check_problem(op, y, shape)?;
-        check_iterations(p.iterations)?;
-        p.strength.validate()?;
-        let phi = op.diag_aat().ok_or_else(|| CassiError::InvalidParameter {
-            name: "operator",
-            value: f64::NAN,
-            reason: "GAP needs diag(A Aᵀ), which this operator does not provide".into(),
-        })?;
+        let phi = prepare(op, y, shape, p.iterations, &p.strength, "GAP")?;
         let inv_phi = inverse_or_zero(&phi);
         let (m, n) = (op.range_len(), op.domain_len());
         for buf in [&mut self.y_hat, &mut self.y_acc, &mut self.residual] {
