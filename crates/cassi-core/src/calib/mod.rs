@@ -6,6 +6,7 @@
 //! evaluations, time and best ψ.
 
 mod default;
+pub mod gradient;
 pub mod init;
 pub mod nelder_mead;
 pub mod score;
@@ -15,6 +16,7 @@ mod uncertainty;
 use serde::{Deserialize, Serialize};
 
 pub use default::{DefaultPreset, calibrate_default};
+pub use gradient::Parameter;
 pub use score::{CalibrationProblem, ProxyParams};
 
 use crate::optics::DispersionModel;

@@ -77,35 +77,31 @@ impl CalibrationProblem<'_> {
 
 /// The proxy reconstruction's residual for one operator (see the module doc).
 pub fn proxy_residual(op: &CassiOperator, measurement: &Measurement, proxy: &ProxyParams) -> f64 {
+    let (y, outside) = fit_to_model(measurement, op.measurement_shape().1);
+    let size = measurement.as_slice().len();
+    residual_with(op, &y, outside, size, &inverse_phi(op), proxy)
+}
+
+/// [`proxy_residual`] with the fitted measurement `y`, the energy `outside`
+/// the model's columns, the measurement's pixel count and Φ⁻¹ given.
+pub(crate) fn residual_with(
+    op: &CassiOperator,
+    y: &[f32],
+    outside: f64,
+    measurement_size: usize,
+    inv_phi: &[f32],
+    proxy: &ProxyParams,
+) -> f64 {
     let (rows, det) = op.measurement_shape();
     let (_, h, w) = op.cube_shape();
-    let meas_cols = measurement.cols();
-    // y fitted to the model's width; light beyond it is counted separately
-    let mut y = vec![0.0f32; rows * det];
-    let keep = det.min(meas_cols);
-    let mut outside = 0.0f64;
-    for r in 0..rows {
-        let src = measurement.row(r);
-        y[r * det..r * det + keep].copy_from_slice(&src[..keep]);
-        outside += src[keep..]
-            .iter()
-            .map(|&v| v as f64 * v as f64)
-            .sum::<f64>();
-    }
-    let inv_phi: Vec<f32> = op
-        .diag_aat()
-        .into_vec()
-        .into_iter()
-        .map(|d| if d > 0.0 { 1.0 / d } else { 0.0 })
-        .collect();
     let taps = gaussian_taps(proxy.sigma);
     SCRATCH.with_borrow_mut(|scratch| {
         scratch.resize(rows * det, op.domain_len());
         let ProxyScratch { r, yh, step, x } = scratch;
         proxy_iterations(
             op,
-            &y,
-            &inv_phi,
+            y,
+            inv_phi,
             &taps,
             proxy.iterations,
             r,
@@ -120,8 +116,35 @@ pub fn proxy_residual(op: &CassiOperator, measurement: &Measurement, proxy: &Pro
             .zip(yh.iter())
             .map(|(&a, &b)| ((a - b) as f64).powi(2))
             .sum();
-        (inside + outside) / (rows * meas_cols) as f64
+        (inside + outside) / measurement_size as f64
     })
+}
+
+/// The measurement fitted to a model's `det` detector columns (cropped or
+/// zero-padded), and the energy Σ y² of the measured columns beyond them.
+pub(crate) fn fit_to_model(measurement: &Measurement, det: usize) -> (Vec<f32>, f64) {
+    let rows = measurement.rows();
+    let mut y = vec![0.0f32; rows * det];
+    let keep = det.min(measurement.cols());
+    let mut outside = 0.0f64;
+    for r in 0..rows {
+        let src = measurement.row(r);
+        y[r * det..r * det + keep].copy_from_slice(&src[..keep]);
+        outside += src[keep..]
+            .iter()
+            .map(|&v| v as f64 * v as f64)
+            .sum::<f64>();
+    }
+    (y, outside)
+}
+
+/// Φ⁻¹ with Φ = diag(A Aᵀ), 0 where no light can arrive.
+pub(crate) fn inverse_phi(op: &CassiOperator) -> Vec<f32> {
+    op.diag_aat()
+        .into_vec()
+        .into_iter()
+        .map(|d| if d > 0.0 { 1.0 / d } else { 0.0 })
+        .collect()
 }
 
 /// The proxy's buffers, kept between evaluations: a calibration scores

@@ -87,6 +87,17 @@ impl Dispersion {
                 (along * alpha.cos(), along * alpha.sin())
             })
             .collect();
+        Self::from_offsets(params, offsets, model)
+    }
+
+    /// A dispersion with explicit continuous (col, row) offsets per band
+    /// (`params` is recorded, not used).
+    pub(crate) fn from_offsets(
+        params: DispersionParams,
+        offsets: Vec<(f64, f64)>,
+        model: DispersionModel,
+    ) -> Result<Self> {
+        let bands = offsets.len();
         let reach = offsets.last().map_or(0.0, |o| o.0.abs().max(o.1.abs()));
         if reach > MAX_OFFSET_PX {
             return Err(CassiError::InvalidParameter {
@@ -150,6 +161,61 @@ impl Dispersion {
     /// width (max_k round(d_k) for `Rounded`, max_k ceil(d_k) for `Subpixel`).
     pub fn extra_cols(&self) -> usize {
         self.extra_cols
+    }
+
+    /// d(col, row offset of band k)/d a1.
+    pub fn offset_rate_a1(&self, k: usize) -> (f64, f64) {
+        let alpha = self.params.alpha_deg.to_radians();
+        (k as f64 * alpha.cos(), k as f64 * alpha.sin())
+    }
+
+    /// d(col, row offset of band k)/d α, per degree.
+    pub fn offset_rate_alpha_deg(&self, k: usize) -> (f64, f64) {
+        let alpha = self.params.alpha_deg.to_radians();
+        let s = self.params.a1 * k as f64 * std::f64::consts::PI / 180.0;
+        (-s * alpha.sin(), s * alpha.cos())
+    }
+
+    /// `Subpixel` only: the derivative of every band's bilinear tap weights
+    /// when band k's continuous offset moves at `rates[k]` = (d col, d row),
+    /// at the four neighbouring pixels (a weight that is zero now may not
+    /// stay zero). One-sided (to the right/below) where an offset sits on
+    /// an integer, where the interpolant has a kink. Taps that would fall
+    /// off this detector's columns are dropped: that light leaves the
+    /// detector. `None` for `Rounded`, whose weights are piecewise constant.
+    pub(crate) fn weight_derivatives(&self, rates: &[(f64, f64)]) -> Option<Dispersion> {
+        if self.model != DispersionModel::Subpixel {
+            return None;
+        }
+        let taps = self
+            .offsets
+            .iter()
+            .zip(rates)
+            .map(|(&(dc, dr), &(rc, rr))| {
+                let (c0, r0) = (dc.floor(), dr.floor());
+                let (fc, fr) = (dc - c0, dr - r0);
+                let (c0, r0) = (c0 as i32, r0 as i32);
+                // d/dt of (1−fr)(1−fc), (1−fr)fc, fr(1−fc), fr·fc
+                [
+                    (r0, c0, -rr * (1.0 - fc) - rc * (1.0 - fr)),
+                    (r0, c0 + 1, -rr * fc + rc * (1.0 - fr)),
+                    (r0 + 1, c0, rr * (1.0 - fc) - rc * fr),
+                    (r0 + 1, c0 + 1, rr * fc + rc * fr),
+                ]
+                .into_iter()
+                .filter(|&(_, col, w)| w != 0.0 && col >= 0 && col as usize <= self.extra_cols)
+                .map(|(row, col, w)| Tap {
+                    row,
+                    col,
+                    weight: w as f32,
+                })
+                .collect()
+            })
+            .collect();
+        Some(Dispersion {
+            taps,
+            ..self.clone()
+        })
     }
 }
 

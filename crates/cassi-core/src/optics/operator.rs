@@ -129,20 +129,59 @@ impl CassiOperator {
     /// diag(A Aᵀ) as a detector frame: Σ over the (band, pixel, tap) that hit
     /// each detector pixel of (weight · mask)². GAP's normaliser.
     pub fn diag_aat(&self) -> Frame {
+        self.diag_product(self)
+    }
+
+    /// An operator of the same form with any mask values and any taps, not
+    /// validated: A is linear in the mask and in the tap weights, so its
+    /// derivative along a calibration parameter is such an operator (mask
+    /// ∂m̃/∂p with the same taps, or the same mask with ∂w/∂p). The taps
+    /// must land inside this operator's detector.
+    pub(crate) fn derivative(&self, mask: Frame, dispersion: Dispersion) -> Self {
+        debug_assert_eq!(mask.shape(), self.mask.shape());
+        debug_assert!((0..dispersion.bands()).all(|k| {
+            dispersion
+                .taps(k)
+                .iter()
+                .all(|t| t.col >= 0 && t.col as usize <= self.dispersion.extra_cols())
+        }));
+        Self {
+            mask,
+            dispersion,
+            det_cols: self.det_cols,
+        }
+    }
+
+    /// Σ_k Σ_t w_t · w'_t · shift_t(m ⊙ m'), pairing the taps of `self` and
+    /// `other` by position: diag(A Aᵀ) when `other` is `self`, and half the
+    /// derivative of diag(A Aᵀ) along a parameter when `other` is the
+    /// operator's derivative there ([`Self::derivative`]).
+    pub(crate) fn diag_product(&self, other: &CassiOperator) -> Frame {
         let (rows, det_cols) = self.measurement_shape();
         let cols = self.mask.cols();
         let mut d = Frame::zeros(rows, det_cols);
         for k in 0..self.bands() {
             for tap in self.dispersion.taps(k) {
-                let w2 = tap.weight * tap.weight;
+                let w: f32 = other
+                    .dispersion
+                    .taps(k)
+                    .iter()
+                    .filter(|t| t.row == tap.row && t.col == tap.col)
+                    .map(|t| tap.weight * t.weight)
+                    .sum();
+                if w == 0.0 {
+                    continue;
+                }
                 for r in 0..rows {
                     let Some(yr) = shifted_row(r, tap.row, rows) else {
                         continue;
                     };
                     let c0 = tap.col as usize;
                     let out = &mut d.row_mut(yr)[c0..c0 + cols];
-                    for (o, &m) in out.iter_mut().zip(self.mask.row(r)) {
-                        *o += w2 * m * m;
+                    for ((o, &m), &m2) in
+                        out.iter_mut().zip(self.mask.row(r)).zip(other.mask.row(r))
+                    {
+                        *o += w * m * m2;
                     }
                 }
             }
