@@ -2,7 +2,9 @@
 
 use std::path::PathBuf;
 
-use cassi_core::calib::{CalibrationProblem, DefaultPreset, StageReport, calibrate_default};
+use cassi_core::calib::{
+    CalibrationProblem, DefaultPreset, PaperPreset, StageReport, calibrate_default, calibrate_paper,
+};
 use cassi_core::optics::{DispersionModel, warp_mask};
 use clap::Args;
 
@@ -14,8 +16,9 @@ use crate::report::Reporter;
 pub struct CalibrateArgs {
     #[command(flatten)]
     pub input: MeasurementArgs,
-    /// Search preset.
-    #[arg(long, default_value = "default", value_parser = ["default"])]
+    /// Search preset: `default` (ours: fast and precise) or `paper` (the
+    /// paper's Algorithm 1: grids, then Adam through the unrolled proxy).
+    #[arg(long, default_value = "default", value_parser = ["default", "paper"])]
     pub preset: String,
     /// Dispersion model of candidate instruments (`subpixel` also estimates α).
     #[arg(long, default_value = "rounded")]
@@ -39,10 +42,6 @@ pub fn run(args: &CalibrateArgs, reporter: &Reporter) -> anyhow::Result<()> {
         bands,
         model: args.model,
     };
-    let preset = DefaultPreset {
-        stride: args.input.stride,
-        ..DefaultPreset::default()
-    };
     let mut on_stage = |s: &StageReport| {
         let p = s.parameters;
         reporter.say(&format!(
@@ -51,7 +50,22 @@ pub fn run(args: &CalibrateArgs, reporter: &Reporter) -> anyhow::Result<()> {
         ));
     };
     let cal = reporter.stage("calibrating", || {
-        Ok(calibrate_default(&problem, &preset, &mut on_stage)?)
+        Ok(match args.preset.as_str() {
+            "paper" => {
+                let preset = PaperPreset {
+                    stride: args.input.stride,
+                    ..PaperPreset::default()
+                };
+                calibrate_paper(&problem, &preset, &mut on_stage)?
+            }
+            _ => {
+                let preset = DefaultPreset {
+                    stride: args.input.stride,
+                    ..DefaultPreset::default()
+                };
+                calibrate_default(&problem, &preset, &mut on_stage)?
+            }
+        })
     })?;
     let text = serde_json::to_string_pretty(&cal)? + "\n";
     check_output_json(&args.output)?;

@@ -2,13 +2,16 @@
 //! measurement and the nominal mask, with no ground truth, by minimising
 //! the residual of a short proxy reconstruction (paper §3.3, Eq. 3).
 //!
-//! Presets: `default` (ours, [`calibrate_default`]). Each stage reports its
-//! evaluations, time and best ψ.
+//! Presets: `default` (ours, [`calibrate_default`]) and `paper` (the paper's
+//! Algorithm 1, [`calibrate_paper`]). Each stage reports its evaluations,
+//! time and best ψ.
 
+pub mod adam;
 mod default;
 pub mod gradient;
 pub mod init;
 pub mod nelder_mead;
+mod paper;
 pub mod score;
 pub mod smooth;
 mod uncertainty;
@@ -17,6 +20,7 @@ use serde::{Deserialize, Serialize};
 
 pub use default::{DefaultPreset, calibrate_default};
 pub use gradient::Parameter;
+pub use paper::{GradientStage, PaperPreset, calibrate_paper};
 pub use score::{CalibrationProblem, ProxyParams};
 
 use crate::optics::DispersionModel;
@@ -26,6 +30,8 @@ use crate::params::Mismatch;
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct StageReport {
     pub name: String,
+    /// Score evaluations; for a gradient stage, gradient evaluations (each
+    /// costs about 1 + 2P scores for P parameters).
     pub evaluations: usize,
     pub seconds: f64,
     pub parameters: Mismatch,
