@@ -17,6 +17,7 @@ pub mod optics;
 pub mod params;
 pub mod recon;
 pub mod rng;
+mod simd;
 pub mod solvers;
 pub mod synth;
 

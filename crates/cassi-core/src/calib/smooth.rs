@@ -4,6 +4,8 @@
 
 use rayon::prelude::*;
 
+use crate::simd::{Simd, kernel};
+
 /// Normalised 1-D Gaussian taps of radius round(3σ) (at least 1): 5 taps
 /// for σ = 0.5 and 0.7, 7 for σ = 1, as the paper's kernels.
 pub fn gaussian_taps(sigma: f32) -> Vec<f32> {
@@ -31,67 +33,85 @@ pub fn smooth_step(
     taps: &[f32],
     clamp: bool,
 ) {
-    let r = taps.len() / 2;
     let n = rows * cols;
-    let body = |tmp: &mut Vec<f32>, band: &mut [f32], add: Option<&[f32]>| {
-        tmp.resize(2 * cols + n, 0.0);
-        let (src_row, tmp) = tmp.split_at_mut(2 * cols);
-        let src_row = &mut src_row[..cols];
-        // horizontal, tap-major over contiguous slices (vectorises);
-        // only the r columns at each end need the edge clamp
-        for row in 0..rows {
-            let x = &band[row * cols..(row + 1) * cols];
-            match add {
-                Some(a) => {
-                    for ((s, &xv), &av) in src_row
-                        .iter_mut()
-                        .zip(x)
-                        .zip(&a[row * cols..(row + 1) * cols])
-                    {
-                        *s = xv + av;
-                    }
-                }
-                None => src_row.copy_from_slice(x),
-            }
-            let dst = &mut tmp[row * cols..(row + 1) * cols];
-            dst.fill(0.0);
-            for (j, &w) in taps.iter().enumerate() {
-                let off = j as isize - r as isize;
-                let lo = ((-off).max(0) as usize).min(cols);
-                let hi = (cols as isize - off.max(0)).max(lo as isize) as usize;
-                let shifted = &src_row[(lo as isize + off) as usize..(hi as isize + off) as usize];
-                for (d, &v) in dst[lo..hi].iter_mut().zip(shifted) {
-                    *d += w * v;
-                }
-                for c in (0..lo).chain(hi..cols) {
-                    dst[c] += w * src_row[(c as isize + off).clamp(0, cols as isize - 1) as usize];
-                }
-            }
-        }
-        // vertical: band = tmp * taps along rows, row-wise
-        for row in 0..rows {
-            let dst = &mut band[row * cols..(row + 1) * cols];
-            dst.fill(0.0);
-            for (j, &w) in taps.iter().enumerate() {
-                let rr =
-                    (row as isize + j as isize - r as isize).clamp(0, rows as isize - 1) as usize;
-                for (d, &s) in dst.iter_mut().zip(&tmp[rr * cols..(rr + 1) * cols]) {
-                    *d += w * s;
-                }
-            }
-            if clamp {
-                dst.iter_mut().for_each(|v| *v = v.clamp(0.0, 1.0));
-            }
-        }
-    };
+    let simd = Simd::detect(false);
     match step {
         Some(st) => data
             .par_chunks_mut(n)
             .zip(st.par_chunks(n))
-            .for_each_init(Vec::new, |tmp, (band, add)| body(tmp, band, Some(add))),
-        None => data
-            .par_chunks_mut(n)
-            .for_each_init(Vec::new, |tmp, band| body(tmp, band, None)),
+            .for_each_init(Vec::new, |tmp, (band, add)| {
+                smooth_band(simd, band, Some(add), tmp, rows, cols, taps, clamp)
+            }),
+        None => data.par_chunks_mut(n).for_each_init(Vec::new, |tmp, band| {
+            smooth_band(simd, band, None, tmp, rows, cols, taps, clamp)
+        }),
+    }
+}
+
+kernel!(smooth_band, smooth_band_port, smooth_band_avx,
+    (band: &mut [f32], add: Option<&[f32]>, tmp: &mut Vec<f32>, rows: usize, cols: usize,
+     taps: &[f32], clamp: bool) -> () = smooth_band_body(band, add, tmp, rows, cols, taps, clamp));
+
+/// One band: band ← clamp?(G(band + add)).
+#[inline(always)]
+fn smooth_band_body(
+    band: &mut [f32],
+    add: Option<&[f32]>,
+    tmp: &mut Vec<f32>,
+    rows: usize,
+    cols: usize,
+    taps: &[f32],
+    clamp: bool,
+) {
+    let r = taps.len() / 2;
+    let n = rows * cols;
+    tmp.resize(2 * cols + n, 0.0);
+    let (src_row, tmp) = tmp.split_at_mut(2 * cols);
+    let src_row = &mut src_row[..cols];
+    // horizontal, tap-major over contiguous slices (vectorises);
+    // only the r columns at each end need the edge clamp
+    for row in 0..rows {
+        let x = &band[row * cols..(row + 1) * cols];
+        match add {
+            Some(a) => {
+                for ((s, &xv), &av) in src_row
+                    .iter_mut()
+                    .zip(x)
+                    .zip(&a[row * cols..(row + 1) * cols])
+                {
+                    *s = xv + av;
+                }
+            }
+            None => src_row.copy_from_slice(x),
+        }
+        let dst = &mut tmp[row * cols..(row + 1) * cols];
+        dst.fill(0.0);
+        for (j, &w) in taps.iter().enumerate() {
+            let off = j as isize - r as isize;
+            let lo = ((-off).max(0) as usize).min(cols);
+            let hi = (cols as isize - off.max(0)).max(lo as isize) as usize;
+            let shifted = &src_row[(lo as isize + off) as usize..(hi as isize + off) as usize];
+            for (d, &v) in dst[lo..hi].iter_mut().zip(shifted) {
+                *d += w * v;
+            }
+            for c in (0..lo).chain(hi..cols) {
+                dst[c] += w * src_row[(c as isize + off).clamp(0, cols as isize - 1) as usize];
+            }
+        }
+    }
+    // vertical: band = tmp * taps along rows, row-wise
+    for row in 0..rows {
+        let dst = &mut band[row * cols..(row + 1) * cols];
+        dst.fill(0.0);
+        for (j, &w) in taps.iter().enumerate() {
+            let rr = (row as isize + j as isize - r as isize).clamp(0, rows as isize - 1) as usize;
+            for (d, &s) in dst.iter_mut().zip(&tmp[rr * cols..(rr + 1) * cols]) {
+                *d += w * s;
+            }
+        }
+        if clamp {
+            dst.iter_mut().for_each(|v| *v = v.clamp(0.0, 1.0));
+        }
     }
 }
 
@@ -112,5 +132,21 @@ mod tests {
         assert!((p.iter().sum::<f32>() - 1.0).abs() < 1e-5);
         assert!(p[4 * 11 + 5] < 0.5 && p[4 * 11 + 6] > 0.05 && p[5 * 11 + 5] > 0.05);
         assert!((p[4 * 11 + 6] - p[5 * 11 + 5]).abs() < 1e-6, "isotropic");
+    }
+
+    #[test]
+    fn the_avx_copy_gives_the_same_bits_as_the_portable_one() {
+        let mut rng = crate::Rng::new(4);
+        let (rows, cols) = (13, 37);
+        let x: Vec<f32> = (0..rows * cols).map(|_| rng.uniform() as f32).collect();
+        let add: Vec<f32> = (0..rows * cols).map(|_| rng.uniform() as f32 - 0.5).collect();
+        let taps = gaussian_taps(1.0);
+        let run = |avx: bool| {
+            let mut b = x.clone();
+            let simd = Simd { avx };
+            smooth_band(simd, &mut b, Some(&add), &mut Vec::new(), rows, cols, &taps, true);
+            b
+        };
+        assert_eq!(run(false), run(Simd::detect(false).avx));
     }
 }

@@ -151,60 +151,7 @@ impl Stopper {
     }
 }
 
-/// Which compiled copy of the row kernels to run.
-#[derive(Debug, Clone, Copy)]
-pub(super) struct Simd {
-    #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
-    pub(super) avx: bool,
-}
-
-impl Simd {
-    pub(super) fn detect(portable_only: bool) -> Self {
-        #[cfg(target_arch = "x86_64")]
-        let avx = !portable_only && std::arch::is_x86_feature_detected!("avx");
-        #[cfg(not(target_arch = "x86_64"))]
-        let avx = {
-            let _ = portable_only;
-            false
-        };
-        Self { avx }
-    }
-}
-
-/// Compiles a row kernel twice — baseline and AVX — behind one dispatcher.
-/// The slices are arguments of a non-inlined function, so LLVM knows they do
-/// not alias and vectorises the lane loops.
-macro_rules! kernel {
-    ($name:ident, $port:ident, $avx:ident, ($($a:ident: $t:ty),* $(,)?) -> $r:ty = $call:expr) => {
-        #[inline(never)]
-        #[allow(clippy::too_many_arguments)]
-        fn $port($($a: $t),*) -> $r {
-            $call
-        }
-
-        #[cfg(target_arch = "x86_64")]
-        #[target_feature(enable = "avx")]
-        #[inline(never)]
-        #[allow(clippy::too_many_arguments)]
-        unsafe fn $avx($($a: $t),*) -> $r {
-            $call
-        }
-
-        #[inline(always)]
-        #[allow(clippy::too_many_arguments)]
-        fn $name(simd: Simd, $($a: $t),*) -> $r {
-            #[cfg(target_arch = "x86_64")]
-            if simd.avx {
-                // SAFETY: `simd.avx` is set only when the CPU reports AVX.
-                return unsafe { $avx($($a),*) };
-            }
-            let _ = simd;
-            $port($($a),*)
-        }
-    };
-}
-
-pub(super) use kernel;
+pub(super) use crate::simd::{Simd, kernel};
 
 #[inline(always)]
 pub(super) fn lanes_sum(a: &[f32; LANES]) -> f64 {
