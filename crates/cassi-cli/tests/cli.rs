@@ -427,29 +427,45 @@ fn calibrate_recovers_the_simulated_mismatch_and_feeds_reconstruct() {
     // the random mask is regenerated from its seed for calibrate/reconstruct
     let mask = dir.join("mask.npy");
     cassi_io::save_frame(&mask, &random_binary_mask(96, 96, 0.5, 1).unwrap(), "mask").unwrap();
-    let calib = dir.join("calib.json");
-    let out = cassi(&[
-        "calibrate",
-        s(&meas),
-        "--mask",
-        s(&mask),
-        "-o",
-        s(&calib),
-        "--json",
-    ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    // both presets, each from its own JSON (the paper's grids and Adam stages
+    // run in a few seconds at this size)
+    for preset in ["paper", "default"] {
+        let calib = dir.join(format!("calib_{preset}.json"));
+        let out = cassi(&[
+            "calibrate",
+            s(&meas),
+            "--mask",
+            s(&mask),
+            "--preset",
+            preset,
+            "-o",
+            s(&calib),
+            "--json",
+        ]);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let cal: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(&calib).unwrap()).unwrap();
+        assert_eq!(cal["preset"], preset);
+        let p = &cal["parameters"];
+        assert!(
+            (p["dx"].as_f64().unwrap() - 1.3).abs() < 0.1,
+            "{preset}: {p}"
+        );
+        assert!(
+            (p["dy"].as_f64().unwrap() + 0.8).abs() < 0.1,
+            "{preset}: {p}"
+        );
+        assert!(
+            (p["theta_deg"].as_f64().unwrap() - 0.35).abs() < 0.15,
+            "{preset}: {p}"
+        );
+    }
+    let calib = dir.join("calib_default.json");
     let cal: serde_json::Value = serde_json::from_slice(&std::fs::read(&calib).unwrap()).unwrap();
-    let p = &cal["parameters"];
-    assert!((p["dx"].as_f64().unwrap() - 1.3).abs() < 0.1, "{p}");
-    assert!((p["dy"].as_f64().unwrap() + 0.8).abs() < 0.1, "{p}");
-    assert!(
-        (p["theta_deg"].as_f64().unwrap() - 0.35).abs() < 0.15,
-        "{p}"
-    );
     let cube = dir.join("cube.npy");
     let out = cassi(&[
         "reconstruct",

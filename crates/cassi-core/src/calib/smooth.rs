@@ -139,12 +139,23 @@ mod tests {
         let mut rng = crate::Rng::new(4);
         let (rows, cols) = (13, 37);
         let x: Vec<f32> = (0..rows * cols).map(|_| rng.uniform() as f32).collect();
-        let add: Vec<f32> = (0..rows * cols).map(|_| rng.uniform() as f32 - 0.5).collect();
+        let add: Vec<f32> = (0..rows * cols)
+            .map(|_| rng.uniform() as f32 - 0.5)
+            .collect();
         let taps = gaussian_taps(1.0);
         let run = |avx: bool| {
             let mut b = x.clone();
             let simd = Simd { avx };
-            smooth_band(simd, &mut b, Some(&add), &mut Vec::new(), rows, cols, &taps, true);
+            smooth_band(
+                simd,
+                &mut b,
+                Some(&add),
+                &mut Vec::new(),
+                rows,
+                cols,
+                &taps,
+                true,
+            );
             b
         };
         assert_eq!(run(false), run(Simd::detect(false).avx));
