@@ -20,10 +20,11 @@
 //!   the exact derivative of the model whose integer shifts are replaced by
 //!   linear interpolation, at the integer offsets.
 
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::score::{CalibrationProblem, ProxyParams, fit_to_model, inverse_phi};
-use super::smooth::{gaussian_taps, smooth_bands, smooth_step};
+use super::smooth::{gaussian_taps, smooth_step};
 use crate::cube::Frame;
 use crate::error::Result;
 use crate::linop::LinearOperator;
@@ -83,6 +84,9 @@ enum OperatorDerivative {
     /// pixels per unit of p.
     StraightThrough { col: Vec<f32>, row: Vec<f32> },
 }
+
+/// Elements per parallel task in the element-wise passes.
+const CHUNK: usize = 1 << 14;
 
 /// Buffers the derivative operators borrow.
 struct Scratch {
@@ -313,16 +317,22 @@ impl CalibrationProblem<'_> {
                 // ṡ = Ȧᵀ r + Aᵀ ṙ
                 d.adjoint(&a, &r, &mut step_dot, &mut s);
                 a.adjoint(&r_dot, &mut s.cube);
-                for ((v, &t), &sd) in xd.iter_mut().zip(&s.cube).zip(&step_dot) {
-                    *v += t + sd;
-                }
-                smooth_bands(xd, h, w, &taps);
-                // the clamp passes derivatives only where it did not bind
-                for (v, &xn) in xd.iter_mut().zip(&x_next) {
-                    if xn <= 0.0 || xn >= 1.0 {
-                        *v = 0.0;
-                    }
-                }
+                // ẋ ← G(ẋ + ṡ), zero where the clamp bound (it passes no
+                // derivative there)
+                s.cube
+                    .par_chunks_mut(CHUNK)
+                    .zip(step_dot.par_chunks(CHUNK))
+                    .for_each(|(t, sd)| t.iter_mut().zip(sd).for_each(|(t, &sd)| *t += sd));
+                smooth_step(xd, Some(&s.cube), h, w, &taps, false);
+                xd.par_chunks_mut(CHUNK)
+                    .zip(x_next.par_chunks(CHUNK))
+                    .for_each(|(v, xn)| {
+                        for (v, &xn) in v.iter_mut().zip(xn) {
+                            if xn <= 0.0 || xn >= 1.0 {
+                                *v = 0.0;
+                            }
+                        }
+                    });
             }
             std::mem::swap(&mut x, &mut x_next);
         }
