@@ -362,13 +362,14 @@ fn spectra_render() {
     assert!(png.has_color([0, 0, 0]), "the truth is drawn in black");
 }
 
-fn assert_invalid<T: std::fmt::Debug>(r: Result<T>, needle: &str) {
+fn assert_invalid<T>(r: Result<T>, needle: &str) {
     match r {
         Err(e @ FigureError::InvalidInput { .. }) => {
             let msg = e.to_string();
             assert!(msg.contains(needle), "'{msg}' does not mention '{needle}'");
         }
-        other => panic!("expected InvalidInput mentioning '{needle}', got {other:?}"),
+        Err(e) => panic!("expected InvalidInput mentioning '{needle}', got {e:?}"),
+        Ok(_) => panic!("expected InvalidInput mentioning '{needle}', got Ok"),
     }
 }
 
@@ -498,4 +499,28 @@ fn flat_and_single_point_data_render() {
         px.estimates = vec![vec![0.5], vec![0.5]];
     }
     render_spectra(&s, "one band", SIZE).unwrap();
+}
+
+#[test]
+fn unplottable_ranges_and_extreme_input_are_errors_not_panics() {
+    let mut d = bars();
+    d.series[0].values[0] = -1e308;
+    d.series[1].values[0] = 1e308;
+    assert_invalid(render_grouped_bars(&d, "t", SIZE), "cannot be drawn");
+    let mut l = lines();
+    for s in &mut l.series {
+        s.points = vec![(1e16, 1.0), (1e16 + 2.0, 2.0)];
+    }
+    assert_invalid(render_line_chart(&l, "t", SIZE), "cannot be drawn");
+    // Very long text is cut with "…", many columns squeeze, tiny sizes work.
+    let long = "a very long title ".repeat(400);
+    render_grouped_bars(&bars(), &long, SIZE).unwrap();
+    let mut p = panel();
+    let col = p.columns[1].clone();
+    p.columns.extend(std::iter::repeat_n(col, 40));
+    p.columns[3].title = long.clone();
+    render_image_panel(&p, "many", Size::MIN).unwrap();
+    let mut s = scatter();
+    s.panels[0].name = long;
+    render_estimated_vs_true(&s, "t", Size::MIN).unwrap();
 }

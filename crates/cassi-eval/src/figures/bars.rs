@@ -75,6 +75,7 @@ pub fn render_grouped_bars(data: &GroupedBars, title: &str, size: Size) -> Resul
     let (y0, y1) = data
         .y_range
         .unwrap_or_else(|| axis_range(lo, hi, 0.25, if data.show_values { 0.15 } else { 0.08 }));
+    let (y0, y1) = check::plottable(FIGURE, "y", (y0, y1))?;
     let n = data.groups.len();
     let ns = data.series.len();
     render(FIGURE, size, |root, theme| {

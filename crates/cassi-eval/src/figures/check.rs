@@ -57,6 +57,25 @@ pub(crate) fn finite_points(figure: &'static str, what: &str, points: &[(f64, f6
     }
 }
 
+/// A computed axis range must be something plotters can draw: finite, and
+/// wide enough relative to its values to be resolved in f64 (data such as
+/// ±1e308, or 1e16 and 1e16 + 1, are refused rather than drawn wrongly).
+pub(crate) fn plottable(
+    figure: &'static str,
+    what: &str,
+    (a, b): (f64, f64),
+) -> Result<(f64, f64)> {
+    let span = b - a;
+    if a.is_finite() && b.is_finite() && span.is_finite() && span > 1e-9 * (a.abs() + b.abs()) {
+        Ok((a, b))
+    } else {
+        Err(invalid(
+            figure,
+            format!("the {what} values need an axis range ({a}, {b}) that cannot be drawn"),
+        ))
+    }
+}
+
 /// An optional explicit axis range must be finite and increasing.
 pub(crate) fn range(figure: &'static str, what: &str, r: Option<(f64, f64)>) -> Result<()> {
     match r {

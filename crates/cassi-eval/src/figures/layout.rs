@@ -29,13 +29,19 @@ pub(crate) fn fit_text(
     let mut sz = size;
     while text_width(area, s, sz)? > max_w {
         if sz <= 0.75 * size {
+            // The longest prefix that fits with "…" (binary search).
             let chars: Vec<char> = s.chars().collect();
-            for n in (0..chars.len()).rev() {
-                let cut: String = chars[..n].iter().collect::<String>() + "…";
-                if n == 0 || text_width(area, &cut, sz)? <= max_w {
-                    return Ok((cut, sz));
+            let cut = |n: usize| chars[..n].iter().collect::<String>() + "…";
+            let (mut lo, mut hi) = (0, chars.len());
+            while lo < hi {
+                let mid = (lo + hi).div_ceil(2);
+                if text_width(area, &cut(mid), sz)? <= max_w {
+                    lo = mid;
+                } else {
+                    hi = mid - 1;
                 }
             }
+            return Ok((cut(lo), sz));
         }
         sz *= 0.92;
     }

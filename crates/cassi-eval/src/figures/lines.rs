@@ -78,6 +78,8 @@ pub fn render_line_chart(data: &LineChart, title: &str, size: Size) -> Result<Rg
     let y = data
         .y_range
         .unwrap_or_else(|| axis_range(ylo, yhi, 0.1, 0.1));
+    let x = check::plottable(FIGURE, "x", x)?;
+    let y = check::plottable(FIGURE, "y", y)?;
     render(FIGURE, size, |root, theme| {
         let rest = title_band(root, theme, title)?;
         let entries: Vec<LegendEntry> = data

@@ -70,6 +70,21 @@ pub fn render_estimated_vs_true(
     size: Size,
 ) -> Result<RgbImage> {
     validate(data)?;
+    // Same range on both axes of a panel, hugging the data (parameters are
+    // signed and need not include 0).
+    let ranges = data
+        .panels
+        .iter()
+        .map(|panel| {
+            let pts = panel.series.iter().flatten().flat_map(|&(t, e)| [t, e]);
+            let (lo, hi) = extent(pts).expect("validated: points exist");
+            check::plottable(
+                FIGURE,
+                &format!("panel '{}'", panel.name),
+                padded(lo, hi, 0.1),
+            )
+        })
+        .collect::<Result<Vec<_>>>()?;
     render(FIGURE, size, |root, theme| {
         let rest = title_band(root, theme, title)?;
         let mut entries: Vec<LegendEntry> = data
@@ -91,14 +106,9 @@ pub fn render_estimated_vs_true(
             },
         });
         let grid = legend_band(&rest, theme, &entries)?;
-        for (panel, area) in data.panels.iter().zip(panel_grid(&grid, data.panels.len())) {
+        let areas = panel_grid(&grid, data.panels.len());
+        for ((panel, area), &(a, b)) in data.panels.iter().zip(areas).zip(&ranges) {
             let area = area.margin(0, 4, 4, 4);
-            let pts = || panel.series.iter().flatten();
-            let (lo, hi) =
-                extent(pts().flat_map(|&(t, e)| [t, e])).expect("validated: points exist");
-            // Same range on both axes, hugging the data (parameters are
-            // signed and need not include 0).
-            let (a, b) = padded(lo, hi, 0.1);
             let unit = if panel.unit.is_empty() {
                 String::new()
             } else {

@@ -83,7 +83,20 @@ fn validate(data: &Spectra) -> Result<()> {
 pub fn render_spectra(data: &Spectra, title: &str, size: Size) -> Result<RgbImage> {
     validate(data)?;
     let wl = &data.wavelengths_nm;
-    let x = padded(wl[0], wl[wl.len() - 1], 0.02);
+    let x = check::plottable(FIGURE, "wavelength", padded(wl[0], wl[wl.len() - 1], 0.02))?;
+    let y_ranges = data
+        .pixels
+        .iter()
+        .map(|p| {
+            let vals = p.truth.iter().chain(p.estimates.iter().flatten()).copied();
+            let (lo, hi) = extent(vals).expect("validated: values exist");
+            check::plottable(
+                FIGURE,
+                &format!("pixel '{}'", p.label),
+                axis_range(lo, hi, 0.08, 0.08),
+            )
+        })
+        .collect::<Result<Vec<_>>>()?;
     let nb = wl.len();
     // Markers on a subset of bands (every band when few), staggered between
     // series so that they do not sit on top of each other.
@@ -117,13 +130,12 @@ pub fn render_spectra(data: &Spectra, title: &str, size: Size) -> Result<RgbImag
                 }),
         );
         let grid = legend_band(&rest, theme, &entries)?;
-        for (p, area) in data.pixels.iter().zip(panel_grid(&grid, data.pixels.len())) {
+        let areas = panel_grid(&grid, data.pixels.len());
+        for ((p, area), &y) in data.pixels.iter().zip(areas).zip(&y_ranges) {
             let area = area.margin(0, 4, 4, 4);
-            let vals = p.truth.iter().chain(p.estimates.iter().flatten()).copied();
-            let (lo, hi) = extent(vals).expect("validated: values exist");
             let spec = AxesSpec {
                 x,
-                y: axis_range(lo, hi, 0.08, 0.08),
+                y,
                 x_label: "wavelength (nm)",
                 y_label: &data.y_label,
                 categories: None,

@@ -159,10 +159,40 @@ impl DrawingBackend for Surface<'_> {
     fn blit_bitmap(
         &mut self,
         pos: BackendCoord,
-        size: (u32, u32),
+        (sw, sh): (u32, u32),
         src: &[u8],
     ) -> Result<(), DrawingErrorKind<Self::ErrorType>> {
-        self.inner.blit_bitmap(pos, size, src)
+        if src.len() < 3 * sw as usize * sh as usize {
+            return Err(DrawingErrorKind::FontError(Box::new(
+                std::io::Error::other("bitmap smaller than its stated size"),
+            )));
+        }
+        let (w, h) = self.get_size();
+        let (x0, y0) = (i64::from(pos.0), i64::from(pos.1));
+        if x0 >= 0
+            && y0 >= 0
+            && x0 + i64::from(sw) <= i64::from(w)
+            && y0 + i64::from(sh) <= i64::from(h)
+        {
+            return self.inner.blit_bitmap(pos, (sw, sh), src);
+        }
+        // plotters-bitmap 0.3.7 mis-clips a partly visible bitmap (and can
+        // panic on one wholly off to the right): clip here, pixel by pixel.
+        for y in 0..sh {
+            for x in 0..sw {
+                let (px, py) = (x0 + i64::from(x), y0 + i64::from(y));
+                if px < 0 || py < 0 || px >= i64::from(w) || py >= i64::from(h) {
+                    continue;
+                }
+                let i = 3 * (y as usize * sw as usize + x as usize);
+                let c = BackendColor {
+                    alpha: 1.0,
+                    rgb: (src[i], src[i + 1], src[i + 2]),
+                };
+                self.inner.draw_pixel((px as i32, py as i32), c)?;
+            }
+        }
+        Ok(())
     }
 
     fn estimate_text_size<TStyle: BackendTextStyle>(
