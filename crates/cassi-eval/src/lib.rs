@@ -1,0 +1,7 @@
+//! Evaluation of reconstruction and self-calibration: the four-scenario
+//! protocol (Ideal, Assumed, Corrected, Oracle) per scene, summaries,
+//! tables, figures and a report. Above `cassi-core` and `cassi-io`; the CLI
+//! (`cassi eval`) is a thin layer over it.
+
+pub mod protocol;
+pub mod summary;
