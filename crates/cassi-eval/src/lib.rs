@@ -4,4 +4,7 @@
 //! (`cassi eval`) is a thin layer over it.
 
 pub mod protocol;
+pub mod report;
+pub mod study;
 pub mod summary;
+pub mod tables;

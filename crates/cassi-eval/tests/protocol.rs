@@ -35,7 +35,11 @@ fn scenarios_order_as_they_must_and_calibration_closes_the_gap() {
         instrument: DispersionModel::Rounded,
         noise: NoiseModel::default(),
         preset: Preset::by_name("default", 2.0).unwrap(),
-        methods: vec![Method::by_name("gap-tv").unwrap().with_overrides(Some(40), None)],
+        methods: vec![
+            Method::by_name("gap-tv")
+                .unwrap()
+                .with_overrides(Some(40), None),
+        ],
         stride: 2.0,
     };
     let mut steps = Vec::new();
@@ -44,7 +48,10 @@ fn scenarios_order_as_they_must_and_calibration_closes_the_gap() {
     })
     .unwrap();
     assert_eq!(r.outcomes.len(), 5);
-    assert!(steps.iter().any(|s| s.contains("III Corrected")), "{steps:?}");
+    assert!(
+        steps.iter().any(|s| s.contains("III Corrected")),
+        "{steps:?}"
+    );
     let p = |s| r.outcome("gap-tv", s).unwrap().metrics.psnr;
     let (ideal, assumed, corrected, oracle) = (
         p(Scenario::IdealClean),
@@ -52,10 +59,20 @@ fn scenarios_order_as_they_must_and_calibration_closes_the_gap() {
         p(Scenario::Corrected),
         p(Scenario::Oracle),
     );
-    assert!(oracle > assumed + 2.0, "oracle {oracle} vs assumed {assumed}");
-    assert!(corrected > oracle - 0.3, "corrected {corrected} vs oracle {oracle}");
+    assert!(
+        oracle > assumed + 2.0,
+        "oracle {oracle} vs assumed {assumed}"
+    );
+    assert!(
+        corrected > oracle - 0.3,
+        "corrected {corrected} vs oracle {oracle}"
+    );
     assert!(ideal > assumed, "ideal {ideal} vs assumed {assumed}");
-    assert!(r.errors.dx.abs() < 0.1 && r.errors.dy.abs() < 0.1, "{:?}", r.errors);
+    assert!(
+        r.errors.dx.abs() < 0.1 && r.errors.dy.abs() < 0.1,
+        "{:?}",
+        r.errors
+    );
 
     // the summary of two copies: same means, ρ from the gains, RMSE = |error|
     let mut other = r.clone();
