@@ -7,4 +7,5 @@ pub mod protocol;
 pub mod report;
 pub mod study;
 pub mod summary;
+pub mod sweep;
 pub mod tables;

@@ -202,16 +202,30 @@ pub fn run_scenario(
         ),
         Scenario::Oracle => (&prepared.measurement, study.mismatch, study.instrument),
     };
-    let t = Instant::now();
-    let recon = reconstruct(y, mask, scene.bands(), &params, model, method, &mut Silent)
+    let (metrics, seconds) = reconstruct_and_score(scene, mask, y, &params, model, method)
         .with_context(|| format!("{} {}", method.name(), scenario.label()))?;
-    let seconds = t.elapsed().as_secs_f64();
     Ok(Outcome {
         method: method.name().to_string(),
         scenario,
-        metrics: evaluate(scene, &recon.cube.clipped_to_unit())?,
+        metrics,
         seconds,
     })
+}
+
+/// Reconstructs `y` with the model (`params`, `model`), clips to [0, 1] and
+/// scores against `scene`; also returns the reconstruction's seconds.
+pub fn reconstruct_and_score(
+    scene: &Cube,
+    mask: &Mask,
+    y: &Measurement,
+    params: &Mismatch,
+    model: DispersionModel,
+    method: &Method,
+) -> anyhow::Result<(Metrics, f64)> {
+    let t = Instant::now();
+    let recon = reconstruct(y, mask, scene.bands(), params, model, method, &mut Silent)?;
+    let seconds = t.elapsed().as_secs_f64();
+    Ok((evaluate(scene, &recon.cube.clipped_to_unit())?, seconds))
 }
 
 /// The whole protocol on one scene. `progress` hears each step's name.

@@ -9,9 +9,10 @@ use cassi_core::recon::Method;
 use cassi_core::synth::random_binary_mask;
 use cassi_core::{Instrument, Mismatch};
 use cassi_eval::protocol::Study;
-use cassi_eval::report::{Setup, write_all};
+use cassi_eval::report::{Setup, Sweeps, write_all};
 use cassi_eval::study::{Event, SceneSource, run_study, scenes_in};
 use cassi_eval::summary::summarize;
+use cassi_eval::sweep::{ablation, sensitivity};
 use clap::Args;
 
 use super::inputs::{MismatchArgs, NoiseArgs};
@@ -68,6 +69,17 @@ pub struct EvalArgs {
     /// Skip scenes whose result from the same study is already in --out.
     #[arg(long)]
     pub resume: bool,
+    /// Also run the study at these multiples of the paper's mismatch (all
+    /// five parameters scaled), e.g. 0.25,0.5,0.75,1,1.5,2,3.
+    #[arg(long, value_delimiter = ',')]
+    pub sensitivity: Vec<f64>,
+    /// Also compare, per preset, the search stages alone with the full
+    /// pipeline and the oracle.
+    #[arg(long)]
+    pub ablation: bool,
+    /// Presets the sweeps run (default: --preset).
+    #[arg(long, value_delimiter = ',', value_parser = PRESET_NAMES)]
+    pub sweep_presets: Vec<String>,
 }
 
 pub fn run(args: &EvalArgs, reporter: &Reporter) -> anyhow::Result<()> {
@@ -167,6 +179,66 @@ pub fn run(args: &EvalArgs, reporter: &Reporter) -> anyhow::Result<()> {
     )?;
     drop(bar);
     let summary = summarize(&results);
+    let sweep_presets: Vec<Preset> = if args.sweep_presets.is_empty() {
+        vec![study.preset.clone()]
+    } else {
+        args.sweep_presets
+            .iter()
+            .map(|p| Preset::by_name(p, args.stride))
+            .collect::<Result<_, _>>()?
+    };
+    let mut sweeps = Sweeps::default();
+    if !args.sensitivity.is_empty() {
+        for preset in &sweep_presets {
+            let base = Study {
+                preset: preset.clone(),
+                ..study.clone()
+            };
+            let label = format!("sensitivity ({})", preset.name());
+            let total = (args.sensitivity.len() * scenes.len()) as u64;
+            let bar = reporter.progress(&label, total);
+            let mut done = 0;
+            let points = sensitivity(
+                &base,
+                &args.sensitivity,
+                &scenes,
+                &mask,
+                &args.out,
+                args.resume,
+                &mut |scale, e| {
+                    if matches!(e, Event::SceneDone { .. } | Event::Skipped { .. }) {
+                        done += 1;
+                        bar.set(done);
+                    }
+                    if let Event::SceneDone { result } = e {
+                        reporter.say(&format!(
+                            "  {scale}×: {:<24} errors dx {:+.3} dy {:+.3} θ {:+.3}° a1 {:+.4}",
+                            result.scene,
+                            result.errors.dx,
+                            result.errors.dy,
+                            result.errors.theta_deg,
+                            result.errors.a1
+                        ));
+                    }
+                },
+            )?;
+            sweeps.sensitivity.push((preset.name().to_string(), points));
+        }
+    }
+    if args.ablation {
+        let bar = reporter.progress("ablation", (sweep_presets.len() * scenes.len()) as u64);
+        let mut done = 0;
+        sweeps.ablation = Some(ablation(
+            &study,
+            &sweep_presets,
+            &scenes,
+            &mask,
+            &mut |_| {
+                bar.set(done);
+                done += 1;
+            },
+        )?);
+    }
     let scenes_label = match &args.scenes {
         Some(d) => format!("`{}`", d.display()),
         None => format!("embedded synthetic {0}×{0}×28, seeds 0…", args.size),
@@ -180,6 +252,7 @@ pub fn run(args: &EvalArgs, reporter: &Reporter) -> anyhow::Result<()> {
         &study,
         &results,
         &summary,
+        &sweeps,
     )?;
     let mut text = String::from("\n");
     text += &cassi_eval::tables::main_table(&summary);
