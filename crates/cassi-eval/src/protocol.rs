@@ -181,7 +181,8 @@ pub fn prepare(
     })
 }
 
-/// Reconstructs one scenario with one method and scores it against `scene`.
+/// Reconstructs one scenario with one method and scores it against `scene`;
+/// also returns the (clipped) reconstruction.
 pub fn run_scenario(
     scene: &Cube,
     mask: &Mask,
@@ -189,7 +190,7 @@ pub fn run_scenario(
     prepared: &Prepared,
     method: &Method,
     scenario: Scenario,
-) -> anyhow::Result<Outcome> {
+) -> anyhow::Result<(Outcome, Cube)> {
     let nominal = Mismatch::nominal(study.stride);
     let (y, params, model) = match scenario {
         Scenario::IdealClean => (&prepared.ideal_clean, nominal, DispersionModel::Rounded),
@@ -202,18 +203,20 @@ pub fn run_scenario(
         ),
         Scenario::Oracle => (&prepared.measurement, study.mismatch, study.instrument),
     };
-    let (metrics, seconds) = reconstruct_and_score(scene, mask, y, &params, model, method)
+    let (metrics, seconds, cube) = reconstruct_and_score(scene, mask, y, &params, model, method)
         .with_context(|| format!("{} {}", method.name(), scenario.label()))?;
-    Ok(Outcome {
+    let outcome = Outcome {
         method: method.name().to_string(),
         scenario,
         metrics,
         seconds,
-    })
+    };
+    Ok((outcome, cube))
 }
 
 /// Reconstructs `y` with the model (`params`, `model`), clips to [0, 1] and
-/// scores against `scene`; also returns the reconstruction's seconds.
+/// scores against `scene`: the metrics, the reconstruction's seconds and
+/// the clipped cube.
 pub fn reconstruct_and_score(
     scene: &Cube,
     mask: &Mask,
@@ -221,39 +224,49 @@ pub fn reconstruct_and_score(
     params: &Mismatch,
     model: DispersionModel,
     method: &Method,
-) -> anyhow::Result<(Metrics, f64)> {
+) -> anyhow::Result<(Metrics, f64, Cube)> {
     let t = Instant::now();
     let recon = reconstruct(y, mask, scene.bands(), params, model, method, &mut Silent)?;
     let seconds = t.elapsed().as_secs_f64();
-    Ok((evaluate(scene, &recon.cube.clipped_to_unit())?, seconds))
+    let cube = recon.cube.clipped_to_unit();
+    Ok((evaluate(scene, &cube)?, seconds, cube))
 }
 
-/// The whole protocol on one scene. `progress` hears each step's name.
+/// The first method's reconstruction in each scenario, for figures.
+pub type Reconstructions = Vec<(Scenario, Cube)>;
+
+/// The whole protocol on one scene. `progress` hears each step's name. With
+/// `keep`, also returns the first method's reconstructions.
 pub fn run_scene(
     name: &str,
     scene: &Cube,
     mask: &Mask,
     study: &Study,
     noise_seed: u64,
+    keep: bool,
     progress: &mut dyn FnMut(&str),
-) -> anyhow::Result<SceneResult> {
+) -> anyhow::Result<(SceneResult, Reconstructions)> {
     let t = Instant::now();
     let prepared = prepare(scene, mask, study, noise_seed, progress)?;
     let mut outcomes = Vec::new();
-    for method in &study.methods {
+    let mut kept = Vec::new();
+    for (mi, method) in study.methods.iter().enumerate() {
         for scenario in Scenario::ALL {
             progress(&format!("{} {}", method.name(), scenario.label()));
-            outcomes.push(run_scenario(
-                scene, mask, study, &prepared, method, scenario,
-            )?);
+            let (outcome, cube) = run_scenario(scene, mask, study, &prepared, method, scenario)?;
+            outcomes.push(outcome);
+            if keep && mi == 0 {
+                kept.push((scenario, cube));
+            }
         }
     }
-    Ok(SceneResult {
+    let result = SceneResult {
         scene: name.to_string(),
         truth: study.mismatch,
         errors: ParameterErrors::between(&prepared.calibration.parameters, &study.mismatch),
         calibration: prepared.calibration,
         outcomes,
         seconds: t.elapsed().as_secs_f64(),
-    })
+    };
+    Ok((result, kept))
 }

@@ -134,7 +134,7 @@ pub fn run_study(
             name: &name,
         });
         let scene = source.load().with_context(|| format!("scene {name}"))?;
-        let result = run_scene(&name, &scene, mask, study, noise_seed, &mut |step| {
+        let (result, _) = run_scene(&name, &scene, mask, study, noise_seed, false, &mut |step| {
             on_event(Event::Step { name: step })
         })
         .with_context(|| format!("scene {name}"))?;

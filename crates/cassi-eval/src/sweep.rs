@@ -145,7 +145,7 @@ pub fn ablation(
                         AblationVariant::Full => prepared.calibration.parameters,
                         AblationVariant::Oracle => study.mismatch,
                     };
-                    let (metrics, _) = reconstruct_and_score(
+                    let (metrics, _, _) = reconstruct_and_score(
                         &scene,
                         mask,
                         &prepared.measurement,

@@ -43,10 +43,12 @@ fn scenarios_order_as_they_must_and_calibration_closes_the_gap() {
         stride: 2.0,
     };
     let mut steps = Vec::new();
-    let r = run_scene("synthetic", &scene, &mask, &study, 7, &mut |s| {
+    let (r, kept) = run_scene("synthetic", &scene, &mask, &study, 7, true, &mut |s| {
         steps.push(s.to_string())
     })
     .unwrap();
+    assert_eq!(kept.len(), 5);
+    assert!(kept.iter().all(|(_, c)| c.shape() == scene.shape()));
     assert_eq!(r.outcomes.len(), 5);
     assert!(
         steps.iter().any(|s| s.contains("III Corrected")),
