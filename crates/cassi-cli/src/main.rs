@@ -37,6 +37,8 @@ enum Command {
     Calibrate(Box<commands::calibrate::CalibrateArgs>),
     /// Reconstruct a spectral cube from a measurement (GAP-TV, ADMM-TV, PnP-TV).
     Reconstruct(Box<commands::reconstruct::ReconstructArgs>),
+    /// The four-scenario study (Ideal, Assumed, Corrected, Oracle) over a set of scenes, with a report.
+    Eval(Box<commands::eval::EvalArgs>),
     /// Describe what is in a .mat, .npy or .npz file.
     Info(commands::info::InfoArgs),
     /// Run the whole story on the embedded synthetic scene (no files needed).
@@ -50,6 +52,7 @@ fn main() -> ExitCode {
         Command::Simulate(args) => commands::simulate::run(args, &reporter),
         Command::Calibrate(args) => commands::calibrate::run(args, &reporter),
         Command::Reconstruct(args) => commands::reconstruct::run(args, &reporter),
+        Command::Eval(args) => commands::eval::run(args, &reporter),
         Command::Info(args) => commands::info::run(args, &reporter),
         Command::Demo(args) => commands::demo::run(args, &reporter),
     };

@@ -487,3 +487,69 @@ fn calibrate_recovers_the_simulated_mismatch_and_feeds_reconstruct() {
         serde_json::from_slice(&std::fs::read(dir.join("cube.json")).unwrap()).unwrap();
     assert_eq!(report["model_parameters"], cal["parameters"]);
 }
+
+#[test]
+fn eval_writes_the_study_and_resumes_without_rerunning() {
+    let dir = scratch("eval");
+    let out = dir.join("study");
+    let args = [
+        "eval",
+        "--synthetic",
+        "--count",
+        "2",
+        "--size",
+        "64",
+        "--iterations",
+        "15",
+        "--methods",
+        "gap-tv",
+        "-o",
+        s(&out),
+    ];
+    let first = cassi(&args);
+    assert!(
+        first.status.success(),
+        "{}",
+        String::from_utf8_lossy(&first.stderr)
+    );
+    for f in [
+        "report.md",
+        "summary.json",
+        "outcomes.csv",
+        "parameters.csv",
+        "scenes/synthetic_0.json",
+        "scenes/synthetic_1.json",
+    ] {
+        assert!(out.join(f).is_file(), "{f} missing");
+    }
+    let report = std::fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(report.contains("III Corrected") && report.contains("Metric definitions"));
+    // 2 scenes × 5 scenarios + header
+    let csv = std::fs::read_to_string(out.join("outcomes.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 11, "{csv}");
+    let stamp = std::fs::metadata(out.join("scenes/synthetic_0.json"))
+        .unwrap()
+        .modified()
+        .unwrap();
+    let mut resumed = args.to_vec();
+    resumed.push("--resume");
+    let again = cassi(&resumed);
+    assert!(again.status.success());
+    assert!(String::from_utf8_lossy(&again.stdout).contains("earlier run"));
+    let stamp2 = std::fs::metadata(out.join("scenes/synthetic_0.json"))
+        .unwrap()
+        .modified()
+        .unwrap();
+    assert_eq!(stamp, stamp2, "a finished scene was rerun");
+    // a different study in the same folder is not mistaken for this one
+    let mut other = resumed.clone();
+    other.extend(["--dx", "0.5"]);
+    let third = cassi(&other);
+    assert!(third.status.success());
+    assert!(!String::from_utf8_lossy(&third.stdout).contains("earlier run"));
+    assert_fails(
+        &["eval", "--scenes", "/nonexistent/scenes", "--mask", "m.npy"],
+        &["/nonexistent/scenes"],
+        &dir.join("none"),
+    );
+}

@@ -1,4 +1,12 @@
-//! Evaluation for cassi: the four-scenario protocol's figures (and, later,
-//! scenarios, sweeps, tables and reports).
+//! Evaluation of reconstruction and self-calibration: the four-scenario
+//! protocol (Ideal, Assumed, Corrected, Oracle) per scene, summaries,
+//! tables, figures and a report. Above `cassi-core` and `cassi-io`; the CLI
+//! (`cassi eval`) is a thin layer over it.
 
 pub mod figures;
+pub mod protocol;
+pub mod report;
+pub mod study;
+pub mod summary;
+pub mod sweep;
+pub mod tables;

@@ -2,9 +2,7 @@
 
 use std::path::PathBuf;
 
-use cassi_core::calib::{
-    CalibrationProblem, DefaultPreset, PaperPreset, StageReport, calibrate_default, calibrate_paper,
-};
+use cassi_core::calib::{CalibrationProblem, Preset, StageReport, calibrate};
 use cassi_core::optics::{DispersionModel, warp_mask};
 use clap::Args;
 
@@ -18,7 +16,7 @@ pub struct CalibrateArgs {
     pub input: MeasurementArgs,
     /// Search preset: `default` (ours: fast and precise) or `paper` (the
     /// paper's Algorithm 1: grids, then Adam through the unrolled proxy).
-    #[arg(long, default_value = "default", value_parser = ["default", "paper"])]
+    #[arg(long, default_value = "default", value_parser = cassi_core::calib::PRESET_NAMES)]
     pub preset: String,
     /// Dispersion model of candidate instruments (`subpixel` also estimates α).
     #[arg(long, default_value = "rounded")]
@@ -50,22 +48,11 @@ pub fn run(args: &CalibrateArgs, reporter: &Reporter) -> anyhow::Result<()> {
         ));
     };
     let cal = reporter.stage("calibrating", || {
-        Ok(match args.preset.as_str() {
-            "paper" => {
-                let preset = PaperPreset {
-                    stride: args.input.stride,
-                    ..PaperPreset::default()
-                };
-                calibrate_paper(&problem, &preset, &mut on_stage)?
-            }
-            _ => {
-                let preset = DefaultPreset {
-                    stride: args.input.stride,
-                    ..DefaultPreset::default()
-                };
-                calibrate_default(&problem, &preset, &mut on_stage)?
-            }
-        })
+        Ok(calibrate(
+            &problem,
+            &Preset::by_name(&args.preset, args.input.stride)?,
+            &mut on_stage,
+        )?)
     })?;
     let text = serde_json::to_string_pretty(&cal)? + "\n";
     check_output_json(&args.output)?;

@@ -1,5 +1,6 @@
 pub mod calibrate;
 pub mod demo;
+pub mod eval;
 pub mod info;
 pub mod inputs;
 pub mod reconstruct;

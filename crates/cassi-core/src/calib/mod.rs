@@ -70,6 +70,60 @@ pub struct Uncertainty {
     pub alpha_deg: Option<f64>,
 }
 
+/// A calibration preset with its settings.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "preset", rename_all = "lowercase")]
+pub enum Preset {
+    Default(DefaultPreset),
+    Paper(PaperPreset),
+}
+
+/// The preset names the CLI accepts.
+pub const PRESET_NAMES: [&str; 2] = ["default", "paper"];
+
+impl Preset {
+    /// A preset by name with its default settings and the nominal `stride`.
+    pub fn by_name(name: &str, stride: f64) -> crate::error::Result<Self> {
+        match name {
+            "default" => Ok(Self::Default(DefaultPreset {
+                stride,
+                ..DefaultPreset::default()
+            })),
+            "paper" => Ok(Self::Paper(PaperPreset {
+                stride,
+                ..PaperPreset::default()
+            })),
+            other => Err(crate::error::CassiError::InvalidParameter {
+                name: "preset",
+                value: f64::NAN,
+                reason: format!(
+                    "unknown preset '{other}' (known: {})",
+                    PRESET_NAMES.join(", ")
+                ),
+            }),
+        }
+    }
+
+    pub fn name(&self) -> &'static str {
+        match self {
+            Self::Default(_) => "default",
+            Self::Paper(_) => "paper",
+        }
+    }
+}
+
+/// Runs `preset` on `problem`; `on_stage` sees each stage as it finishes.
+pub fn calibrate(
+    problem: &CalibrationProblem<'_>,
+    preset: &Preset,
+    on_stage: &mut dyn FnMut(&StageReport),
+) -> crate::error::Result<Calibration> {
+    match preset {
+        Preset::Default(p) => calibrate_default(problem, p, on_stage),
+        Preset::Paper(p) => calibrate_paper(problem, p, on_stage),
+    }
+}
+
 /// ψ from a search vector (dx, dy, θ[, a1[, α]]), the rest from `base`.
 pub(crate) fn psi(v: &[f64], base: &Mismatch) -> Mismatch {
     Mismatch {

@@ -10,5 +10,5 @@ pub mod warp;
 pub use dispersion::{Dispersion, DispersionModel, Tap};
 pub use noise::NoiseModel;
 pub use operator::{CassiOperator, validate_mask};
-pub use simulate::{SimulationSpec, simulate};
+pub use simulate::{SimulationSpec, simulate, simulate_oversampled};
 pub use warp::{WarpWithDerivatives, warp_mask, warp_mask_with_derivatives};

@@ -1,0 +1,272 @@
+//! The four-scenario protocol for one scene (paper §5), without the
+//! reference code's confounds (seed-code notes §9, §12): every scenario runs
+//! the same solver with the same settings and the same post-processing
+//! (clip to [0, 1]), Scenario I is reported noise-free and noisy, and all of
+//! II–IV reconstruct the *same* noisy measurement.
+//!
+//! - I   Ideal: a perfectly aligned instrument (nominal mask, a1 = stride,
+//!   α = 0), reconstructed with the nominal model.
+//! - II  Assumed: the mismatched instrument's measurement, nominal model.
+//! - III Corrected: the same measurement, the self-calibrated model.
+//! - IV  Oracle: the same measurement, the true model. When the instrument
+//!   is `subpixel`, its measurement is simulated on a 2× finer grid and
+//!   binned ([`cassi_core::optics::simulate_oversampled`]), so the oracle's
+//!   operator is not the one that made the data (no inverse crime).
+
+use std::time::Instant;
+
+use anyhow::Context;
+use cassi_core::calib::{Calibration, CalibrationProblem, Preset, calibrate};
+use cassi_core::metrics::{Metrics, evaluate};
+use cassi_core::optics::{DispersionModel, NoiseModel, SimulationSpec, simulate};
+use cassi_core::recon::{Method, reconstruct};
+use cassi_core::solvers::Silent;
+use cassi_core::{Cube, Mask, Measurement, Mismatch};
+use serde::{Deserialize, Serialize};
+
+/// What a study fixes for every scene.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct Study {
+    /// The true instrument relative to the nominal one.
+    pub mismatch: Mismatch,
+    /// How the true instrument disperses; calibration and reconstruction use
+    /// the same model family.
+    pub instrument: DispersionModel,
+    pub noise: NoiseModel,
+    pub preset: Preset,
+    pub methods: Vec<Method>,
+    /// Nominal dispersion stride, px per band.
+    pub stride: f64,
+}
+
+/// One of the protocol's reconstructions.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Scenario {
+    IdealClean,
+    IdealNoisy,
+    Assumed,
+    Corrected,
+    Oracle,
+}
+
+impl Scenario {
+    pub const ALL: [Scenario; 5] = [
+        Self::IdealClean,
+        Self::IdealNoisy,
+        Self::Assumed,
+        Self::Corrected,
+        Self::Oracle,
+    ];
+
+    /// Short label for tables and figures.
+    pub fn label(self) -> &'static str {
+        match self {
+            Self::IdealClean => "I Ideal (noise-free)",
+            Self::IdealNoisy => "I Ideal (noisy)",
+            Self::Assumed => "II Assumed",
+            Self::Corrected => "III Corrected",
+            Self::Oracle => "IV Oracle",
+        }
+    }
+}
+
+/// A reconstruction's scores.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct Outcome {
+    pub method: String,
+    pub scenario: Scenario,
+    pub metrics: Metrics,
+    pub seconds: f64,
+}
+
+/// Estimated − true, per parameter.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct ParameterErrors {
+    pub dx: f64,
+    pub dy: f64,
+    pub theta_deg: f64,
+    pub a1: f64,
+    pub alpha_deg: f64,
+}
+
+impl ParameterErrors {
+    pub fn between(estimate: &Mismatch, truth: &Mismatch) -> Self {
+        Self {
+            dx: estimate.dx - truth.dx,
+            dy: estimate.dy - truth.dy,
+            theta_deg: estimate.theta_deg - truth.theta_deg,
+            a1: estimate.a1 - truth.a1,
+            alpha_deg: estimate.alpha_deg - truth.alpha_deg,
+        }
+    }
+
+    pub fn as_array(&self) -> [f64; 5] {
+        [self.dx, self.dy, self.theta_deg, self.a1, self.alpha_deg]
+    }
+}
+
+/// Everything the protocol measured on one scene.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct SceneResult {
+    pub scene: String,
+    pub truth: Mismatch,
+    pub calibration: Calibration,
+    pub errors: ParameterErrors,
+    pub outcomes: Vec<Outcome>,
+    pub seconds: f64,
+}
+
+impl SceneResult {
+    pub fn outcome(&self, method: &str, scenario: Scenario) -> Option<&Outcome> {
+        self.outcomes
+            .iter()
+            .find(|o| o.method == method && o.scenario == scenario)
+    }
+}
+
+/// The measurements and the calibration every method shares.
+pub struct Prepared {
+    pub ideal_clean: Measurement,
+    pub ideal_noisy: Measurement,
+    pub measurement: Measurement,
+    pub calibration: Calibration,
+}
+
+/// Simulates the three measurements and self-calibrates.
+pub fn prepare(
+    scene: &Cube,
+    mask: &Mask,
+    study: &Study,
+    noise_seed: u64,
+    progress: &mut dyn FnMut(&str),
+) -> anyhow::Result<Prepared> {
+    let nominal = Mismatch::nominal(study.stride);
+    let noise = NoiseModel {
+        seed: noise_seed,
+        ..study.noise
+    };
+    let ideal = |noise| SimulationSpec {
+        mismatch: nominal,
+        model: DispersionModel::Rounded,
+        noise,
+    };
+    progress("simulating");
+    let ideal_clean = simulate(scene, mask, &ideal(None))?;
+    let ideal_noisy = simulate(scene, mask, &ideal(Some(noise)))?;
+    let spec = SimulationSpec {
+        mismatch: study.mismatch,
+        model: study.instrument,
+        noise: Some(noise),
+    };
+    let measurement = match study.instrument {
+        DispersionModel::Rounded => simulate(scene, mask, &spec)?,
+        DispersionModel::Subpixel => {
+            cassi_core::optics::simulate_oversampled(scene, mask, &spec, 2)?
+        }
+    };
+    progress("self-calibrating");
+    let problem = CalibrationProblem {
+        measurement: &measurement,
+        nominal_mask: mask,
+        bands: scene.bands(),
+        model: study.instrument,
+    };
+    let calibration = calibrate(&problem, &study.preset, &mut |_| {})?;
+    Ok(Prepared {
+        ideal_clean,
+        ideal_noisy,
+        measurement,
+        calibration,
+    })
+}
+
+/// Reconstructs one scenario with one method and scores it against `scene`;
+/// also returns the (clipped) reconstruction.
+pub fn run_scenario(
+    scene: &Cube,
+    mask: &Mask,
+    study: &Study,
+    prepared: &Prepared,
+    method: &Method,
+    scenario: Scenario,
+) -> anyhow::Result<(Outcome, Cube)> {
+    let nominal = Mismatch::nominal(study.stride);
+    let (y, params, model) = match scenario {
+        Scenario::IdealClean => (&prepared.ideal_clean, nominal, DispersionModel::Rounded),
+        Scenario::IdealNoisy => (&prepared.ideal_noisy, nominal, DispersionModel::Rounded),
+        Scenario::Assumed => (&prepared.measurement, nominal, study.instrument),
+        Scenario::Corrected => (
+            &prepared.measurement,
+            prepared.calibration.parameters,
+            study.instrument,
+        ),
+        Scenario::Oracle => (&prepared.measurement, study.mismatch, study.instrument),
+    };
+    let (metrics, seconds, cube) = reconstruct_and_score(scene, mask, y, &params, model, method)
+        .with_context(|| format!("{} {}", method.name(), scenario.label()))?;
+    let outcome = Outcome {
+        method: method.name().to_string(),
+        scenario,
+        metrics,
+        seconds,
+    };
+    Ok((outcome, cube))
+}
+
+/// Reconstructs `y` with the model (`params`, `model`), clips to [0, 1] and
+/// scores against `scene`: the metrics, the reconstruction's seconds and
+/// the clipped cube.
+pub fn reconstruct_and_score(
+    scene: &Cube,
+    mask: &Mask,
+    y: &Measurement,
+    params: &Mismatch,
+    model: DispersionModel,
+    method: &Method,
+) -> anyhow::Result<(Metrics, f64, Cube)> {
+    let t = Instant::now();
+    let recon = reconstruct(y, mask, scene.bands(), params, model, method, &mut Silent)?;
+    let seconds = t.elapsed().as_secs_f64();
+    let cube = recon.cube.clipped_to_unit();
+    Ok((evaluate(scene, &cube)?, seconds, cube))
+}
+
+/// The first method's reconstruction in each scenario, for figures.
+pub type Reconstructions = Vec<(Scenario, Cube)>;
+
+/// The whole protocol on one scene. `progress` hears each step's name. With
+/// `keep`, also returns the first method's reconstructions.
+pub fn run_scene(
+    name: &str,
+    scene: &Cube,
+    mask: &Mask,
+    study: &Study,
+    noise_seed: u64,
+    keep: bool,
+    progress: &mut dyn FnMut(&str),
+) -> anyhow::Result<(SceneResult, Reconstructions)> {
+    let t = Instant::now();
+    let prepared = prepare(scene, mask, study, noise_seed, progress)?;
+    let mut outcomes = Vec::new();
+    let mut kept = Vec::new();
+    for (mi, method) in study.methods.iter().enumerate() {
+        for scenario in Scenario::ALL {
+            progress(&format!("{} {}", method.name(), scenario.label()));
+            let (outcome, cube) = run_scenario(scene, mask, study, &prepared, method, scenario)?;
+            outcomes.push(outcome);
+            if keep && mi == 0 {
+                kept.push((scenario, cube));
+            }
+        }
+    }
+    let result = SceneResult {
+        scene: name.to_string(),
+        truth: study.mismatch,
+        errors: ParameterErrors::between(&prepared.calibration.parameters, &study.mismatch),
+        calibration: prepared.calibration,
+        outcomes,
+        seconds: t.elapsed().as_secs_f64(),
+    };
+    Ok((result, kept))
+}
