@@ -7,6 +7,7 @@ pub mod figures;
 pub mod protocol;
 pub mod report;
 pub mod study;
+pub mod study_figures;
 pub mod summary;
 pub mod sweep;
 pub mod tables;

@@ -8,6 +8,7 @@ use std::path::Path;
 use serde::Serialize;
 
 use crate::protocol::{SceneResult, Study};
+use crate::study_figures::Figure;
 use crate::summary::Summary;
 use crate::tables;
 
@@ -79,7 +80,34 @@ pub fn write_all(
         out.join("parameters.csv"),
         tables::parameters_csv(results).as_bytes(),
     )?;
-    let md = markdown(setup, study, results, summary, sweeps, &machine);
+    let mut figures = crate::study_figures::write_summary_figures(
+        out,
+        results,
+        summary,
+        sweeps,
+        study.preset.name(),
+    )?;
+    if let (Some(first), Some(method)) = (results.first(), study.methods.first())
+        && out.join("figures/qualitative.png").is_file()
+    {
+        figures.push(Figure {
+            caption: format!(
+                "{} ({}): pseudo-RGB of the truth and each scenario; below, per-pixel RMS error over bands on one shared colour scale",
+                first.scene,
+                method.name()
+            ),
+            path: "figures/qualitative.png".into(),
+        });
+        figures.push(Figure {
+            caption: format!(
+                "{} ({}): spectra at three pixels, truth vs scenarios",
+                first.scene,
+                method.name()
+            ),
+            path: "figures/spectra.png".into(),
+        });
+    }
+    let md = markdown(setup, study, results, summary, sweeps, &figures, &machine);
     cassi_io::write_atomic(out.join("report.md"), md.as_bytes())?;
     Ok(())
 }
@@ -91,6 +119,7 @@ pub fn markdown(
     results: &[SceneResult],
     summary: &Summary,
     sweeps: &Sweeps,
+    figures: &[Figure],
     machine: &Machine,
 ) -> String {
     let m = study.mismatch;
@@ -179,6 +208,12 @@ pub fn markdown(
         );
         s += &tables::ablation_table(rows);
         let _ = writeln!(s);
+    }
+    if !figures.is_empty() {
+        let _ = writeln!(s, "## Figures\n");
+        for f in figures {
+            let _ = writeln!(s, "![{}]({})\n\n*{}*\n", f.caption, f.path, f.caption);
+        }
     }
     let _ = writeln!(
         s,

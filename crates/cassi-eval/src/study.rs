@@ -134,10 +134,16 @@ pub fn run_study(
             name: &name,
         });
         let scene = source.load().with_context(|| format!("scene {name}"))?;
-        let (result, _) = run_scene(&name, &scene, mask, study, noise_seed, false, &mut |step| {
+        // the first scene also gets the qualitative figures
+        let keep = i == 0;
+        let (result, kept) = run_scene(&name, &scene, mask, study, noise_seed, keep, &mut |step| {
             on_event(Event::Step { name: step })
         })
         .with_context(|| format!("scene {name}"))?;
+        if let Some(method) = study.methods.first().filter(|_| keep) {
+            crate::study_figures::write_qualitative(out, &name, method.name(), &scene, &kept)
+                .with_context(|| format!("qualitative figures of scene {name}"))?;
+        }
         let record = Record {
             study: study.clone(),
             noise_seed,
