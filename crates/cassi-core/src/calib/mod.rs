@@ -8,8 +8,10 @@
 mod default;
 pub mod init;
 pub mod nelder_mead;
+mod rounded_dispersion;
 pub mod score;
 pub mod smooth;
+mod subpixel_dispersion;
 mod uncertainty;
 
 use serde::{Deserialize, Serialize};
