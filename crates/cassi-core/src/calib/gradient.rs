@@ -23,7 +23,7 @@
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use super::score::{CalibrationProblem, ProxyParams, fit_to_model, inverse_phi};
+use super::score::{CalibrationProblem, EPS_FRACTION, ProxyParams, StepNorm, fit_to_model};
 use super::smooth::{gaussian_taps, smooth_step};
 use crate::cube::Frame;
 use crate::error::Result;
@@ -161,9 +161,24 @@ impl OperatorDerivative {
         }
     }
 
-    /// ∂Φ/∂p.
-    fn phi(&self, a: &CassiOperator, s: &mut Scratch) -> Vec<f32> {
-        match self {
+    /// ∂Φ/∂p of the step's normaliser (see `score::StepNorm`), before ε̄,
+    /// and ∂ε̄/∂p: Φ = diag(A Aᵀ) (ε̄ = 0), or with `row_sums` Φ = A Aᵀ 𝟙
+    /// and ε̄ = its mean × `EPS_FRACTION`.
+    fn phi(&self, a: &CassiOperator, row_sums: bool, s: &mut Scratch) -> (Vec<f32>, f64) {
+        if row_sums {
+            // Φ̇ = Ȧ (Aᵀ𝟙) + A (Ȧᵀ𝟙)
+            let ones = vec![1.0f32; a.range_len()];
+            let mut back = vec![0.0f32; a.domain_len()];
+            a.adjoint(&ones, &mut back);
+            let mut out = vec![0.0f32; a.range_len()];
+            self.apply(a, &back, &mut out, s);
+            self.adjoint(a, &ones, &mut back, s);
+            a.apply(&back, &mut s.meas);
+            out.iter_mut().zip(&s.meas).for_each(|(o, &v)| *o += v);
+            let mean = out.iter().map(|&v| v as f64).sum::<f64>() / out.len() as f64;
+            return (out, EPS_FRACTION as f64 * mean);
+        }
+        let phi = match self {
             Self::Linear(d) => a
                 .diag_product(d)
                 .into_vec()
@@ -186,7 +201,8 @@ impl OperatorDerivative {
                 }
                 out
             }
-        }
+        };
+        (phi, 0.0)
     }
 }
 
@@ -254,46 +270,86 @@ impl CalibrationProblem<'_> {
         let (_, h, w) = a.cube_shape();
         let size = self.measurement.as_slice().len() as f64;
         let (y, outside) = fit_to_model(self.measurement, a.measurement_shape().1);
-        let ip = inverse_phi(&a);
+        let norm = StepNorm::new(&a);
+        let ip = &norm.inv_phi;
+        let eps = norm.line_search;
         let mut s = Scratch {
             cube: vec![0.0; n],
             meas: vec![0.0; m],
         };
-        // ∂Φ⁻¹/∂p = −Φ̇ Φ⁻²
-        let ip_dot: Vec<Vec<f32>> = derivatives
+        // ∂Φ⁻¹/∂p = −Φ̇ Φ⁻², and ε̇ when the step is line-searched
+        let (ip_dot, eps_dot): (Vec<Vec<f32>>, Vec<f64>) = derivatives
             .iter()
             .map(|d| {
-                d.phi(&a, &mut s)
+                let (phi_dot, e) = d.phi(&a, eps.is_some(), &mut s);
+                let ipd = phi_dot
                     .into_iter()
-                    .zip(&ip)
-                    .map(|(pd, &i)| -pd * i * i)
-                    .collect()
+                    .zip(ip)
+                    .map(|(pd, &i)| -(pd + e as f32) * i * i)
+                    .collect();
+                (ipd, e)
             })
-            .collect();
+            .unzip();
         let taps = gaussian_taps(proxy.sigma);
-        let mut r = vec![0.0f32; m];
+        let mut p = vec![0.0f32; m];
+        let mut res = vec![0.0f32; m];
         let mut yh = vec![0.0f32; m];
-        let mut r_dot = vec![0.0f32; m];
+        let mut p_dot = vec![0.0f32; m];
         let mut yh_dot = vec![0.0f32; m];
         let mut step = vec![0.0f32; n];
+        let mut scaled = vec![0.0f32; n];
         let mut step_dot = vec![0.0f32; n];
         let mut x = vec![0.0f32; n];
         let mut x_next = vec![0.0f32; n];
         let mut x_dot = vec![vec![0.0f32; n]; params.len()];
 
-        // x₀ = Aᵀ(y Φ⁻¹),  ẋ₀ = Ȧᵀ(y Φ⁻¹) + Aᵀ(y ∂Φ⁻¹)
-        for i in 0..m {
-            r[i] = y[i] * ip[i];
-        }
-        a.adjoint(&r, &mut x);
-        for ((d, xd), ipd) in derivatives.iter().zip(&mut x_dot).zip(&ip_dot) {
-            d.adjoint(&a, &r, xd, &mut s);
-            for i in 0..m {
-                r_dot[i] = y[i] * ipd[i];
+        // τ̇ of the line search τ = ⟨res, p⟩ / (‖Aᵀp‖² + ε‖p‖²) (0 without it)
+        let tau_dot = |tau: f32,
+                       res: &[f32],
+                       p: &[f32],
+                       step: &[f32],
+                       res_dot: &dyn Fn(usize) -> f32,
+                       p_dot: &[f32],
+                       step_dot: &[f32],
+                       e_dot: f64|
+         -> f32 {
+            let Some(e) = eps else { return 0.0 };
+            let e = e as f64;
+            let den = dot(step, step) + e * dot(p, p);
+            if den <= 0.0 {
+                return 0.0;
             }
-            a.adjoint(&r_dot, &mut step_dot);
-            xd.iter_mut().zip(&step_dot).for_each(|(v, &t)| *v += t);
+            let num_dot: f64 = (0..p.len())
+                .map(|i| res_dot(i) as f64 * p[i] as f64 + res[i] as f64 * p_dot[i] as f64)
+                .sum();
+            let den_dot = 2.0 * dot(step, step_dot) + e_dot * dot(p, p) + 2.0 * e * dot(p, p_dot);
+            ((num_dot - tau as f64 * den_dot) / den) as f32
+        };
+
+        // x₀ = τ₀ Aᵀ(y Φ⁻¹),  ẋ₀ = τ₀ (Ȧᵀ p + Aᵀ ṗ) + τ̇₀ Aᵀ p
+        for i in 0..m {
+            p[i] = y[i] * ip[i];
         }
+        a.adjoint(&p, &mut step);
+        let tau0 = norm.tau(&y, &p, &step);
+        for ((d, xd), (ipd, &e_dot)) in derivatives
+            .iter()
+            .zip(&mut x_dot)
+            .zip(ip_dot.iter().zip(&eps_dot))
+        {
+            for i in 0..m {
+                p_dot[i] = y[i] * ipd[i];
+            }
+            d.adjoint(&a, &p, &mut step_dot, &mut s);
+            a.adjoint(&p_dot, &mut s.cube);
+            step_dot.iter_mut().zip(&s.cube).for_each(|(v, &t)| *v += t);
+            let td = tau_dot(tau0, &y, &p, &step, &|_| 0.0, &p_dot, &step_dot, e_dot);
+            for ((v, &sd), &st) in xd.iter_mut().zip(&step_dot).zip(&step) {
+                *v = tau0 * sd + td * st;
+            }
+        }
+        x.iter_mut().zip(&step).for_each(|(v, &st)| *v = tau0 * st);
+
         // ẏ = Ȧ x + A ẋ
         let model_dot =
             |d: &OperatorDerivative, x: &[f32], xd: &[f32], yh_dot: &mut [f32], s: &mut Scratch| {
@@ -304,25 +360,58 @@ impl CalibrationProblem<'_> {
         for _ in 0..proxy.iterations {
             a.apply(&x, &mut yh);
             for i in 0..m {
-                r[i] = (y[i] - yh[i]) * ip[i];
+                res[i] = y[i] - yh[i];
+                p[i] = res[i] * ip[i];
             }
-            a.adjoint(&r, &mut step);
+            a.adjoint(&p, &mut step);
+            let tau = norm.tau(&res, &p, &step);
             x_next.copy_from_slice(&x);
-            smooth_step(&mut x_next, Some(&step), h, w, &taps, true);
-            for ((d, xd), ipd) in derivatives.iter().zip(&mut x_dot).zip(&ip_dot) {
+            if tau == 1.0 {
+                smooth_step(&mut x_next, Some(&step), h, w, &taps, true);
+            } else {
+                scaled
+                    .iter_mut()
+                    .zip(&step)
+                    .for_each(|(v, &st)| *v = tau * st);
+                smooth_step(&mut x_next, Some(&scaled), h, w, &taps, true);
+            }
+            for ((d, xd), (ipd, &e_dot)) in derivatives
+                .iter()
+                .zip(&mut x_dot)
+                .zip(ip_dot.iter().zip(&eps_dot))
+            {
                 model_dot(d, &x, xd, &mut yh_dot, &mut s);
+                // ṙes = −ẏ;  ṗ = ṙes Φ⁻¹ + res ∂Φ⁻¹
                 for i in 0..m {
-                    r_dot[i] = -yh_dot[i] * ip[i] + (y[i] - yh[i]) * ipd[i];
+                    p_dot[i] = -yh_dot[i] * ip[i] + res[i] * ipd[i];
                 }
-                // ṡ = Ȧᵀ r + Aᵀ ṙ
-                d.adjoint(&a, &r, &mut step_dot, &mut s);
-                a.adjoint(&r_dot, &mut s.cube);
-                // ẋ ← G(ẋ + ṡ), zero where the clamp bound (it passes no
-                // derivative there)
+                // ṡ = Ȧᵀ p + Aᵀ ṗ
+                d.adjoint(&a, &p, &mut step_dot, &mut s);
+                a.adjoint(&p_dot, &mut s.cube);
+                step_dot
+                    .par_chunks_mut(CHUNK)
+                    .zip(s.cube.par_chunks(CHUNK))
+                    .for_each(|(v, t)| v.iter_mut().zip(t).for_each(|(v, &t)| *v += t));
+                let td = tau_dot(
+                    tau,
+                    &res,
+                    &p,
+                    &step,
+                    &|i| -yh_dot[i],
+                    &p_dot,
+                    &step_dot,
+                    e_dot,
+                );
+                // ẋ ← G(ẋ + τ ṡ + τ̇ s), zero where the clamp bound (it
+                // passes no derivative there)
                 s.cube
                     .par_chunks_mut(CHUNK)
-                    .zip(step_dot.par_chunks(CHUNK))
-                    .for_each(|(t, sd)| t.iter_mut().zip(sd).for_each(|(t, &sd)| *t += sd));
+                    .zip(step_dot.par_chunks(CHUNK).zip(step.par_chunks(CHUNK)))
+                    .for_each(|(t, (sd, st))| {
+                        for ((t, &sd), &st) in t.iter_mut().zip(sd).zip(st) {
+                            *t = tau * sd + td * st;
+                        }
+                    });
                 smooth_step(xd, Some(&s.cube), h, w, &taps, false);
                 xd.par_chunks_mut(CHUNK)
                     .zip(x_next.par_chunks(CHUNK))
@@ -357,10 +446,14 @@ impl CalibrationProblem<'_> {
     }
 }
 
+fn dot(a: &[f32], b: &[f32]) -> f64 {
+    a.iter().zip(b).map(|(&u, &v)| u as f64 * v as f64).sum()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::calib::score::residual_with;
+    use crate::calib::score::{StepNorm, residual_with};
     use crate::cube::{Mask, Measurement};
     use crate::optics::{DispersionModel, SimulationSpec, simulate, warp_mask};
     use crate::params::DispersionParams;
@@ -522,7 +615,11 @@ mod tests {
                     })
                     .collect();
                 let (yf, outside) = fit_to_model(&y, op.measurement_shape().1);
-                residual_with(&op, &yf, outside, y.as_slice().len(), &ip, &PROXY)
+                let norm = StepNorm {
+                    inv_phi: ip,
+                    line_search: None,
+                };
+                residual_with(&op, &yf, outside, y.as_slice().len(), &norm, &PROXY)
             };
             // the relaxed model bends sharply within ~1e-3 px of t = 0 (Φ is
             // small at some pixels), so the step moves the farthest band by

@@ -12,8 +12,10 @@ pub mod gradient;
 pub mod init;
 pub mod nelder_mead;
 mod paper;
+mod rounded_dispersion;
 pub mod score;
 pub mod smooth;
+mod subpixel_dispersion;
 mod uncertainty;
 
 use serde::{Deserialize, Serialize};
