@@ -7,14 +7,15 @@
 //! [−3, 3] px, θ ∈ [−1°, 1°], a1 ∈ [1.9, 2.1] (α = 0.5°), as issue 4's robustness check asks. With
 //! `--scale S`, the paper's mismatch with every deviation from nominal scaled by S (dx, dy, θ, α × S,
 //! a1 = 2 + S·0.04), the sensitivity sweep.
-//! Writes `bench/results/calibrate_default_<model>[_random<SEED>|_scale<S>].json`.
+//! `--preset paper` runs the paper's Algorithm 1 instead of `default`.
+//! Writes `bench/results/calibrate_<preset>_<model>[_random<SEED>|_scale<S>].json`.
 
 use std::path::PathBuf;
 
 use anyhow::Context;
 use cassi_bench::{cpu_model, median, shared_data};
 use cassi_core::Mismatch;
-use cassi_core::calib::{CalibrationProblem, DefaultPreset, calibrate_default};
+use cassi_core::calib::{CalibrationProblem, PRESET_NAMES, Preset, calibrate};
 use cassi_core::optics::{Dispersion, DispersionModel, NoiseModel, SimulationSpec, simulate};
 
 fn main() -> anyhow::Result<()> {
@@ -42,6 +43,9 @@ fn main() -> anyhow::Result<()> {
     let random: Option<u64> = opt("--random").map(|s| s.parse()).transpose()?;
     let only = opt("--only");
     let scale: Option<f64> = opt("--scale").map(|s| s.parse()).transpose()?;
+    let preset_name = opt("--preset").unwrap_or_else(|| "default".into());
+    let preset = Preset::by_name(&preset_name, 2.0)
+        .map_err(|e| anyhow::anyhow!("{e} (presets: {PRESET_NAMES:?})"))?;
     anyhow::ensure!(
         random.is_none() || scale.is_none(),
         "--random and --scale are exclusive"
@@ -87,7 +91,7 @@ fn main() -> anyhow::Result<()> {
             model,
         };
         let verbose = args.iter().any(|a| a == "--verbose");
-        let cal = calibrate_default(&problem, &DefaultPreset::default(), &mut |st| {
+        let cal = calibrate(&problem, &preset, &mut |st| {
             if verbose {
                 let m = st.parameters;
                 eprintln!(
@@ -171,8 +175,46 @@ fn main() -> anyhow::Result<()> {
         rows.len(),
         median(secs.clone())
     );
+    // median time and evaluations of each stage over the scenes
+    let mut stage_names: Vec<String> = Vec::new();
+    for r in &rows {
+        for st in r["calibration"]["stages"].as_array().into_iter().flatten() {
+            let name = st["name"].as_str().unwrap_or("").to_string();
+            if !stage_names.contains(&name) {
+                stage_names.push(name);
+            }
+        }
+    }
+    let stages: Vec<serde_json::Value> = stage_names
+        .iter()
+        .map(|name| {
+            let of = |field: &str| -> Vec<f64> {
+                rows.iter()
+                    .flat_map(|r| r["calibration"]["stages"].as_array().cloned().unwrap_or_default())
+                    .filter(|st| st["name"].as_str() == Some(name.as_str()))
+                    .filter_map(|st| st[field].as_f64())
+                    .collect()
+            };
+            serde_json::json!({ "stage": name, "median_seconds": median(of("seconds")), "median_evaluations": median(of("evaluations")) })
+        })
+        .collect();
+    for st in &stages {
+        eprintln!(
+            "  stage {:<28} median {:.2} s, {} evaluations",
+            st["stage"].as_str().unwrap_or(""),
+            st["median_seconds"].as_f64().unwrap_or(f64::NAN),
+            st["median_evaluations"]
+        );
+    }
+    let evals: Vec<f64> = rows
+        .iter()
+        .filter_map(|r| r["calibration"]["evaluations"].as_f64())
+        .collect();
     let out = serde_json::json!({
-        "benchmark": "default-preset self-calibration, CAVE scenes, TSA mask, paper mismatch, Poisson 1e5 + Gaussian 0.01 e-",
+        "benchmark": format!("{preset_name}-preset self-calibration, CAVE scenes, TSA mask, Poisson 1e5 + Gaussian 0.01 e-"),
+        "preset": preset,
+        "median_evaluations": median(evals),
+        "stages": stages,
         "machine": { "cpu": cpu_model(), "threads": std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1) },
         "model": model, "mismatch": match (random, scale) {
             (Some(_), _) => "random per scene (see truth)".to_string(),
@@ -189,7 +231,7 @@ fn main() -> anyhow::Result<()> {
         (None, None) => String::new(),
     };
     let path = format!(
-        "{}/../../bench/results/calibrate_default_{}{suffix}.json",
+        "{}/../../bench/results/calibrate_{preset_name}_{}{suffix}.json",
         env!("CARGO_MANIFEST_DIR"),
         model.name()
     );
