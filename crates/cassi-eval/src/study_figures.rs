@@ -31,7 +31,7 @@ const SHOWN: [Scenario; 4] = [
 fn name(s: Scenario) -> String {
     match s {
         Scenario::IdealClean => "Ideal (noise-free)",
-        Scenario::IdealNoisy => "I Ideal",
+        Scenario::IdealNoisy => "I Ideal (noisy)",
         Scenario::Assumed => "II Assumed",
         Scenario::Corrected => "III Corrected",
         Scenario::Oracle => "IV Oracle",
