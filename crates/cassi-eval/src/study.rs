@@ -106,7 +106,8 @@ pub fn scene_path(out: &Path, name: &str) -> PathBuf {
 }
 
 /// Runs `study` on every scene (scene i uses noise seed i), writing each
-/// result to `<out>/scenes/`. With `resume`, scenes whose file holds a
+/// result to `<out>/scenes/` (and, with `qualitative`, the first scene's
+/// panel and spectra to `<out>/figures/`). With `resume`, scenes whose file holds a
 /// result of the same study are loaded, not rerun.
 pub fn run_study(
     study: &Study,
@@ -114,6 +115,7 @@ pub fn run_study(
     mask: &Mask,
     out: &Path,
     resume: bool,
+    qualitative: bool,
     on_event: &mut dyn FnMut(Event<'_>),
 ) -> anyhow::Result<Vec<SceneResult>> {
     std::fs::create_dir_all(out.join("scenes"))
@@ -135,7 +137,7 @@ pub fn run_study(
         });
         let scene = source.load().with_context(|| format!("scene {name}"))?;
         // the first scene also gets the qualitative figures
-        let keep = i == 0;
+        let keep = qualitative && i == 0;
         let (result, kept) = run_scene(&name, &scene, mask, study, noise_seed, keep, &mut |step| {
             on_event(Event::Step { name: step })
         })

@@ -228,7 +228,12 @@ pub fn write_summary_figures(
             series: variants
                 .iter()
                 .map(|v| BarSeries {
-                    name: v.label("").replace(" (stages 0–1)", "").to_string(),
+                    name: match v {
+                        crate::sweep::AblationVariant::SearchOnly => {
+                            "search stages only".to_string()
+                        }
+                        _ => v.label("").to_string(),
+                    },
                     values: presets
                         .iter()
                         .map(|p| {

@@ -53,7 +53,7 @@ pub fn sensitivity(
             let dir = out
                 .join("sensitivity")
                 .join(format!("{}_scale{scale}", base.preset.name()));
-            let results = run_study(&study, scenes, mask, &dir, resume, &mut |e| {
+            let results = run_study(&study, scenes, mask, &dir, resume, false, &mut |e| {
                 on_event(scale, e)
             })?;
             Ok(SensitivityPoint {

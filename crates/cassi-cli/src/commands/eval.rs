@@ -149,6 +149,7 @@ pub fn run(args: &EvalArgs, reporter: &Reporter) -> anyhow::Result<()> {
         &mask,
         &args.out,
         args.resume,
+        true,
         &mut |e| match e {
             Event::SceneStart { index, .. } => done = index as u64 * steps_per_scene,
             Event::Step { .. } => {
