@@ -488,6 +488,19 @@ mod tests {
         (simulate(&scene, &mask, &spec).unwrap(), mask)
     }
 
+    fn problem_of<'a>(
+        y: &'a Measurement,
+        mask: &'a Mask,
+        model: DispersionModel,
+    ) -> CalibrationProblem<'a> {
+        CalibrationProblem {
+            measurement: y,
+            nominal_mask: mask,
+            bands: 6,
+            model,
+        }
+    }
+
     /// A candidate away from the truth on every axis, with no rounded band
     /// offset near a rounding tie.
     const AT: Mismatch = Mismatch {
@@ -514,12 +527,7 @@ mod tests {
     fn mask_pose_gradients_match_finite_differences_for_both_models() {
         for model in [DispersionModel::Rounded, DispersionModel::Subpixel] {
             let (y, mask) = setup(model);
-            let problem = CalibrationProblem {
-                measurement: &y,
-                nominal_mask: &mask,
-                bands: 6,
-                model,
-            };
+            let problem = problem_of(&y, &mask, model);
             let params = [Parameter::Dx, Parameter::Dy, Parameter::ThetaDeg];
             let (s, g) = problem.score_and_gradient(&AT, &PROXY, &params).unwrap();
             assert!((s - problem.score(&AT, &PROXY).unwrap()).abs() <= 1e-6 * s);
@@ -540,12 +548,7 @@ mod tests {
     fn subpixel_dispersion_gradients_are_exact() {
         let model = DispersionModel::Subpixel;
         let (y, mask) = setup(model);
-        let problem = CalibrationProblem {
-            measurement: &y,
-            nominal_mask: &mask,
-            bands: 6,
-            model,
-        };
+        let problem = problem_of(&y, &mask, model);
         let params = [Parameter::A1, Parameter::AlphaDeg];
         let (_, g) = problem.score_and_gradient(&AT, &PROXY, &params).unwrap();
         for ((p, gp), h) in params.iter().zip(g).zip([1e-4, 1e-2]) {
@@ -567,12 +570,7 @@ mod tests {
     fn straight_through_gradients_match_the_relaxed_model() {
         let model = DispersionModel::Rounded;
         let (y, mask) = setup(model);
-        let problem = CalibrationProblem {
-            measurement: &y,
-            nominal_mask: &mask,
-            bands: 6,
-            model,
-        };
+        let problem = problem_of(&y, &mask, model);
         let params = [Parameter::A1, Parameter::AlphaDeg];
         let (_, g) = problem.score_and_gradient(&AT, &PROXY, &params).unwrap();
         let warped = warp_mask(&mask, &AT.pose());
