@@ -141,19 +141,12 @@ pub fn prepare(
     noise_seed: u64,
     progress: &mut dyn FnMut(&str),
 ) -> anyhow::Result<Prepared> {
-    let nominal = Mismatch::nominal(study.stride);
     let noise = NoiseModel {
         seed: noise_seed,
         ..study.noise
     };
-    let ideal = |noise| SimulationSpec {
-        mismatch: nominal,
-        model: DispersionModel::Rounded,
-        noise,
-    };
     progress("simulating");
-    let ideal_clean = simulate(scene, mask, &ideal(None))?;
-    let ideal_noisy = simulate(scene, mask, &ideal(Some(noise)))?;
+    let (ideal_clean, ideal_noisy) = ideal_measurements(scene, mask, study.stride, &noise)?;
     let spec = SimulationSpec {
         mismatch: study.mismatch,
         model: study.instrument,
@@ -179,6 +172,25 @@ pub fn prepare(
         measurement,
         calibration,
     })
+}
+
+/// Scenario I's measurements: the aligned instrument (nominal mask, a1 =
+/// `stride`, α = 0), noise-free and with `noise`.
+pub fn ideal_measurements(
+    scene: &Cube,
+    mask: &Mask,
+    stride: f64,
+    noise: &NoiseModel,
+) -> anyhow::Result<(Measurement, Measurement)> {
+    let ideal = |noise| SimulationSpec {
+        mismatch: Mismatch::nominal(stride),
+        model: DispersionModel::Rounded,
+        noise,
+    };
+    Ok((
+        simulate(scene, mask, &ideal(None))?,
+        simulate(scene, mask, &ideal(Some(*noise)))?,
+    ))
 }
 
 /// Reconstructs one scenario with one method and scores it against `scene`;
@@ -248,12 +260,28 @@ pub fn run_scene(
 ) -> anyhow::Result<(SceneResult, Reconstructions)> {
     let t = Instant::now();
     let prepared = prepare(scene, mask, study, noise_seed, progress)?;
+    run_prepared(name, scene, mask, study, &prepared, t, keep, progress)
+}
+
+/// Every method in every scenario on measurements and a calibration already
+/// made (`started`: when the scene's work began, for its total time).
+#[allow(clippy::too_many_arguments)]
+pub fn run_prepared(
+    name: &str,
+    scene: &Cube,
+    mask: &Mask,
+    study: &Study,
+    prepared: &Prepared,
+    started: Instant,
+    keep: bool,
+    progress: &mut dyn FnMut(&str),
+) -> anyhow::Result<(SceneResult, Reconstructions)> {
     let mut outcomes = Vec::new();
     let mut kept = Vec::new();
     for (mi, method) in study.methods.iter().enumerate() {
         for scenario in Scenario::ALL {
             progress(&format!("{} {}", method.name(), scenario.label()));
-            let (outcome, cube) = run_scenario(scene, mask, study, &prepared, method, scenario)?;
+            let (outcome, cube) = run_scenario(scene, mask, study, prepared, method, scenario)?;
             outcomes.push(outcome);
             if keep && mi == 0 {
                 kept.push((scenario, cube));
@@ -264,9 +292,9 @@ pub fn run_scene(
         scene: name.to_string(),
         truth: study.mismatch,
         errors: ParameterErrors::between(&prepared.calibration.parameters, &study.mismatch),
-        calibration: prepared.calibration,
+        calibration: prepared.calibration.clone(),
         outcomes,
-        seconds: t.elapsed().as_secs_f64(),
+        seconds: started.elapsed().as_secs_f64(),
     };
     Ok((result, kept))
 }

@@ -13,10 +13,11 @@
 use std::path::PathBuf;
 
 use anyhow::Context;
-use cassi_bench::{cpu_model, median, shared_data};
+use cassi_bench::{median, shared_data};
 use cassi_core::Mismatch;
 use cassi_core::calib::{CalibrationProblem, PRESET_NAMES, Preset, calibrate};
 use cassi_core::optics::{Dispersion, DispersionModel, NoiseModel, SimulationSpec, simulate};
+use cassi_eval::report::Machine;
 
 fn main() -> anyhow::Result<()> {
     let args: Vec<String> = std::env::args().collect();
@@ -215,7 +216,7 @@ fn main() -> anyhow::Result<()> {
         "preset": preset,
         "median_evaluations": median(evals),
         "stages": stages,
-        "machine": { "cpu": cpu_model(), "threads": std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1) },
+        "machine": Machine::this(),
         "model": model, "mismatch": match (random, scale) {
             (Some(_), _) => "random per scene (see truth)".to_string(),
             (None, Some(s)) => format!("paper × {s}"),

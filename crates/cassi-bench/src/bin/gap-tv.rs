@@ -12,13 +12,14 @@ use std::process::Command;
 use std::time::Instant;
 
 use anyhow::{Context, bail};
-use cassi_bench::{cpu_model, median, peak_rss_mib, shared_data};
+use cassi_bench::{median, peak_rss_mib, shared_data};
 use cassi_core::Mismatch;
 use cassi_core::metrics::psnr;
 use cassi_core::optics::{CassiOperator, DispersionModel};
 use cassi_core::recon::{Method, reconstruct};
 use cassi_core::solvers::Silent;
 use cassi_core::synth::{SceneSpec, random_binary_mask, synthetic_scene};
+use cassi_eval::report::Machine;
 
 /// The constant TV weight of a GAP-TV method (the reference runs the same).
 fn gap_weight(m: &Method) -> f32 {
@@ -198,7 +199,7 @@ fn main() -> anyhow::Result<()> {
         / sizes[0]["seconds_median"].as_f64().unwrap_or(f64::NAN);
     let out = serde_json::json!({
         "benchmark": "GAP-TV on 10 CAVE scenes, TSA simulation mask, stride 2, no mismatch, no noise",
-        "machine": { "cpu": cpu_model(), "threads": std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1) },
+        "machine": Machine::this(),
         "cassi": ours,
         "reference": reference,
         "comparison": comparison,

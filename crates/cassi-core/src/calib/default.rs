@@ -59,6 +59,29 @@ impl Default for DefaultPreset {
     }
 }
 
+/// Nelder–Mead over (dx, dy, θ) from `start` (initial steps `shift_step` px
+/// and `theta_step`°, tolerance `tol` on each, `ftol` on the score): the
+/// refined ψ, its score and the evaluations spent.
+fn refine_pose(
+    score: &dyn Fn(&Mismatch) -> f64,
+    start: &Mismatch,
+    shift_step: f64,
+    theta_step: f64,
+    max_evaluations: usize,
+    tol: f64,
+    ftol: f64,
+) -> (Mismatch, f64, usize) {
+    let (v, s, n) = nelder_mead(
+        |v| score(&psi(v, start)),
+        &[start.dx, start.dy, start.theta_deg],
+        &[shift_step, shift_step, theta_step],
+        max_evaluations,
+        &[tol; 3],
+        ftol,
+    );
+    (psi(&v, start), s, n)
+}
+
 /// Runs the `default` preset. `on_stage` sees each stage as it finishes.
 pub fn calibrate_default(
     problem: &CalibrationProblem<'_>,
@@ -140,18 +163,19 @@ pub fn calibrate_default(
     // in the wrong basin
     let mut s = f64::INFINITY;
     for (_, start) in starts.iter().take(2) {
-        let (v, sv, n) = nelder_mead(
-            |v| search(&psi(v, start)),
-            &[start.dx, start.dy, start.theta_deg],
-            &[0.25, 0.25, 0.25],
+        let (m, sv, n) = refine_pose(
+            &search,
+            start,
+            0.25,
+            0.25,
             preset.max_evaluations / 4,
-            &[0.005, 0.005, 0.005],
+            0.005,
             1e-6,
         );
         evals += n;
         if sv < s {
             s = sv;
-            best = psi(&v, start);
+            best = m;
         }
     }
     push(
@@ -211,18 +235,11 @@ pub fn calibrate_default(
             continue;
         }
         seen.push((h.a1, h.alpha_deg));
-        let (v, sv, n) = nelder_mead(
-            |v| search(&psi(v, h)),
-            &[h.dx, h.dy, h.theta_deg],
-            &[0.2, 0.2, 0.1],
-            preset.max_evaluations / 8,
-            &[0.02, 0.02, 0.02],
-            1e-5,
-        );
+        let (m, sv, n) = refine_pose(&search, h, 0.2, 0.1, preset.max_evaluations / 8, 0.02, 1e-5);
         evals += n;
         if sv < s_best {
             s_best = sv;
-            best = psi(&v, h);
+            best = m;
         }
     }
     push(

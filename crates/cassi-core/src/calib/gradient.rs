@@ -303,35 +303,13 @@ impl CalibrationProblem<'_> {
         let mut x_next = vec![0.0f32; n];
         let mut x_dot = vec![vec![0.0f32; n]; params.len()];
 
-        // τ̇ of the line search τ = ⟨res, p⟩ / (‖Aᵀp‖² + ε‖p‖²) (0 without it)
-        let tau_dot = |tau: f32,
-                       res: &[f32],
-                       p: &[f32],
-                       step: &[f32],
-                       res_dot: &dyn Fn(usize) -> f32,
-                       p_dot: &[f32],
-                       step_dot: &[f32],
-                       e_dot: f64|
-         -> f32 {
-            let Some(e) = eps else { return 0.0 };
-            let e = e as f64;
-            let den = dot(step, step) + e * dot(p, p);
-            if den <= 0.0 {
-                return 0.0;
-            }
-            let num_dot: f64 = (0..p.len())
-                .map(|i| res_dot(i) as f64 * p[i] as f64 + res[i] as f64 * p_dot[i] as f64)
-                .sum();
-            let den_dot = 2.0 * dot(step, step_dot) + e_dot * dot(p, p) + 2.0 * e * dot(p, p_dot);
-            ((num_dot - tau as f64 * den_dot) / den) as f32
-        };
-
         // x₀ = τ₀ Aᵀ(y Φ⁻¹),  ẋ₀ = τ₀ (Ȧᵀ p + Aᵀ ṗ) + τ̇₀ Aᵀ p
         for i in 0..m {
             p[i] = y[i] * ip[i];
         }
         a.adjoint(&p, &mut step);
         let tau0 = norm.tau(&y, &p, &step);
+        let search0 = LineSearch::at(eps, &p, &step);
         for ((d, xd), (ipd, &e_dot)) in derivatives
             .iter()
             .zip(&mut x_dot)
@@ -343,7 +321,16 @@ impl CalibrationProblem<'_> {
             d.adjoint(&a, &p, &mut step_dot, &mut s);
             a.adjoint(&p_dot, &mut s.cube);
             step_dot.iter_mut().zip(&s.cube).for_each(|(v, &t)| *v += t);
-            let td = tau_dot(tau0, &y, &p, &step, &|_| 0.0, &p_dot, &step_dot, e_dot);
+            // res = y does not depend on ψ
+            let td = search0.tau_dot(
+                tau0,
+                || dot(&y, &p_dot),
+                &p,
+                &step,
+                &p_dot,
+                &step_dot,
+                e_dot,
+            );
             for ((v, &sd), &st) in xd.iter_mut().zip(&step_dot).zip(&step) {
                 *v = tau0 * sd + td * st;
             }
@@ -365,6 +352,7 @@ impl CalibrationProblem<'_> {
             }
             a.adjoint(&p, &mut step);
             let tau = norm.tau(&res, &p, &step);
+            let search = LineSearch::at(eps, &p, &step);
             x_next.copy_from_slice(&x);
             if tau == 1.0 {
                 smooth_step(&mut x_next, Some(&step), h, w, &taps, true);
@@ -392,16 +380,9 @@ impl CalibrationProblem<'_> {
                     .par_chunks_mut(CHUNK)
                     .zip(s.cube.par_chunks(CHUNK))
                     .for_each(|(v, t)| v.iter_mut().zip(t).for_each(|(v, &t)| *v += t));
-                let td = tau_dot(
-                    tau,
-                    &res,
-                    &p,
-                    &step,
-                    &|i| -yh_dot[i],
-                    &p_dot,
-                    &step_dot,
-                    e_dot,
-                );
+                // ṙes = −ẏ
+                let num_dot = || dot(&res, &p_dot) - dot(&yh_dot, &p);
+                let td = search.tau_dot(tau, num_dot, &p, &step, &p_dot, &step_dot, e_dot);
                 // ẋ ← G(ẋ + τ ṡ + τ̇ s), zero where the clamp bound (it
                 // passes no derivative there)
                 s.cube
@@ -443,6 +424,44 @@ impl CalibrationProblem<'_> {
             gradient.push(-2.0 * g / size);
         }
         Ok(((inside + outside) / size, gradient))
+    }
+}
+
+/// What τ̇ of the line search τ = ⟨res, p⟩ / (‖Aᵀp‖² + ε̄‖p‖²) needs from
+/// one step, computed once for all parameters; `None` without line search
+/// (τ ≡ 1).
+struct LineSearch(Option<(f64, f64, f64)>);
+
+impl LineSearch {
+    /// (ε̄, the denominator, ‖p‖²) at `p`, `step` = Aᵀp.
+    fn at(eps: Option<f32>, p: &[f32], step: &[f32]) -> Self {
+        Self(eps.map(|e| {
+            let (e, pp) = (e as f64, dot(p, p));
+            (e, dot(step, step) + e * pp, pp)
+        }))
+    }
+
+    /// τ̇ given the numerator's derivative (evaluated only with a line
+    /// search), ṗ, ṡ = d(Aᵀp) and ε̄̇.
+    #[allow(clippy::too_many_arguments)]
+    fn tau_dot(
+        &self,
+        tau: f32,
+        num_dot: impl FnOnce() -> f64,
+        p: &[f32],
+        step: &[f32],
+        p_dot: &[f32],
+        step_dot: &[f32],
+        e_dot: f64,
+    ) -> f32 {
+        let Some((e, den, pp)) = self.0 else {
+            return 0.0;
+        };
+        if den <= 0.0 {
+            return 0.0;
+        }
+        let den_dot = 2.0 * dot(step, step_dot) + e_dot * pp + 2.0 * e * dot(p, p_dot);
+        ((num_dot() - tau as f64 * den_dot) / den) as f32
     }
 }
 
