@@ -15,7 +15,7 @@ mod paper;
 mod rounded_dispersion;
 pub mod score;
 pub mod smooth;
-mod subpixel_dispersion;
+mod subpixel_tilt;
 mod uncertainty;
 
 use serde::{Deserialize, Serialize};
