@@ -181,8 +181,8 @@ pub fn calibrate_default(
             0.25,
             0.25,
             preset.max_evaluations / 4,
-            0.005,
-            1e-6,
+            0.01,
+            1e-5,
         );
         evals += n;
         if sv < s {
