@@ -1,0 +1,25 @@
+//! Pretrained deep networks of cassi, CPU inference in f32: the MST-S /
+//! MST-L and HDNet reconstructors and the HSI-SDeCNN denoiser, loading the
+//! official PyTorch checkpoints (`.pth` state dicts or `.safetensors`).
+//!
+//! * [`TensorMap`] reads a checkpoint; networks load it strictly (every
+//!   parameter present with its shape, no tensor left over), and any
+//!   mismatch is one [`NetError`] listing every bad tensor and the file.
+//! * Inputs and outputs are [`Tensor`]s in PyTorch's NCHW layout, so test
+//!   vectors compare one to one.
+//!
+//! Heavy numerics (gemm, rayon) live in this crate only; the core build of
+//! cassi does not depend on it.
+
+pub mod checkpoint;
+mod error;
+mod fmap;
+mod hsi_sdecnn;
+mod ops;
+mod tensor;
+
+pub use checkpoint::{DType, StoredTensor, TensorMap, WeightLoader};
+pub use error::{NetError, Result};
+pub use fmap::FeatureMap;
+pub use hsi_sdecnn::HsiSdecnn;
+pub use tensor::Tensor;

@@ -1,0 +1,112 @@
+//! Depthwise 2-D convolution (groups = channels, one k×k filter per
+//! channel, stride 1, zero padding k/2), parallel over channels.
+
+use rayon::prelude::*;
+
+use crate::checkpoint::WeightLoader;
+use crate::fmap::FeatureMap;
+
+pub(crate) struct DepthwiseConv2d {
+    /// (channels, 1, k, k) row-major.
+    weight: Vec<f32>,
+    bias: Option<Vec<f32>>,
+    channels: usize,
+    k: usize,
+}
+
+impl DepthwiseConv2d {
+    /// Takes `{name}.weight` (channels, 1, k, k) and, if `bias`, `{name}.bias`.
+    pub fn load(w: &mut WeightLoader, name: &str, channels: usize, k: usize, bias: bool) -> Self {
+        let weight = w
+            .take(&format!("{name}.weight"), &[channels, 1, k, k])
+            .into_data();
+        let bias = bias.then(|| w.take(&format!("{name}.bias"), &[channels]).into_data());
+        Self {
+            weight,
+            bias,
+            channels,
+            k,
+        }
+    }
+
+    pub fn forward(&self, x: &FeatureMap) -> FeatureMap {
+        assert_eq!(x.c, self.channels, "depthwise conv channels");
+        let (h, w, k) = (x.h, x.w, self.k);
+        let p = (k / 2) as isize;
+        let mut out = FeatureMap::zeros(x.c, h, w);
+        out.data
+            .par_chunks_mut(h * w)
+            .enumerate()
+            .for_each(|(c, dst)| {
+                dst.fill(self.bias.as_ref().map_or(0.0, |b| b[c]));
+                let src = x.channel(c);
+                let wc = &self.weight[c * k * k..(c + 1) * k * k];
+                for ky in 0..k {
+                    for kx in 0..k {
+                        let wv = wc[ky * k + kx];
+                        let shift = kx as isize - p; // input col = output col + shift
+                        let x0 = (-shift).max(0) as usize;
+                        let x1 = (w as isize - shift).clamp(0, w as isize) as usize;
+                        if x1 <= x0 {
+                            continue;
+                        }
+                        for y in 0..h {
+                            let iy = y as isize + ky as isize - p;
+                            if iy < 0 || iy >= h as isize {
+                                continue;
+                            }
+                            let s = &src[iy as usize * w..][..w];
+                            let d = &mut dst[y * w..][..w];
+                            let s =
+                                &s[(x0 as isize + shift) as usize..(x1 as isize + shift) as usize];
+                            for (o, i) in d[x0..x1].iter_mut().zip(s) {
+                                *o += wv * i;
+                            }
+                        }
+                    }
+                }
+            });
+        out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::ops::conv::tests::pseudo_random;
+
+    #[test]
+    fn matches_the_definition() {
+        for k in [1, 3, 5] {
+            let (c, h, w) = (3, 7, 9);
+            let dw = DepthwiseConv2d {
+                weight: pseudo_random(c * k * k, 5),
+                bias: Some(pseudo_random(c, 6)),
+                channels: c,
+                k,
+            };
+            let x = FeatureMap::from_vec(c, h, w, pseudo_random(c * h * w, 7));
+            let got = dw.forward(&x);
+            let p = (k / 2) as isize;
+            for ch in 0..c {
+                for y in 0..h {
+                    for q in 0..w {
+                        let mut acc = dw.bias.as_ref().unwrap()[ch];
+                        for ky in 0..k {
+                            for kx in 0..k {
+                                let (iy, ix) =
+                                    (y as isize + ky as isize - p, q as isize + kx as isize - p);
+                                if iy >= 0 && ix >= 0 && (iy as usize) < h && (ix as usize) < w {
+                                    acc += dw.weight[(ch * k + ky) * k + kx]
+                                        * x.data[(ch * h + iy as usize) * w + ix as usize];
+                                }
+                            }
+                        }
+                        let g = got.data[(ch * h + y) * w + q];
+                        assert!((g - acc).abs() < 1e-5, "k{k} ({ch},{y},{q}): {g} vs {acc}");
+                    }
+                }
+            }
+        }
+    }
+}
