@@ -15,6 +15,7 @@ pub mod checkpoint;
 mod error;
 mod fmap;
 mod hsi_sdecnn;
+mod mst;
 mod ops;
 mod tensor;
 
@@ -22,4 +23,5 @@ pub use checkpoint::{DType, StoredTensor, TensorMap, WeightLoader};
 pub use error::{NetError, Result};
 pub use fmap::FeatureMap;
 pub use hsi_sdecnn::HsiSdecnn;
+pub use mst::{MST_BANDS, MST_MASK_WIDTH, MST_SIZE, Mst, MstActivations, MstConfig};
 pub use tensor::Tensor;

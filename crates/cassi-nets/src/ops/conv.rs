@@ -49,6 +49,31 @@ impl Conv2d {
         }
     }
 
+    /// A Linear layer `{name}.weight` (out, in) [+ `{name}.bias`], applied to
+    /// channel-first maps: PyTorch's Linear over the channels of each pixel
+    /// is exactly a 1×1 convolution.
+    pub fn load_linear(
+        w: &mut WeightLoader,
+        name: &str,
+        in_ch: usize,
+        out_ch: usize,
+        bias: bool,
+    ) -> Self {
+        let weight = w
+            .take(&format!("{name}.weight"), &[out_ch, in_ch])
+            .into_data();
+        let bias = bias.then(|| w.take(&format!("{name}.bias"), &[out_ch]).into_data());
+        Self {
+            weight,
+            bias,
+            out_ch,
+            in_ch,
+            k: 1,
+            stride: 1,
+            pad: 0,
+        }
+    }
+
     pub fn out_size(&self, h: usize, w: usize) -> (usize, usize) {
         let f = |n: usize| (n + 2 * self.pad - self.k) / self.stride + 1;
         (f(h), f(w))

@@ -96,7 +96,7 @@ impl BatchNorm {
         let n = x.plane();
         x.data.par_chunks_mut(n).enumerate().for_each(|(c, ch)| {
             let (s, t) = (self.scale[c], self.shift[c]);
-            ch.iter_mut().for_each(|v| *v = v.mul_add(s, t));
+            ch.iter_mut().for_each(|v| *v = *v * s + t);
         });
     }
 }

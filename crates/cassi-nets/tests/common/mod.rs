@@ -38,3 +38,43 @@ pub fn check(name: &str, got: &Tensor, want: &Tensor, tol: f32) -> f32 {
     assert!(d <= tol, "{name}: max |Δ| = {d:e} > {tol:e}");
     d
 }
+
+/// The MST inputs of README §1, as `common/make_inputs.py` builds them from
+/// `y.npy` (1, 256, 310) and `mask.npy` (256, 256): H (1, 28, 256, 256) with
+/// H[c, r, j] = (y / 28 · 2)[r, 2c + j] (division first, in f32), and
+/// Phi (1, 28, 256, 310) with Phi[c, r, 2c + j] = mask[r, j].
+pub fn mst_inputs(nets: &std::path::Path) -> (Tensor, Tensor) {
+    let y = npy(nets.join("common/y.npy"));
+    let mask = npy(nets.join("common/mask.npy"));
+    let (bands, n, wy) = (28, 256, 310);
+    assert_eq!(y.shape(), [1, n, wy]);
+    assert_eq!(mask.shape(), [n, n]);
+    let ys: Vec<f32> = y.data().iter().map(|v| (v / 28.0) * 2.0).collect();
+    let mut h = vec![0.0f32; bands * n * n];
+    let mut phi = vec![0.0f32; bands * n * wy];
+    for c in 0..bands {
+        for r in 0..n {
+            h[(c * n + r) * n..][..n].copy_from_slice(&ys[r * wy + 2 * c..][..n]);
+            phi[(c * n + r) * wy + 2 * c..][..n].copy_from_slice(&mask.data()[r * n..][..n]);
+        }
+    }
+    (
+        Tensor::new(vec![1, bands, n, n], h).unwrap(),
+        Tensor::new(vec![1, bands, n, wy], phi).unwrap(),
+    )
+}
+
+/// Rows 0..rows of a (C, H, W) feature map as a (1, C, rows, W) tensor
+/// (the reference dumps the top 32 rows of large activations).
+pub fn top_rows(f: &cassi_nets::FeatureMap, rows: usize) -> Tensor {
+    let mut data = Vec::with_capacity(f.c * rows * f.w);
+    for c in 0..f.c {
+        data.extend_from_slice(&f.data[c * f.h * f.w..][..rows * f.w]);
+    }
+    Tensor::new(vec![1, f.c, rows, f.w], data).unwrap()
+}
+
+/// A whole feature map as a (1, C, H, W) tensor.
+pub fn batch_of_one(f: &cassi_nets::FeatureMap) -> Tensor {
+    Tensor::new(vec![1, f.c, f.h, f.w], f.data.clone()).unwrap()
+}

@@ -1,0 +1,59 @@
+//! MST-S (official weights) and MST-L (seed-0 weights) against PyTorch
+//! (README §4 of shared/data/nets), including MST-S's activation dumps,
+//! which localise a wrong layer.
+
+mod common;
+
+use std::time::Instant;
+
+use cassi_nets::{Mst, MstConfig};
+use common::{batch_of_one, check, mst_inputs, nets_dir, npy, top_rows};
+
+#[test]
+fn mst_s_matches_pytorch_output_and_activations() {
+    let Some(nets) = nets_dir("mst_s_matches_pytorch_output_and_activations") else {
+        return;
+    };
+    let d = nets.join("mst_s");
+    let net = Mst::load(d.join("mst_s.safetensors"), MstConfig::SMALL).unwrap();
+    let (h, phi) = mst_inputs(&nets);
+    let t = Instant::now();
+    let (out, acts) = net.forward_with_activations(&h, &phi).unwrap();
+    eprintln!("MST-S forward: {:.2} s", t.elapsed().as_secs_f64());
+    for (name, got) in [
+        ("act_embedding_rows0-32", top_rows(&acts.embedding, 32)),
+        (
+            "act_enc0_block0_mask_attn_rows0-32",
+            top_rows(&acts.enc0_block0_mask_attn, 32),
+        ),
+        ("act_enc0_msab_rows0-32", top_rows(&acts.enc0_msab, 32)),
+        ("act_bottleneck", batch_of_one(&acts.bottleneck)),
+        ("act_mapping_rows0-32", top_rows(&acts.mapping, 32)),
+        ("out", batch_of_one(&out)),
+    ] {
+        check(
+            &format!("mst_s/{name}.npy"),
+            &got,
+            &npy(d.join(format!("{name}.npy"))),
+            1e-4,
+        );
+    }
+}
+
+#[test]
+fn mst_l_matches_pytorch() {
+    let Some(nets) = nets_dir("mst_l_matches_pytorch") else {
+        return;
+    };
+    let net = Mst::load(nets.join("mst_l/mst_l_seed0.safetensors"), MstConfig::LARGE).unwrap();
+    let (h, phi) = mst_inputs(&nets);
+    let t = Instant::now();
+    let out = net.forward(&h, &phi).unwrap();
+    eprintln!("MST-L forward: {:.2} s", t.elapsed().as_secs_f64());
+    check(
+        "mst_l/out.npy",
+        &out,
+        &npy(nets.join("mst_l/out.npy")),
+        1e-4,
+    );
+}
