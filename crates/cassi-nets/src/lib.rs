@@ -14,6 +14,7 @@
 pub mod checkpoint;
 mod error;
 mod fmap;
+mod hdnet;
 mod hsi_sdecnn;
 mod mst;
 mod ops;
@@ -22,6 +23,7 @@ mod tensor;
 pub use checkpoint::{DType, StoredTensor, TensorMap, WeightLoader};
 pub use error::{NetError, Result};
 pub use fmap::FeatureMap;
+pub use hdnet::HdNet;
 pub use hsi_sdecnn::HsiSdecnn;
 pub use mst::{MST_BANDS, MST_MASK_WIDTH, MST_SIZE, Mst, MstActivations, MstConfig};
 pub use tensor::Tensor;

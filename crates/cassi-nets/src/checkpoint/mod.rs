@@ -17,6 +17,13 @@ use crate::tensor::Tensor;
 pub use dtype::DType;
 pub use strict::WeightLoader;
 
+/// Start of a legacy `torch.save` file: pickle protocol 2, then the LONG1
+/// magic number 0x1950a86a20f9469cfc6c. (A safetensors header length never
+/// starts like this: it would be over 10^17 bytes.)
+const LEGACY_TORCH_MAGIC: &[u8] = &[
+    0x80, 0x02, 0x8a, 0x0a, 0x6c, 0xfc, 0x9c, 0x46, 0xf9, 0x20, 0x6a, 0xa8,
+];
+
 /// One tensor of a checkpoint, converted to f32, with its stored type.
 #[derive(Debug, Clone, PartialEq)]
 pub struct StoredTensor {
@@ -43,7 +50,7 @@ impl TensorMap {
         })?;
         let parsed = if bytes.starts_with(b"PK\x03\x04") {
             pth::read(&bytes)
-        } else if bytes.starts_with(&[0x80]) {
+        } else if bytes.starts_with(LEGACY_TORCH_MAGIC) {
             Err(
                 "a legacy (pre-1.6, non-zip) torch.save file; re-save it with \
                  torch.save(model.state_dict(), path) from torch >= 1.6"
