@@ -5,6 +5,8 @@
 //! * [`TensorMap`] reads a checkpoint; networks load it strictly (every
 //!   parameter present with its shape, no tensor left over), and any
 //!   mismatch is one [`NetError`] listing every bad tensor and the file.
+//! * [`HsiSdecnnDenoiser`] plugs HSI-SDeCNN into cassi-core's PnP solvers
+//!   as a [`cassi_core::Denoiser`].
 //! * Inputs and outputs are [`Tensor`]s in PyTorch's NCHW layout, so test
 //!   vectors compare one to one.
 //!
@@ -12,6 +14,7 @@
 //! cassi does not depend on it.
 
 pub mod checkpoint;
+mod denoiser;
 mod error;
 mod fmap;
 mod hdnet;
@@ -21,6 +24,7 @@ mod ops;
 mod tensor;
 
 pub use checkpoint::{DType, StoredTensor, TensorMap, WeightLoader};
+pub use denoiser::HsiSdecnnDenoiser;
 pub use error::{NetError, Result};
 pub use fmap::FeatureMap;
 pub use hdnet::HdNet;
