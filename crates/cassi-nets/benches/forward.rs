@@ -9,7 +9,7 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use cassi_nets::{HsiSdecnn, MST_BANDS, MST_MASK_WIDTH, MST_SIZE, Mst, MstConfig, Tensor};
+use cassi_nets::{HdNet, HsiSdecnn, MST_BANDS, MST_MASK_WIDTH, MST_SIZE, Mst, MstConfig, Tensor};
 
 const THREADS: usize = 2;
 const RUNS: usize = 5;
@@ -97,6 +97,12 @@ fn main() {
                 t,
             );
         }
+    }
+    if wanted("hdnet") {
+        let net = HdNet::load(data.join("nets/hdnet/hdnet_seed0.safetensors"))
+            .unwrap_or_else(|e| panic!("{e}"));
+        let t = pool.install(|| time(|| drop(net.forward(&h).unwrap())));
+        record("hdnet", format!("H 1×{bands}×{n}×{n}"), t);
     }
     if wanted("hsi_sdecnn") {
         let net = HsiSdecnn::load(data.join("nets/hsi_sdecnn/hsi_sdecnn_seed0.safetensors"))

@@ -61,8 +61,14 @@ mod tests {
         assert_eq!(HsiSdecnnDenoiser::stack_bands(0, 31), [0, 0, 0, 0, 1, 2, 3]);
         assert_eq!(HsiSdecnnDenoiser::stack_bands(1, 31), [0, 0, 0, 1, 2, 3, 4]);
         assert_eq!(HsiSdecnnDenoiser::stack_bands(2, 31), [0, 0, 1, 2, 3, 4, 5]);
-        assert_eq!(HsiSdecnnDenoiser::stack_bands(10, 31), [7, 8, 9, 10, 11, 12, 13]);
-        assert_eq!(HsiSdecnnDenoiser::stack_bands(30, 31), [27, 28, 29, 30, 30, 30, 30]);
+        assert_eq!(
+            HsiSdecnnDenoiser::stack_bands(10, 31),
+            [7, 8, 9, 10, 11, 12, 13]
+        );
+        assert_eq!(
+            HsiSdecnnDenoiser::stack_bands(30, 31),
+            [27, 28, 29, 30, 30, 30, 30]
+        );
         assert_eq!(HsiSdecnnDenoiser::stack_bands(0, 1), [0; 7]);
     }
 }

@@ -42,16 +42,7 @@ impl HsiSdecnn {
                 } else {
                     Self::FEATURES
                 };
-                Conv2d::load(
-                    &mut w,
-                    &format!("model.{}", 2 * i),
-                    cin,
-                    cout,
-                    3,
-                    1,
-                    1,
-                    true,
-                )
+                Conv2d::load(&mut w, &format!("model.{}", 2 * i), cin, cout, 3, true)
             })
             .collect();
         w.finish()?;

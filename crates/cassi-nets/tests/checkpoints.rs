@@ -99,7 +99,8 @@ fn state_dict_pickle(tensors: &[Spec]) -> Vec<u8> {
 fn write_zip(path: &Path, entries: &[(String, Vec<u8>)]) {
     let f = std::fs::File::create(path).unwrap();
     let mut z = zip::ZipWriter::new(f);
-    let opts = zip::write::SimpleFileOptions::default().compression_method(zip::CompressionMethod::Stored);
+    let opts =
+        zip::write::SimpleFileOptions::default().compression_method(zip::CompressionMethod::Stored);
     for (name, bytes) in entries {
         z.start_file(name.as_str(), opts).unwrap();
         z.write_all(bytes).unwrap();
@@ -150,7 +151,11 @@ fn hsi_sdecnn_specs() -> Vec<Spec> {
 
 fn load_err(path: &Path) -> String {
     match TensorMap::load(path) {
-        Ok(m) => panic!("{} loaded {} tensors, expected an error", path.display(), m.len()),
+        Ok(m) => panic!(
+            "{} loaded {} tensors, expected an error",
+            path.display(),
+            m.len()
+        ),
         Err(e) => e.to_string(),
     }
 }
@@ -162,13 +167,16 @@ fn official_mst_s_pth_holds_the_same_tensors_as_its_safetensors_copy() {
         return;
     };
     let pth = TensorMap::load(data.join("weights/mst_s.pth")).unwrap_or_else(|e| panic!("{e}"));
-    let st = TensorMap::load(data.join("nets/mst_s/mst_s.safetensors")).unwrap_or_else(|e| panic!("{e}"));
+    let st = TensorMap::load(data.join("nets/mst_s/mst_s.safetensors"))
+        .unwrap_or_else(|e| panic!("{e}"));
     for m in [&pth, &st] {
         assert_eq!(m.len(), 202, "{}", m.path().display());
         assert_eq!(m.parameter_count(), 922_648, "{}", m.path().display());
     }
     for (name, t) in pth.iter() {
-        let other = st.get(name).unwrap_or_else(|| panic!("{name} missing from the safetensors"));
+        let other = st
+            .get(name)
+            .unwrap_or_else(|| panic!("{name} missing from the safetensors"));
         assert_eq!(t.dtype, DType::F32);
         assert_eq!(t.tensor, other.tensor, "{name} differs");
     }
@@ -186,11 +194,21 @@ fn hand_made_pth_and_safetensors_load_alike_with_strides_and_prefix() {
         stride: Some(vec![1, 2]),
         storage: vec![0.0, 3.0, 1.0, 4.0, 2.0, 5.0],
     };
-    let plain = Spec { name: "module.b".into(), ..spec("", &[4]) };
+    let plain = Spec {
+        name: "module.b".into(),
+        ..spec("", &[4])
+    };
     write_pth(&dir.file("a.pth"), &[strided, plain]);
     let m = TensorMap::load(dir.file("a.pth")).unwrap_or_else(|e| panic!("{e}"));
-    assert_eq!(m.names().collect::<Vec<_>>(), ["b", "t"], "module. prefix stripped");
-    assert_eq!(m.get("t").unwrap().tensor.data(), [0.0, 1.0, 2.0, 3.0, 4.0, 5.0]);
+    assert_eq!(
+        m.names().collect::<Vec<_>>(),
+        ["b", "t"],
+        "module. prefix stripped"
+    );
+    assert_eq!(
+        m.get("t").unwrap().tensor.data(),
+        [0.0, 1.0, 2.0, 3.0, 4.0, 5.0]
+    );
     assert_eq!(m.get("t").unwrap().tensor.shape(), [2, 3]);
 
     // The same network weights load from either format.
@@ -212,7 +230,10 @@ fn missing_unexpected_and_misshaped_tensors_are_listed_in_one_error() {
     let mut specs = hsi_sdecnn_specs();
     specs.retain(|s| s.name != "model.0.weight"); // missing
     specs.push(spec("model.30.weight", &[4, 128, 3, 3])); // unexpected
-    let bad = specs.iter_mut().find(|s| s.name == "model.2.weight").unwrap();
+    let bad = specs
+        .iter_mut()
+        .find(|s| s.name == "model.2.weight")
+        .unwrap();
     *bad = spec("model.2.weight", &[128, 128, 3, 1]); // wrong shape
     for file in ["bad.pth", "bad.safetensors"] {
         let path = dir.file(file);
@@ -244,14 +265,21 @@ fn missing_unexpected_and_misshaped_tensors_are_listed_in_one_error() {
 fn a_whole_pickled_model_is_refused_not_read_as_empty() {
     let dir = TempDir::new("whole");
     // torch.save(model): the top object is an instance of the model class.
-    let pkl = b"\x80\x02carchitecture.MST\nMST\nq\x00)\x81}(X\x08\x00\x00\x00trainingq\x01\x88ub.".to_vec();
+    let pkl = b"\x80\x02carchitecture.MST\nMST\nq\x00)\x81}(X\x08\x00\x00\x00trainingq\x01\x88ub."
+        .to_vec();
     write_zip(
         &dir.file("model.pth"),
-        &[("archive/data.pkl".into(), pkl), ("archive/version".into(), b"3\n".to_vec())],
+        &[
+            ("archive/data.pkl".into(), pkl),
+            ("archive/version".into(), b"3\n".to_vec()),
+        ],
     );
     let msg = load_err(&dir.file("model.pth"));
     assert!(msg.contains("model.pth"), "{msg}");
-    assert!(msg.contains("whole pickled object of class architecture.MST.MST"), "{msg}");
+    assert!(
+        msg.contains("whole pickled object of class architecture.MST.MST"),
+        "{msg}"
+    );
     assert!(msg.contains("state_dict"), "{msg}");
 }
 
@@ -261,7 +289,12 @@ fn truncated_and_foreign_files_give_clear_errors() {
     let specs = vec![spec("w", &[8, 4]), spec("b", &[8])];
     write_pth(&dir.file("ok.pth"), &specs);
     write_safetensors(&dir.file("ok.safetensors"), &specs);
-    for (name, cut) in [("ok.pth", 0.6), ("ok.pth", 0.1), ("ok.safetensors", 0.9), ("ok.safetensors", 0.02)] {
+    for (name, cut) in [
+        ("ok.pth", 0.6),
+        ("ok.pth", 0.1),
+        ("ok.safetensors", 0.9),
+        ("ok.safetensors", 0.02),
+    ] {
         let bytes = std::fs::read(dir.file(name)).unwrap();
         let short = dir.file(&format!("short-{cut}-{name}"));
         std::fs::write(&short, &bytes[..(bytes.len() as f64 * cut) as usize]).unwrap();
@@ -273,9 +306,19 @@ fn truncated_and_foreign_files_give_clear_errors() {
         );
     }
     std::fs::write(dir.file("empty.bin"), b"").unwrap();
-    assert!(load_err(&dir.file("empty.bin")).contains("neither a PyTorch zip checkpoint nor a safetensors file"));
-    std::fs::write(dir.file("text.txt"), b"hello, this is not a checkpoint at all").unwrap();
+    assert!(
+        load_err(&dir.file("empty.bin"))
+            .contains("neither a PyTorch zip checkpoint nor a safetensors file")
+    );
+    std::fs::write(
+        dir.file("text.txt"),
+        b"hello, this is not a checkpoint at all",
+    )
+    .unwrap();
     assert!(load_err(&dir.file("text.txt")).contains("neither"));
     let missing = load_err(&dir.file("does-not-exist.pth"));
-    assert!(missing.contains("does-not-exist.pth") && missing.contains("cannot read"), "{missing}");
+    assert!(
+        missing.contains("does-not-exist.pth") && missing.contains("cannot read"),
+        "{missing}"
+    );
 }

@@ -44,5 +44,10 @@ fn cube_denoiser_denoises_each_band_from_its_stack() {
     let mut den = HsiSdecnnDenoiser::new(net);
     den.denoise(&mut cube, npy(d.join("sigma.npy")).data()[0]);
     let band14 = cassi_nets::Tensor::new(vec![1, 1, 64, 64], cube.band(14).to_vec()).unwrap();
-    check("denoiser band 14 vs hsi_sdecnn/out.npy", &band14, &npy(d.join("out.npy")), 1e-4);
+    check(
+        "denoiser band 14 vs hsi_sdecnn/out.npy",
+        &band14,
+        &npy(d.join("out.npy")),
+        1e-4,
+    );
 }

@@ -30,7 +30,7 @@ impl Dsc {
                 .take(&format!("{name}.conv_dws.bias"), &[GROUP])
                 .into_data(),
             bn_dws: BatchNorm::load(w, &format!("{name}.bn_dws"), GROUP),
-            conv_point: Conv2d::load(w, &format!("{name}.conv_point"), GROUP, 1, 1, 1, 0, true),
+            conv_point: Conv2d::load(w, &format!("{name}.conv_point"), GROUP, 1, 1, true),
             bn_point: BatchNorm::load(w, &format!("{name}.bn_point"), 1),
         }
     }

@@ -31,26 +31,8 @@ struct ResBlock {
 impl ResBlock {
     fn load(w: &mut WeightLoader, name: &str) -> Self {
         Self {
-            conv1: Conv2d::load(
-                w,
-                &format!("{name}.body.0"),
-                FEATURES,
-                FEATURES,
-                3,
-                1,
-                1,
-                true,
-            ),
-            conv2: Conv2d::load(
-                w,
-                &format!("{name}.body.2"),
-                FEATURES,
-                FEATURES,
-                3,
-                1,
-                1,
-                true,
-            ),
+            conv1: Conv2d::load(w, &format!("{name}.body.0"), FEATURES, FEATURES, 3, true),
+            conv2: Conv2d::load(w, &format!("{name}.body.2"), FEATURES, FEATURES, 3, true),
         }
     }
 
@@ -65,7 +47,7 @@ impl ResBlock {
 
 enum BodyLayer {
     Res(ResBlock),
-    Sdl(SdlAttention),
+    Sdl(Box<SdlAttention>),
     Eff(Eff),
     Conv(Conv2d),
 }
@@ -85,7 +67,7 @@ impl HdNet {
 
     pub fn from_tensors(map: TensorMap) -> Result<Self> {
         let mut w = WeightLoader::new("HDNet", map);
-        let head = Conv2d::load(&mut w, "head.0", BANDS, FEATURES, 3, 1, 1, true);
+        let head = Conv2d::load(&mut w, "head.0", BANDS, FEATURES, 3, true);
         let mut body = Vec::new();
         for _ in 0..RES_BLOCKS_BEFORE {
             body.push(BodyLayer::Res(ResBlock::load(
@@ -93,11 +75,11 @@ impl HdNet {
                 &format!("body.{}", body.len()),
             )));
         }
-        body.push(BodyLayer::Sdl(SdlAttention::load(
+        body.push(BodyLayer::Sdl(Box::new(SdlAttention::load(
             &mut w,
             &format!("body.{}", body.len()),
             FEATURES,
-        )));
+        ))));
         body.push(BodyLayer::Eff(Eff::load(
             &mut w,
             &format!("body.{}", body.len()),
@@ -111,9 +93,9 @@ impl HdNet {
         }
         let last = format!("body.{}", body.len());
         body.push(BodyLayer::Conv(Conv2d::load(
-            &mut w, &last, FEATURES, FEATURES, 3, 1, 1, true,
+            &mut w, &last, FEATURES, FEATURES, 3, true,
         )));
-        let tail = Conv2d::load(&mut w, "tail.0", FEATURES, BANDS, 3, 1, 1, true);
+        let tail = Conv2d::load(&mut w, "tail.0", FEATURES, BANDS, 3, true);
         w.finish()?;
         Ok(Self { head, body, tail })
     }

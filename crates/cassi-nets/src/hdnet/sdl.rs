@@ -18,7 +18,7 @@ impl SdlAttention {
     pub fn load(w: &mut WeightLoader, name: &str, c: usize) -> Self {
         let half = c / 2;
         let conv = |w: &mut WeightLoader, n: &str, cin, cout| {
-            Conv2d::load(w, &format!("{name}.{n}"), cin, cout, 1, 1, 0, false)
+            Conv2d::load(w, &format!("{name}.{n}"), cin, cout, 1, false)
         };
         Self {
             conv_q_right: conv(w, "conv_q_right", c, 1),

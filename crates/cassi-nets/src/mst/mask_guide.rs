@@ -17,8 +17,8 @@ pub(crate) struct MaskGuide {
 impl MaskGuide {
     pub fn load(w: &mut WeightLoader, name: &str, c: usize) -> Self {
         Self {
-            conv1: Conv2d::load(w, &format!("{name}.conv1"), c, c, 1, 1, 0, true),
-            conv2: Conv2d::load(w, &format!("{name}.conv2"), c, c, 1, 1, 0, true),
+            conv1: Conv2d::load(w, &format!("{name}.conv1"), c, c, 1, true),
+            conv2: Conv2d::load(w, &format!("{name}.conv2"), c, c, 1, true),
             depth_conv: DepthwiseConv2d::load(w, &format!("{name}.depth_conv"), c, 5, true),
         }
     }

@@ -92,15 +92,15 @@ impl Mst {
     pub fn from_tensors(map: TensorMap, config: MstConfig) -> Result<Self> {
         let mut w = WeightLoader::new(config.name(), map);
         let c0 = MST_BANDS;
-        let embedding = Conv2d::load(&mut w, "embedding", c0, c0, 3, 1, 1, false);
+        let embedding = Conv2d::load(&mut w, "embedding", c0, c0, 3, false);
         let encoder = (0..2)
             .map(|i| {
                 let c = c0 << i;
                 let p = format!("encoder_layers.{i}");
                 EncoderStage {
                     msab: Msab::load(&mut w, &format!("{p}.0"), c, config.num_blocks[i]),
-                    fea_down: Conv2d::load(&mut w, &format!("{p}.1"), c, 2 * c, 4, 2, 1, false),
-                    mask_down: Conv2d::load(&mut w, &format!("{p}.2"), c, 2 * c, 4, 2, 1, false),
+                    fea_down: Conv2d::load_strided(&mut w, &format!("{p}.1"), c, 2 * c, 4, 2, 1),
+                    mask_down: Conv2d::load_strided(&mut w, &format!("{p}.2"), c, 2 * c, 4, 2, 1),
                 }
             })
             .collect();
@@ -111,12 +111,12 @@ impl Mst {
                 let p = format!("decoder_layers.{i}");
                 DecoderStage {
                     up: ConvTranspose2x2::load(&mut w, &format!("{p}.0"), c, c / 2),
-                    fusion: Conv2d::load(&mut w, &format!("{p}.1"), c, c / 2, 1, 1, 0, false),
+                    fusion: Conv2d::load(&mut w, &format!("{p}.1"), c, c / 2, 1, false),
                     msab: Msab::load(&mut w, &format!("{p}.2"), c / 2, config.num_blocks[1 - i]),
                 }
             })
             .collect();
-        let mapping = Conv2d::load(&mut w, "mapping", c0, c0, 3, 1, 1, false);
+        let mapping = Conv2d::load(&mut w, "mapping", c0, c0, 3, false);
         w.finish()?;
         Ok(Self {
             config,

@@ -22,9 +22,9 @@ impl FeedForward {
     fn load(w: &mut WeightLoader, name: &str, c: usize) -> Self {
         Self {
             norm: LayerNormChannels::load(w, &format!("{name}.norm"), c),
-            expand: Conv2d::load(w, &format!("{name}.fn.net.0"), c, 4 * c, 1, 1, 0, false),
+            expand: Conv2d::load(w, &format!("{name}.fn.net.0"), c, 4 * c, 1, false),
             depthwise: DepthwiseConv2d::load(w, &format!("{name}.fn.net.2"), 4 * c, 3, false),
-            reduce: Conv2d::load(w, &format!("{name}.fn.net.4"), 4 * c, c, 1, 1, 0, false),
+            reduce: Conv2d::load(w, &format!("{name}.fn.net.4"), 4 * c, c, 1, false),
         }
     }
 

@@ -23,15 +23,14 @@ pub(crate) struct Conv2d {
 }
 
 impl Conv2d {
-    /// Takes `{name}.weight` (out, in, k, k) and, if `bias`, `{name}.bias`.
+    /// A k×k convolution with stride 1 and "same" padding k/2: takes
+    /// `{name}.weight` (out, in, k, k) and, if `bias`, `{name}.bias`.
     pub fn load(
         w: &mut WeightLoader,
         name: &str,
         in_ch: usize,
         out_ch: usize,
         k: usize,
-        stride: usize,
-        pad: usize,
         bias: bool,
     ) -> Self {
         let weight = w
@@ -41,6 +40,31 @@ impl Conv2d {
         Self {
             weight,
             bias,
+            out_ch,
+            in_ch,
+            k,
+            stride: 1,
+            pad: k / 2,
+        }
+    }
+
+    /// A k×k convolution with the given stride and padding and no bias
+    /// (MST's down-samplers): takes `{name}.weight` (out, in, k, k).
+    pub fn load_strided(
+        w: &mut WeightLoader,
+        name: &str,
+        in_ch: usize,
+        out_ch: usize,
+        k: usize,
+        stride: usize,
+        pad: usize,
+    ) -> Self {
+        let weight = w
+            .take(&format!("{name}.weight"), &[out_ch, in_ch, k, k])
+            .into_data();
+        Self {
+            weight,
+            bias: None,
             out_ch,
             in_ch,
             k,
