@@ -34,11 +34,15 @@ pub(crate) fn erf(x: f32) -> f32 {
 
 /// Exact (erf) GELU, PyTorch's default: 0.5·x·(1 + erf(x/√2)).
 pub(crate) fn gelu_in_place(x: &mut [f32]) {
-    x.par_chunks_mut(CHUNK).for_each(|c| {
-        for v in c {
+    x.par_chunks_mut(CHUNK).for_each(gelu_chunk);
+}
+
+super::simd::avx2_dispatch! {
+    fn gelu_chunk(x: &mut [f32]) {
+        for v in x {
             *v = 0.5 * *v * (1.0 + erf(*v * std::f32::consts::FRAC_1_SQRT_2));
         }
-    });
+    }
 }
 
 pub(crate) fn relu_in_place(x: &mut [f32]) {

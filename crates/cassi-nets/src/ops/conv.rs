@@ -125,7 +125,8 @@ impl Conv2d {
                     let r0 = t * rows_per_tile;
                     let r1 = (r0 + rows_per_tile).min(ho);
                     let cols = (r1 - r0) * wo;
-                    let col = self.im2col(x, r0, r1, wo);
+                    let mut col = take_scratch();
+                    self.im2col(x, r0, r1, wo, &mut col);
                     // SAFETY: each tile writes only its own output rows r0..r1
                     // (columns [r0*wo, r1*wo) of every output channel).
                     unsafe {
@@ -134,10 +135,11 @@ impl Conv2d {
                             Mat::rows(&col, kk, cols, cols),
                             shared,
                             r0 * wo,
-                            ho * wo,
+                            (ho * wo, 1),
                             false,
                         )
                     };
+                    return_scratch(col);
                 });
         }
         if let Some(b) = &self.bias {
@@ -146,11 +148,13 @@ impl Conv2d {
         out
     }
 
-    /// The (in·k² × (r1−r0)·wo) column matrix of output rows r0..r1.
-    fn im2col(&self, x: &FeatureMap, r0: usize, r1: usize, wo: usize) -> Vec<f32> {
+    /// Fills `col` with the (in·k² × (r1−r0)·wo) column matrix of output
+    /// rows r0..r1. Every element is written (padding as explicit zeros), so
+    /// a reused buffer needs no clearing.
+    fn im2col(&self, x: &FeatureMap, r0: usize, r1: usize, wo: usize, col: &mut Vec<f32>) {
         let (k, s, p) = (self.k, self.stride, self.pad as isize);
         let cols = (r1 - r0) * wo;
-        let mut col = vec![0.0f32; self.in_ch * k * k * cols];
+        col.resize(self.in_ch * k * k * cols, 0.0);
         for c in 0..self.in_ch {
             let plane = x.channel(c);
             for ky in 0..k {
@@ -158,11 +162,12 @@ impl Conv2d {
                     let row = &mut col[((c * k + ky) * k + kx) * cols..][..cols];
                     for r in r0..r1 {
                         let iy = (r * s + ky) as isize - p;
+                        let dst = &mut row[(r - r0) * wo..][..wo];
                         if iy < 0 || iy >= x.h as isize {
-                            continue; // stays zero
+                            dst.fill(0.0);
+                            continue;
                         }
                         let src = &plane[iy as usize * x.w..][..x.w];
-                        let dst = &mut row[(r - r0) * wo..][..wo];
                         // Valid ox: 0 <= ox*s + kx - p < w.
                         let shift = kx as isize - p;
                         let ox0 = if shift < 0 {
@@ -172,6 +177,10 @@ impl Conv2d {
                         };
                         let ox1 = ((x.w as isize - shift + s as isize - 1) / s as isize)
                             .clamp(0, wo as isize) as usize;
+                        let ox0 = ox0.min(wo);
+                        let ox1 = ox1.max(ox0);
+                        dst[..ox0].fill(0.0);
+                        dst[ox1..].fill(0.0);
                         if s == 1 {
                             if ox1 > ox0 {
                                 let i0 = (ox0 as isize + shift) as usize;
@@ -186,8 +195,21 @@ impl Conv2d {
                 }
             }
         }
-        col
     }
+}
+
+thread_local! {
+    /// Each rayon worker keeps its im2col buffer between tiles and layers
+    /// (a fresh multi-MB allocation per tile costs page faults and clearing).
+    static IM2COL_SCRATCH: std::cell::Cell<Vec<f32>> = const { std::cell::Cell::new(Vec::new()) };
+}
+
+fn take_scratch() -> Vec<f32> {
+    IM2COL_SCRATCH.with(|c| c.take())
+}
+
+fn return_scratch(v: Vec<f32>) {
+    IM2COL_SCRATCH.with(|c| c.set(v));
 }
 
 /// `x[c, …] += b[c]`, parallel over channels.

@@ -32,41 +32,50 @@ impl DepthwiseConv2d {
     pub fn forward(&self, x: &FeatureMap) -> FeatureMap {
         assert_eq!(x.c, self.channels, "depthwise conv channels");
         let (h, w, k) = (x.h, x.w, self.k);
-        let p = (k / 2) as isize;
         let mut out = FeatureMap::zeros(x.c, h, w);
         out.data
             .par_chunks_mut(h * w)
             .enumerate()
             .for_each(|(c, dst)| {
-                dst.fill(self.bias.as_ref().map_or(0.0, |b| b[c]));
-                let src = x.channel(c);
-                let wc = &self.weight[c * k * k..(c + 1) * k * k];
-                for ky in 0..k {
-                    for kx in 0..k {
-                        let wv = wc[ky * k + kx];
-                        let shift = kx as isize - p; // input col = output col + shift
-                        let x0 = (-shift).max(0) as usize;
-                        let x1 = (w as isize - shift).clamp(0, w as isize) as usize;
-                        if x1 <= x0 {
-                            continue;
-                        }
-                        for y in 0..h {
-                            let iy = y as isize + ky as isize - p;
-                            if iy < 0 || iy >= h as isize {
-                                continue;
-                            }
-                            let s = &src[iy as usize * w..][..w];
-                            let d = &mut dst[y * w..][..w];
-                            let s =
-                                &s[(x0 as isize + shift) as usize..(x1 as isize + shift) as usize];
-                            for (o, i) in d[x0..x1].iter_mut().zip(s) {
-                                *o += wv * i;
-                            }
-                        }
-                    }
-                }
+                let bias = self.bias.as_ref().map_or(0.0, |b| b[c]);
+                let taps = &self.weight[c * k * k..(c + 1) * k * k];
+                depthwise_plane(x.channel(c), dst, taps, k, w, bias);
             });
         out
+    }
+}
+
+super::simd::avx2_dispatch! {
+    /// One channel: out = bias + Σ taps ⊛ src (zero padding k/2), computed
+    /// row by row so the k input rows and the output row stay in L1.
+    fn depthwise_plane(src: &[f32], dst: &mut [f32], taps: &[f32], k: usize, w: usize, bias: f32) {
+        let h = src.len() / w;
+        let p = (k / 2) as isize;
+        for (y, out_row) in dst.chunks_exact_mut(w).enumerate() {
+            out_row.fill(bias);
+            for ky in 0..k {
+                let iy = y as isize + ky as isize - p;
+                if iy < 0 || iy >= h as isize {
+                    continue;
+                }
+                let in_row = &src[iy as usize * w..][..w];
+                for kx in 0..k {
+                    let wv = taps[ky * k + kx];
+                    // input col = output col + shift, valid where both are in range
+                    let shift = kx as isize - p;
+                    let x0 = (-shift).max(0) as usize;
+                    let x1 = (w as isize - shift).clamp(0, w as isize) as usize;
+                    if x1 <= x0 {
+                        continue;
+                    }
+                    let i0 = (x0 as isize + shift) as usize;
+                    let ins = &in_row[i0..i0 + (x1 - x0)];
+                    for (o, i) in out_row[x0..x1].iter_mut().zip(ins) {
+                        *o += wv * i;
+                    }
+                }
+            }
+        }
     }
 }
 

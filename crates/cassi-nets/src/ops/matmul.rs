@@ -61,43 +61,34 @@ impl SharedOut {
     }
 }
 
-/// `out[i*ld_out + j] (+)= Σ_k a(i,k) b(k,j)` for i < a.rows, j < b.cols,
-/// where `out` starts at element `offset` of the shared output. Single
-/// threaded (callers parallelise over tiles). `accumulate` adds to out.
+/// `out[offset + i*out_rs + j*out_cs] (+)= Σ_k a(i,k) b(k,j)` for
+/// i < a.rows, j < b.cols, into the shared output. Single threaded (callers
+/// parallelise over tiles). `accumulate` adds to out instead of overwriting.
 ///
 /// # Safety
-/// No other thread may touch the written elements during the call, and the
-/// slice behind `out` must be alive.
+/// No other thread may touch the written elements during the call, the
+/// output strides must not map two (i, j) to one element, and the slice
+/// behind `out` must be alive.
 pub(crate) unsafe fn matmul_into(
     a: Mat,
     b: Mat,
     out: SharedOut,
     offset: usize,
-    ld_out: usize,
+    (out_rs, out_cs): (usize, usize),
     accumulate: bool,
 ) {
     assert_eq!(a.cols, b.rows, "inner dimensions differ");
+    assert!(a.cols > 0, "empty inner dimension");
     a.check();
     b.check();
     let (m, n, k) = (a.rows, b.cols, a.cols);
     if m == 0 || n == 0 {
         return;
     }
-    assert!(n <= ld_out || m == 1, "output rows overlap");
     assert!(
-        offset + (m - 1) * ld_out + n <= out.len,
+        offset + (m - 1) * out_rs + (n - 1) * out_cs < out.len,
         "output out of bounds"
     );
-    if k == 0 {
-        if !accumulate {
-            for i in 0..m {
-                // SAFETY: in bounds by the assertion above.
-                unsafe { std::slice::from_raw_parts_mut(out.ptr.add(offset + i * ld_out), n) }
-                    .fill(0.0);
-            }
-        }
-        return;
-    }
     // SAFETY: all three views were bounds-checked above; gemm reads/writes
     // exactly those elements.
     unsafe {
@@ -106,8 +97,8 @@ pub(crate) unsafe fn matmul_into(
             n,
             k,
             out.ptr.add(offset),
-            1,
-            ld_out as isize,
+            out_cs as isize,
+            out_rs as isize,
             accumulate,
             a.data.as_ptr(),
             a.cs as isize,
@@ -142,7 +133,7 @@ pub(crate) fn matmul(a: Mat, b: Mat, out: &mut [f32]) {
             ..b
         };
         // SAFETY: tiles write disjoint column ranges [j0, j1) of `out`.
-        unsafe { matmul_into(a, bj, shared, j0, n, false) };
+        unsafe { matmul_into(a, bj, shared, j0, (n, 1), false) };
     });
 }
 

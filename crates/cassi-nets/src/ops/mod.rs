@@ -9,3 +9,4 @@ pub(crate) mod matmul;
 pub(crate) mod norm;
 pub(crate) mod pixel_shuffle;
 pub(crate) mod pool;
+pub(crate) mod simd;
