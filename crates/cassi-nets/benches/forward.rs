@@ -60,6 +60,7 @@ fn main() {
         .filter(|a| !a.starts_with('-'))
         .collect();
     let wanted = |name: &str| only.is_empty() || only.iter().any(|o| o == name);
+    let load_before = load_average();
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(THREADS)
         .build()
@@ -121,12 +122,24 @@ fn main() {
     let doc = serde_json::json!({
         "benchmark": "cassi-nets: one forward pass per network, batch 1, f32, CPU",
         "machine": { "cpu": cpu_model(), "threads": THREADS },
+        // Other work on the machine inflates the times; the 1-minute load
+        // average before and after the runs says how much there was.
+        "load_average_1min": { "before": load_before, "after": load_average() },
         "protocol": format!("median of {RUNS} after 1 warm-up; rayon pool of {THREADS} threads"),
         "results": rows,
     });
     std::fs::write(&out, serde_json::to_string_pretty(&doc).unwrap() + "\n")
         .unwrap_or_else(|e| panic!("{}: {e}", out.display()));
     eprintln!("wrote {}", out.display());
+}
+
+fn load_average() -> Option<f64> {
+    std::fs::read_to_string("/proc/loadavg")
+        .ok()?
+        .split_whitespace()
+        .next()?
+        .parse()
+        .ok()
 }
 
 fn cpu_model() -> String {
