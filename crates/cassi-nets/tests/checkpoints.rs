@@ -322,3 +322,34 @@ fn truncated_and_foreign_files_give_clear_errors() {
         "{missing}"
     );
 }
+
+#[test]
+fn views_larger_than_their_storage_or_absurdly_large_are_refused() {
+    let dir = TempDir::new("views");
+    // A stride-0 view claiming 2^40 elements of a 1-element storage.
+    let huge = Spec {
+        name: "w".into(),
+        shape: vec![1 << 20, 1 << 20],
+        stride: Some(vec![0, 0]),
+        storage: vec![1.0],
+    };
+    write_pth(&dir.file("huge.pth"), &[huge]);
+    let msg = load_err(&dir.file("huge.pth"));
+    assert!(
+        msg.contains("tensor w") && msg.contains("too large"),
+        "{msg}"
+    );
+    // A view reaching past the end of its storage.
+    let past = Spec {
+        name: "v".into(),
+        shape: vec![3, 3],
+        stride: Some(vec![3, 1]),
+        storage: vec![0.0; 8],
+    };
+    write_pth(&dir.file("past.pth"), &[past]);
+    let msg = load_err(&dir.file("past.pth"));
+    assert!(
+        msg.contains("tensor v") && msg.contains("reaches element 8"),
+        "{msg}"
+    );
+}

@@ -46,6 +46,44 @@ pub(crate) enum Value {
     Mark,
 }
 
+/// Limits that keep a hostile pickle from exhausting the stack (deeply
+/// nested containers are built, cloned and dropped recursively) or memory
+/// (memo PUT/GET copy values, so shared references could multiply them).
+const MAX_DEPTH: usize = 32;
+const MAX_COPIED_NODES: usize = 1_000_000;
+
+/// Nesting depth of containers (0 for a scalar). Recursion stays shallow
+/// because every container is checked against [`MAX_DEPTH`] when built.
+fn depth(v: &Value) -> usize {
+    match v {
+        Value::Tuple(x) | Value::List(x) => 1 + x.iter().map(depth).max().unwrap_or(0),
+        Value::Dict(d) => {
+            1 + d
+                .iter()
+                .map(|(k, v)| depth(k).max(depth(v)))
+                .max()
+                .unwrap_or(0)
+        }
+        _ => 0,
+    }
+}
+
+fn nodes(v: &Value) -> usize {
+    match v {
+        Value::Tuple(x) | Value::List(x) => 1 + x.iter().map(nodes).sum::<usize>(),
+        Value::Dict(d) => 1 + d.iter().map(|(k, v)| nodes(k) + nodes(v)).sum::<usize>(),
+        _ => 1,
+    }
+}
+
+/// Errors if putting `items` into a container would nest deeper than [`MAX_DEPTH`].
+fn check_nesting(items: &[Value], pos: usize) -> Result<(), String> {
+    if items.iter().any(|v| depth(v) + 1 > MAX_DEPTH) {
+        return err(pos, format!("containers nested deeper than {MAX_DEPTH}"));
+    }
+    Ok(())
+}
+
 fn err<T>(pos: usize, msg: impl std::fmt::Display) -> Result<T, String> {
     Err(format!("data.pkl byte {pos}: {msg}"))
 }
@@ -152,6 +190,15 @@ pub(crate) fn unpickle(bytes: &[u8]) -> Result<Value, String> {
     let mut r = Reader { bytes, pos: 0 };
     let mut stack: Vec<Value> = Vec::new();
     let mut memo: HashMap<u32, Value> = HashMap::new();
+    let mut copied_nodes = 0usize;
+    // A memo copy, charged to the copy budget.
+    let mut copy = |v: &Value, pos: usize| -> Result<Value, String> {
+        copied_nodes += nodes(v);
+        if copied_nodes > MAX_COPIED_NODES {
+            return err(pos, "memo copies exceed the size limit (not a state dict)");
+        }
+        Ok(v.clone())
+    };
 
     // Pops everything down to the last MARK (the MARK too).
     fn pop_mark(stack: &mut Vec<Value>, pos: usize) -> Result<Vec<Value>, String> {
@@ -172,6 +219,7 @@ pub(crate) fn unpickle(bytes: &[u8]) -> Result<Value, String> {
         if items.len() % 2 != 0 {
             return err(pos, "odd number of dict items");
         }
+        check_nesting(&items, pos)?;
         match stack.last_mut() {
             Some(Value::Dict(d)) => {
                 let mut it = items.into_iter();
@@ -186,6 +234,7 @@ pub(crate) fn unpickle(bytes: &[u8]) -> Result<Value, String> {
         }
     }
     fn append(stack: &mut [Value], items: Vec<Value>, pos: usize) -> Result<(), String> {
+        check_nesting(&items, pos)?;
         match stack.last_mut() {
             Some(Value::List(l)) => {
                 l.extend(items);
@@ -283,6 +332,7 @@ pub(crate) fn unpickle(bytes: &[u8]) -> Result<Value, String> {
             b')' => stack.push(Value::Tuple(Vec::new())),
             b't' => {
                 let items = pop_mark(&mut stack, pos)?;
+                check_nesting(&items, pos)?;
                 stack.push(Value::Tuple(items));
             }
             0x85..=0x87 => {
@@ -294,11 +344,13 @@ pub(crate) fn unpickle(bytes: &[u8]) -> Result<Value, String> {
                 if items.contains(&Value::Mark) {
                     return err(pos, "MARK inside a TUPLE1/2/3");
                 }
+                check_nesting(&items, pos)?;
                 stack.push(Value::Tuple(items));
             }
             b']' => stack.push(Value::List(Vec::new())),
             b'l' => {
                 let items = pop_mark(&mut stack, pos)?;
+                check_nesting(&items, pos)?;
                 stack.push(Value::List(items));
             }
             b'}' => stack.push(Value::Dict(Vec::new())),
@@ -393,21 +445,18 @@ pub(crate) fn unpickle(bytes: &[u8]) -> Result<Value, String> {
                     return err(pos, "BUILD on an empty stack");
                 }
             }
-            b'q' => {
-                let i = r.u8()? as u32;
-                memo.insert(i, stack.last().cloned().unwrap_or(Value::None));
-            }
-            b'r' => {
-                let i = r.u32()?;
-                memo.insert(i, stack.last().cloned().unwrap_or(Value::None));
-            }
-            0x94 => {
-                let i = memo.len() as u32;
-                memo.insert(i, stack.last().cloned().unwrap_or(Value::None));
-            }
-            b'p' => {
-                let i = r.line()?.parse().or_else(|_| err(pos, "bad PUT"))?;
-                memo.insert(i, stack.last().cloned().unwrap_or(Value::None));
+            b'q' | b'r' | 0x94 | b'p' => {
+                let i = match op {
+                    b'q' => r.u8()? as u32,
+                    b'r' => r.u32()?,
+                    0x94 => memo.len() as u32,
+                    _ => r.line()?.parse().or_else(|_| err(pos, "bad PUT"))?,
+                };
+                let Some(top) = stack.last() else {
+                    return err(pos, "PUT on an empty stack");
+                };
+                let v = copy(top, pos)?;
+                memo.insert(i, v);
             }
             b'h' | b'j' | b'g' => {
                 let i = match op {
@@ -416,7 +465,10 @@ pub(crate) fn unpickle(bytes: &[u8]) -> Result<Value, String> {
                     _ => r.line()?.parse().or_else(|_| err(pos, "bad GET"))?,
                 };
                 match memo.get(&i) {
-                    Some(v) => stack.push(v.clone()),
+                    Some(v) => {
+                        let v = copy(v, pos)?;
+                        stack.push(v);
+                    }
                     None => return err(pos, format!("memo entry {i} not defined")),
                 }
             }
@@ -424,7 +476,10 @@ pub(crate) fn unpickle(bytes: &[u8]) -> Result<Value, String> {
                 stack.pop();
             }
             b'2' => match stack.last() {
-                Some(v) => stack.push(v.clone()),
+                Some(v) => {
+                    let v = copy(v, pos)?;
+                    stack.push(v);
+                }
                 None => return err(pos, "DUP on an empty stack"),
             },
             _ => return err(pos, format!("unsupported pickle opcode 0x{op:02x}")),
@@ -469,6 +524,30 @@ mod tests {
         // __main__.Net.__new__(Net) then BUILD with a dict: a whole-model pickle.
         let p = b"\x80\x02c__main__\nNet\nq\x00)\x81}X\x01\x00\x00\x00aK\x01sb.";
         assert_eq!(unpickle(p).unwrap(), Value::Object("__main__.Net".into()));
+    }
+
+    #[test]
+    fn hostile_nesting_and_shared_references_are_refused() {
+        // [[[[…]]]] 100 000 deep: would overflow the stack when dropped.
+        let mut p = vec![0x80, 2];
+        p.extend([b']'; 100_001]);
+        p.extend([b'a'; 100_000]);
+        p.push(b'.');
+        assert!(unpickle(&p).unwrap_err().contains("nested deeper"));
+        // L = [1]*8; then repeatedly L = [L, L] through the memo: 2^40 nodes
+        // if copies were free.
+        let mut p = vec![0x80, 2, b'('];
+        p.extend([b'K', 1].repeat(8));
+        p.extend([b'l', b'q', 0]);
+        for _ in 0..40 {
+            p.extend([b'h', 0, b'h', 0, 0x86, b'q', 0]);
+        }
+        p.push(b'.');
+        let e = unpickle(&p).unwrap_err();
+        assert!(
+            e.contains("size limit") || e.contains("nested deeper"),
+            "{e}"
+        );
     }
 
     #[test]

@@ -51,10 +51,12 @@ pub(crate) fn read(bytes: &[u8]) -> Result<Vec<(String, StoredTensor)>, String> 
 }
 
 fn read_entry(zip: &mut zip::ZipArchive<Cursor<&[u8]>>, name: &str) -> Result<Vec<u8>, String> {
+    let archive_len = zip.clone().into_inner().into_inner().len() as u64;
     let mut f = zip
         .by_name(name)
         .map_err(|e| format!("zip entry {name}: {e}"))?;
-    let mut buf = Vec::with_capacity(f.size().min(1 << 30) as usize);
+    // The declared size can lie; the archive's own length bounds a stored entry.
+    let mut buf = Vec::with_capacity(f.size().min(archive_len) as usize);
     f.read_to_end(&mut buf)
         .map_err(|e| format!("zip entry {name} is unreadable (truncated file?): {e}"))?;
     Ok(buf)
@@ -119,6 +121,10 @@ fn describe(v: &Value) -> String {
     }
 }
 
+/// Largest tensor accepted (2^30 elements, 4 GiB of f32): a view can
+/// repeat storage elements (stride 0), so the file size alone does not bound it.
+const MAX_ELEMENTS: usize = 1 << 30;
+
 /// Copies a (possibly strided) tensor view out of its storage bytes.
 fn gather(t: &TensorRef, storage: &[u8]) -> Result<StoredTensor, String> {
     let dtype = DType::from_torch_storage(&t.storage_type)
@@ -131,14 +137,27 @@ fn gather(t: &TensorRef, storage: &[u8]) -> Result<StoredTensor, String> {
     }
     let es = dtype.size();
     let storage_len = storage.len() / es;
-    let numel: usize = t.shape.iter().product();
+    let too_big = || {
+        format!(
+            "shape {:?} with stride {:?} is too large",
+            t.shape, t.stride
+        )
+    };
+    let numel = t
+        .shape
+        .iter()
+        .try_fold(1usize, |a, &d| a.checked_mul(d))
+        .filter(|&n| n <= MAX_ELEMENTS)
+        .ok_or_else(too_big)?;
     if numel > 0 {
-        let last = t.storage_offset
-            + t.shape
-                .iter()
-                .zip(&t.stride)
-                .map(|(s, st)| (s - 1) * st)
-                .sum::<usize>();
+        let last = t
+            .shape
+            .iter()
+            .zip(&t.stride)
+            .try_fold(t.storage_offset, |a, (s, st)| {
+                a.checked_add((s - 1).checked_mul(*st)?)
+            })
+            .ok_or_else(too_big)?;
         if last >= storage_len {
             return Err(format!(
                 "view of shape {:?} (offset {}, stride {:?}) reaches element {last}, \
