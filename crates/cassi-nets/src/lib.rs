@@ -7,6 +7,8 @@
 //!   mismatch is one [`NetError`] listing every bad tensor and the file.
 //! * [`HsiSdecnnDenoiser`] plugs HSI-SDeCNN into cassi-core's PnP solvers
 //!   as a [`cassi_core::Denoiser`].
+//! * [`toolbox_inputs`] builds the networks' H and Phi from a measurement
+//!   and mask the way the MST toolbox does.
 //! * Inputs and outputs are [`Tensor`]s in PyTorch's NCHW layout, so test
 //!   vectors compare one to one.
 //!
@@ -19,6 +21,7 @@ mod error;
 mod fmap;
 mod hdnet;
 mod hsi_sdecnn;
+mod inputs;
 mod mst;
 mod ops;
 mod tensor;
@@ -29,5 +32,6 @@ pub use error::{NetError, Result};
 pub use fmap::FeatureMap;
 pub use hdnet::HdNet;
 pub use hsi_sdecnn::HsiSdecnn;
+pub use inputs::toolbox_inputs;
 pub use mst::{MST_BANDS, MST_MASK_WIDTH, MST_SIZE, Mst, MstActivations, MstConfig};
 pub use tensor::Tensor;

@@ -3,6 +3,8 @@
 //! `<crate>/../../../shared/data`; absent → the test prints a note and passes.
 #![allow(dead_code)]
 
+pub mod sha256;
+
 use std::path::PathBuf;
 
 use cassi_nets::Tensor;
@@ -39,29 +41,15 @@ pub fn check(name: &str, got: &Tensor, want: &Tensor, tol: f32) -> f32 {
     d
 }
 
-/// The MST inputs of README §1, as `common/make_inputs.py` builds them from
-/// `y.npy` (1, 256, 310) and `mask.npy` (256, 256): H (1, 28, 256, 256) with
-/// H[c, r, j] = (y / 28 · 2)[r, 2c + j] (division first, in f32), and
-/// Phi (1, 28, 256, 310) with Phi[c, r, 2c + j] = mask[r, j].
+/// The MST inputs of README §1 (what `common/make_inputs.py` writes), from
+/// `y.npy` (1, 256, 310) and `mask.npy` (256, 256) by the library's
+/// [`cassi_nets::toolbox_inputs`].
 pub fn mst_inputs(nets: &std::path::Path) -> (Tensor, Tensor) {
     let y = npy(nets.join("common/y.npy"));
     let mask = npy(nets.join("common/mask.npy"));
-    let (bands, n, wy) = (28, 256, 310);
-    assert_eq!(y.shape(), [1, n, wy]);
-    assert_eq!(mask.shape(), [n, n]);
-    let ys: Vec<f32> = y.data().iter().map(|v| (v / 28.0) * 2.0).collect();
-    let mut h = vec![0.0f32; bands * n * n];
-    let mut phi = vec![0.0f32; bands * n * wy];
-    for c in 0..bands {
-        for r in 0..n {
-            h[(c * n + r) * n..][..n].copy_from_slice(&ys[r * wy + 2 * c..][..n]);
-            phi[(c * n + r) * wy + 2 * c..][..n].copy_from_slice(&mask.data()[r * n..][..n]);
-        }
-    }
-    (
-        Tensor::new(vec![1, bands, n, n], h).unwrap(),
-        Tensor::new(vec![1, bands, n, wy], phi).unwrap(),
-    )
+    let y = cassi_core::Measurement::from_vec(256, 310, y.into_data()).unwrap();
+    let mask = cassi_core::Mask::from_vec(256, 256, mask.into_data()).unwrap();
+    cassi_nets::toolbox_inputs(&y, &mask, 28, 2).unwrap()
 }
 
 /// Rows 0..rows of a (C, H, W) feature map as a (1, C, rows, W) tensor
