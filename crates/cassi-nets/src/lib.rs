@@ -9,6 +9,8 @@
 //!   as a [`cassi_core::Denoiser`].
 //! * [`toolbox_inputs`] builds the networks' H and Phi from a measurement
 //!   and mask the way the MST toolbox does.
+//! * [`Reconstructor`] picks a network by name and maps a measurement and
+//!   mask to a cube.
 //! * Inputs and outputs are [`Tensor`]s in PyTorch's NCHW layout, so test
 //!   vectors compare one to one.
 //!
@@ -24,6 +26,7 @@ mod hsi_sdecnn;
 mod inputs;
 mod mst;
 mod ops;
+mod reconstructor;
 mod tensor;
 
 pub use checkpoint::{DType, StoredTensor, TensorMap, WeightLoader};
@@ -34,4 +37,5 @@ pub use hdnet::HdNet;
 pub use hsi_sdecnn::HsiSdecnn;
 pub use inputs::toolbox_inputs;
 pub use mst::{MST_BANDS, MST_MASK_WIDTH, MST_SIZE, Mst, MstActivations, MstConfig};
+pub use reconstructor::{Reconstructor, TRAINED_STEP};
 pub use tensor::Tensor;

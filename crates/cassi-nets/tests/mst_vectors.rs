@@ -57,3 +57,28 @@ fn mst_l_matches_pytorch() {
         1e-4,
     );
 }
+
+/// The by-name entry point: official MST-S from the `.pth`, measurement and
+/// mask in, cube out — the same numbers as the tensor API.
+#[test]
+fn reconstructor_runs_mst_s_from_the_official_pth() {
+    let Some(nets) = nets_dir("reconstructor_runs_mst_s_from_the_official_pth") else {
+        return;
+    };
+    let weights = nets.join("../weights/mst_s.pth");
+    let net = cassi_nets::Reconstructor::load("mst-s", weights).unwrap_or_else(|e| panic!("{e}"));
+    let y = npy(nets.join("common/y.npy"));
+    let mask = npy(nets.join("common/mask.npy"));
+    let y = cassi_core::Measurement::from_vec(256, 310, y.into_data()).unwrap();
+    let mask = cassi_core::Mask::from_vec(256, 256, mask.into_data()).unwrap();
+    let cube = net.reconstruct(&y, &mask).unwrap();
+    assert_eq!(cube.shape(), (28, 256, 256));
+    let got = cassi_nets::Tensor::new(vec![1, 28, 256, 256], cube.into_vec()).unwrap();
+    check(
+        "Reconstructor mst-s (.pth) vs mst_s/out.npy",
+        &got,
+        &npy(nets.join("mst_s/out.npy")),
+        1e-4,
+    );
+    assert!(cassi_nets::Reconstructor::load("mst-xl", "x").is_err());
+}
