@@ -75,7 +75,7 @@ impl HsiSdecnn {
 
     /// One sample: `stack` (7, h, w), noise std `sigma` on the data's scale
     /// → the denoised centre band (1, h, w).
-    pub fn denoise_stack(&self, stack: &FeatureMap, sigma: f32) -> FeatureMap {
+    pub(crate) fn denoise_stack(&self, stack: &FeatureMap, sigma: f32) -> FeatureMap {
         assert_eq!(stack.c, Self::IN_BANDS, "HSI-SDeCNN band stack");
         let padded = replicate_pad_to_even(stack);
         let u = pixel_unshuffle2(&padded);

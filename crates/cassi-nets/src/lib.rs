@@ -32,7 +32,6 @@ mod tensor;
 pub use checkpoint::{DType, StoredTensor, TensorMap, WeightLoader};
 pub use denoiser::HsiSdecnnDenoiser;
 pub use error::{NetError, Result};
-pub use fmap::FeatureMap;
 pub use hdnet::HdNet;
 pub use hsi_sdecnn::HsiSdecnn;
 pub use inputs::toolbox_inputs;

@@ -70,18 +70,19 @@ pub struct Mst {
     mapping: Conv2d,
 }
 
-/// Intermediate activations of one sample, for checking against PyTorch.
+/// Intermediate activations of batch element 0, each (1, C, h, w), for
+/// checking against PyTorch.
 pub struct MstActivations {
-    /// After the embedding conv and LeakyReLU (28, 256, 256).
-    pub embedding: FeatureMap,
-    /// `encoder_layers.0.0.blocks.0.0.mm` output, after shift-back (28, 256, 256).
-    pub enc0_block0_mask_attn: FeatureMap,
-    /// Encoder stage-0 MSAB output = skip 0 (28, 256, 256).
-    pub enc0_msab: FeatureMap,
-    /// Bottleneck MSAB output (112, 64, 64).
-    pub bottleneck: FeatureMap,
-    /// `mapping` conv output before the residual (28, 256, 256).
-    pub mapping: FeatureMap,
+    /// After the embedding conv and LeakyReLU (1, 28, 256, 256).
+    pub embedding: Tensor,
+    /// `encoder_layers.0.0.blocks.0.0.mm` output, after shift-back (1, 28, 256, 256).
+    pub enc0_block0_mask_attn: Tensor,
+    /// Encoder stage-0 MSAB output = skip 0 (1, 28, 256, 256).
+    pub enc0_msab: Tensor,
+    /// Bottleneck MSAB output (1, 112, 64, 64).
+    pub bottleneck: Tensor,
+    /// `mapping` conv output before the residual (1, 28, 256, 256).
+    pub mapping: Tensor,
 }
 
 impl Mst {
@@ -145,16 +146,16 @@ impl Mst {
         Tensor::new(h.shape().to_vec(), out)
     }
 
-    /// [`forward`](Self::forward) of batch element 0, also returning the
-    /// intermediate activations that the reference dumps.
+    /// [`forward`](Self::forward) of batch element 0 (1, 28, 256, 256), also
+    /// returning the intermediate activations that the reference dumps.
     pub fn forward_with_activations(
         &self,
         h: &Tensor,
         phi: &Tensor,
-    ) -> Result<(FeatureMap, MstActivations)> {
+    ) -> Result<(Tensor, MstActivations)> {
         self.check_inputs(h, phi)?;
         match self.forward_sample(sample(h, 0), &sample(phi, 0), true) {
-            (out, Some(acts)) => Ok((out, acts)),
+            (out, Some(acts)) => Ok((batch_of_one(out), acts)),
             (_, None) => unreachable!("activations are recorded when asked for"),
         }
     }
@@ -211,17 +212,23 @@ impl Mst {
         let mut out = self.mapping.forward(&fea);
         let acts = match (record, embedding, bottleneck) {
             (true, Some(embedding), Some(bottleneck)) => Some(MstActivations {
-                embedding,
-                enc0_block0_mask_attn: self.encoder[0].msab.mask_embedding(0, mask),
-                enc0_msab: skips.swap_remove(0),
-                bottleneck,
-                mapping: out.clone(),
+                embedding: batch_of_one(embedding),
+                enc0_block0_mask_attn: batch_of_one(self.encoder[0].msab.mask_embedding(0, mask)),
+                enc0_msab: batch_of_one(skips.swap_remove(0)),
+                bottleneck: batch_of_one(bottleneck),
+                mapping: batch_of_one(out.clone()),
             }),
             _ => None,
         };
         out.add_assign(&x);
         (out, acts)
     }
+}
+
+/// A feature map as a batch of one, (1, C, h, w).
+fn batch_of_one(f: FeatureMap) -> Tensor {
+    let shape = vec![1, f.c, f.h, f.w];
+    Tensor::new(shape, f.data).expect("a feature map's data fits its shape")
 }
 
 /// Batch element `i` of an NCHW tensor as a feature map.

@@ -52,17 +52,13 @@ pub fn mst_inputs(nets: &std::path::Path) -> (Tensor, Tensor) {
     cassi_nets::toolbox_inputs(&y, &mask, 28, 2).unwrap()
 }
 
-/// Rows 0..rows of a (C, H, W) feature map as a (1, C, rows, W) tensor
-/// (the reference dumps the top 32 rows of large activations).
-pub fn top_rows(f: &cassi_nets::FeatureMap, rows: usize) -> Tensor {
-    let mut data = Vec::with_capacity(f.c * rows * f.w);
-    for c in 0..f.c {
-        data.extend_from_slice(&f.data[c * f.h * f.w..][..rows * f.w]);
+/// Rows 0..rows of a (1, C, H, W) tensor (the reference dumps the top 32
+/// rows of large activations).
+pub fn top_rows(t: &Tensor, rows: usize) -> Tensor {
+    let [_, c, h, w] = t.nchw("activation", None).unwrap();
+    let mut data = Vec::with_capacity(c * rows * w);
+    for ch in 0..c {
+        data.extend_from_slice(&t.data()[ch * h * w..][..rows * w]);
     }
-    Tensor::new(vec![1, f.c, rows, f.w], data).unwrap()
-}
-
-/// A whole feature map as a (1, C, H, W) tensor.
-pub fn batch_of_one(f: &cassi_nets::FeatureMap) -> Tensor {
-    Tensor::new(vec![1, f.c, f.h, f.w], f.data.clone()).unwrap()
+    Tensor::new(vec![1, c, rows, w], data).unwrap()
 }
