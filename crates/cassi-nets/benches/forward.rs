@@ -97,6 +97,14 @@ fn main() {
                 format!("H 1×{bands}×{n}×{n}, Phi 1×{bands}×{n}×{MST_MASK_WIDTH}"),
                 t,
             );
+            // The mask half computed once (a fixed instrument), then per measurement.
+            let guidance = pool.install(|| net.mask_guidance(&phi).unwrap());
+            let t = pool.install(|| time(|| drop(net.forward_guided(&h, &guidance).unwrap())));
+            record(
+                &format!("{name}_mask_guidance_reused"),
+                format!("H 1×{bands}×{n}×{n}"),
+                t,
+            );
         }
     }
     if wanted("hdnet") {

@@ -35,6 +35,8 @@ pub use error::{NetError, Result};
 pub use hdnet::HdNet;
 pub use hsi_sdecnn::HsiSdecnn;
 pub use inputs::toolbox_inputs;
-pub use mst::{MST_BANDS, MST_MASK_WIDTH, MST_SIZE, Mst, MstActivations, MstConfig};
+pub use mst::{
+    MST_BANDS, MST_MASK_WIDTH, MST_SIZE, Mst, MstActivations, MstConfig, MstMaskGuidance,
+};
 pub use reconstructor::{Reconstructor, TRAINED_STEP};
 pub use tensor::Tensor;

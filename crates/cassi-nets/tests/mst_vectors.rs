@@ -20,6 +20,19 @@ fn mst_s_matches_pytorch_output_and_activations() {
     let t = Instant::now();
     let (out, acts) = net.forward_with_activations(&h, &phi).unwrap();
     eprintln!("MST-S forward: {:.2} s", t.elapsed().as_secs_f64());
+    // The mask half computed once and reused gives the same numbers, and only
+    // to the network that computed it.
+    let guidance = net.mask_guidance(&phi).unwrap();
+    let t = Instant::now();
+    let guided = net.forward_guided(&h, &guidance).unwrap();
+    eprintln!(
+        "MST-S forward with precomputed mask guidance: {:.2} s",
+        t.elapsed().as_secs_f64()
+    );
+    assert_eq!(guided, out, "forward_guided differs from forward");
+    let other = Mst::load(d.join("mst_s.safetensors"), MstConfig::SMALL).unwrap();
+    let e = other.forward_guided(&h, &guidance).unwrap_err().to_string();
+    assert!(e.contains("another MST instance"), "{e}");
     for (name, got) in [
         ("act_embedding_rows0-32", top_rows(&acts.embedding, 32)),
         (

@@ -62,12 +62,27 @@ struct DecoderStage {
 }
 
 pub struct Mst {
+    /// Tells this network's [`MstMaskGuidance`] from another's.
+    id: u64,
     config: MstConfig,
     embedding: Conv2d,
     encoder: Vec<EncoderStage>,
     bottleneck: Msab,
     decoder: Vec<DecoderStage>,
     mapping: Conv2d,
+}
+
+static NEXT_MST_ID: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+
+/// The mask-dependent half of an MST forward: every block's mask embedding
+/// (the mask-guided mechanism after shift-back, at each level), which does
+/// not depend on the measurement. Compute it once per coded aperture with
+/// [`Mst::mask_guidance`] and reuse it for any number of measurements.
+pub struct MstMaskGuidance {
+    net_id: u64,
+    /// Per MSAB in forward order (encoder 0, encoder 1, bottleneck,
+    /// decoder 0, decoder 1), one embedding per block.
+    per_msab: [Vec<FeatureMap>; 5],
 }
 
 /// Intermediate activations of batch element 0, each (1, C, h, w), for
@@ -120,6 +135,7 @@ impl Mst {
         let mapping = Conv2d::load(&mut w, "mapping", c0, c0, 3, false);
         w.finish()?;
         Ok(Self {
+            id: NEXT_MST_ID.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
             config,
             embedding,
             encoder,
@@ -133,15 +149,48 @@ impl Mst {
         self.config
     }
 
-    /// PyTorch's `model(H, Phi)`: H (B, 28, 256, 256), Phi (B, 28, 256, 310)
+    /// PyTorch's `model(H, Phi)`: H (B, 28, 256, 256), Phi (B′, 28, 256, 310)
     /// → (B, 28, 256, 256). As in the reference, only Phi's first batch
     /// element guides the attention (it is one instrument's mask).
     pub fn forward(&self, h: &Tensor, phi: &Tensor) -> Result<Tensor> {
-        let [b, ..] = self.check_inputs(h, phi)?;
-        let mask = sample(phi, 0);
+        self.check_h(h)?;
+        self.forward_guided(h, &self.mask_guidance(phi)?)
+    }
+
+    /// The mask-dependent half of [`forward`](Self::forward), from Phi's
+    /// first batch element.
+    pub fn mask_guidance(&self, phi: &Tensor) -> Result<MstMaskGuidance> {
+        let dims = phi.nchw("MST mask Phi", Some(MST_BANDS))?;
+        if dims[2..] != [MST_SIZE, MST_MASK_WIDTH] {
+            return Err(NetError::Input {
+                what: "MST mask Phi".into(),
+                got: shape_str(phi.shape()),
+                expected: format!("(batch, {MST_BANDS}, {MST_SIZE}, {MST_MASK_WIDTH})"),
+            });
+        }
+        let m0 = sample(phi, 0);
+        let m1 = self.encoder[0].mask_down.forward(&m0);
+        let m2 = self.encoder[1].mask_down.forward(&m1);
+        Ok(MstMaskGuidance {
+            net_id: self.id,
+            per_msab: [
+                self.encoder[0].msab.mask_embeddings(&m0),
+                self.encoder[1].msab.mask_embeddings(&m1),
+                self.bottleneck.mask_embeddings(&m2),
+                self.decoder[0].msab.mask_embeddings(&m1),
+                self.decoder[1].msab.mask_embeddings(&m0),
+            ],
+        })
+    }
+
+    /// [`forward`](Self::forward) with the mask half precomputed by this
+    /// network's [`mask_guidance`](Self::mask_guidance).
+    pub fn forward_guided(&self, h: &Tensor, guidance: &MstMaskGuidance) -> Result<Tensor> {
+        let [b, ..] = self.check_h(h)?;
+        self.check_guidance(guidance)?;
         let mut out = Vec::with_capacity(h.numel());
         for i in 0..b {
-            out.extend(self.forward_sample(sample(h, i), &mask, false).0.data);
+            out.extend(self.forward_sample(sample(h, i), guidance, false).0.data);
         }
         Tensor::new(h.shape().to_vec(), out)
     }
@@ -153,14 +202,15 @@ impl Mst {
         h: &Tensor,
         phi: &Tensor,
     ) -> Result<(Tensor, MstActivations)> {
-        self.check_inputs(h, phi)?;
-        match self.forward_sample(sample(h, 0), &sample(phi, 0), true) {
+        self.check_h(h)?;
+        let guidance = self.mask_guidance(phi)?;
+        match self.forward_sample(sample(h, 0), &guidance, true) {
             (out, Some(acts)) => Ok((batch_of_one(out), acts)),
             (_, None) => unreachable!("activations are recorded when asked for"),
         }
     }
 
-    fn check_inputs(&self, h: &Tensor, phi: &Tensor) -> Result<[usize; 4]> {
+    fn check_h(&self, h: &Tensor) -> Result<[usize; 4]> {
         let dims = h.nchw("MST input H", Some(MST_BANDS))?;
         if dims[2..] != [MST_SIZE, MST_SIZE] {
             return Err(NetError::Input {
@@ -171,49 +221,50 @@ impl Mst {
                 ),
             });
         }
-        let want = [dims[0], MST_BANDS, MST_SIZE, MST_MASK_WIDTH];
-        if phi.shape() != want {
+        Ok(dims)
+    }
+
+    fn check_guidance(&self, g: &MstMaskGuidance) -> Result<()> {
+        if g.net_id != self.id {
             return Err(NetError::Input {
-                what: "MST mask Phi".into(),
-                got: shape_str(phi.shape()),
-                expected: shape_str(&want),
+                what: "MST mask guidance".into(),
+                got: "guidance computed by another MST instance".into(),
+                expected: "this network's mask_guidance(phi)".into(),
             });
         }
-        Ok(dims)
+        Ok(())
     }
 
     /// One sample; with `record`, also the activations the reference dumps.
     fn forward_sample(
         &self,
         x: FeatureMap,
-        mask: &FeatureMap,
+        guidance: &MstMaskGuidance,
         record: bool,
     ) -> (FeatureMap, Option<MstActivations>) {
+        let [enc0, enc1, bottleneck_embs, dec0, dec1] = &guidance.per_msab;
         let mut fea = self.embedding.forward(&x);
         leaky_relu_in_place(&mut fea.data, 0.1);
         let embedding = record.then(|| fea.clone());
 
         let mut skips = Vec::with_capacity(2);
-        let mut masks = vec![mask.clone()];
-        for (i, stage) in self.encoder.iter().enumerate() {
-            fea = stage.msab.forward(fea, &masks[i]);
+        for (stage, embs) in self.encoder.iter().zip([enc0, enc1]) {
+            fea = stage.msab.forward(fea, embs);
             skips.push(fea.clone());
             fea = stage.fea_down.forward(&fea);
-            let down = stage.mask_down.forward(&masks[i]);
-            masks.push(down);
         }
-        fea = self.bottleneck.forward(fea, &masks[2]);
+        fea = self.bottleneck.forward(fea, bottleneck_embs);
         let bottleneck = record.then(|| fea.clone());
-        for (i, stage) in self.decoder.iter().enumerate() {
+        for (i, (stage, embs)) in self.decoder.iter().zip([dec0, dec1]).enumerate() {
             let up = stage.up.forward(&fea);
             fea = stage.fusion.forward(&up.concat_channels(&skips[1 - i]));
-            fea = stage.msab.forward(fea, &masks[1 - i]);
+            fea = stage.msab.forward(fea, embs);
         }
         let mut out = self.mapping.forward(&fea);
         let acts = match (record, embedding, bottleneck) {
             (true, Some(embedding), Some(bottleneck)) => Some(MstActivations {
                 embedding: batch_of_one(embedding),
-                enc0_block0_mask_attn: batch_of_one(self.encoder[0].msab.mask_embedding(0, mask)),
+                enc0_block0_mask_attn: batch_of_one(enc0[0].clone()),
                 enc0_msab: batch_of_one(skips.swap_remove(0)),
                 bottleneck: batch_of_one(bottleneck),
                 mapping: batch_of_one(out.clone()),

@@ -63,16 +63,25 @@ impl Msab {
         Self { blocks }
     }
 
-    /// The mask embedding (after shift-back) of block `j`: a debugging tap.
-    pub fn mask_embedding(&self, j: usize, mask: &FeatureMap) -> FeatureMap {
-        self.blocks[j].mask_guide.forward(mask)
+    /// Each block's mask embedding (after shift-back) for the mask at this
+    /// level: input-independent, so computed once per coded aperture.
+    pub fn mask_embeddings(&self, mask: &FeatureMap) -> Vec<FeatureMap> {
+        self.blocks
+            .iter()
+            .map(|b| b.mask_guide.forward(mask))
+            .collect()
     }
 
-    pub fn forward(&self, x: FeatureMap, mask: &FeatureMap) -> FeatureMap {
+    /// `embeddings` from [`mask_embeddings`](Self::mask_embeddings), one per block.
+    pub fn forward(&self, x: FeatureMap, embeddings: &[FeatureMap]) -> FeatureMap {
+        assert_eq!(
+            embeddings.len(),
+            self.blocks.len(),
+            "one mask embedding per block"
+        );
         let mut x = x;
-        for b in &self.blocks {
-            let emb = b.mask_guide.forward(mask);
-            let a = b.attention.forward(&x, &emb);
+        for (b, emb) in self.blocks.iter().zip(embeddings) {
+            let a = b.attention.forward(&x, emb);
             x.add_assign(&a);
             let f = b.feed_forward.forward(&x);
             x.add_assign(&f);
