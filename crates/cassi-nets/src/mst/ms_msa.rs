@@ -4,7 +4,7 @@
 
 use crate::checkpoint::WeightLoader;
 use crate::fmap::FeatureMap;
-use crate::ops::activation::{gelu_in_place, softmax_in_place};
+use crate::ops::activation::softmax_in_place;
 use crate::ops::conv::Conv2d;
 use crate::ops::depthwise::DepthwiseConv2d;
 use crate::ops::matmul::{Mat, matmul};
@@ -78,8 +78,7 @@ impl MsMsa {
         }
         let mut out = self.proj.forward(&heads_out);
         // Positional embedding from V before the mask modulation.
-        let mut p = self.pos_emb0.forward(&v_in);
-        gelu_in_place(&mut p.data);
+        let p = self.pos_emb0.forward_gelu(&v_in);
         out.add_assign(&self.pos_emb2.forward(&p));
         out
     }

@@ -31,9 +31,7 @@ impl FeedForward {
     fn forward(&self, x: &FeatureMap) -> FeatureMap {
         let mut t = self.expand.forward(&self.norm.forward(x));
         gelu_in_place(&mut t.data);
-        let mut t = self.depthwise.forward(&t);
-        gelu_in_place(&mut t.data);
-        self.reduce.forward(&t)
+        self.reduce.forward(&self.depthwise.forward_gelu(&t))
     }
 }
 

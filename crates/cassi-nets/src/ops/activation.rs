@@ -40,9 +40,14 @@ pub(crate) fn gelu_in_place(x: &mut [f32]) {
 super::simd::avx2_dispatch! {
     fn gelu_chunk(x: &mut [f32]) {
         for v in x {
-            *v = 0.5 * *v * (1.0 + erf(*v * std::f32::consts::FRAC_1_SQRT_2));
+            *v = gelu_value(*v);
         }
     }
+}
+
+#[inline(always)]
+pub(crate) fn gelu_value(v: f32) -> f32 {
+    0.5 * v * (1.0 + erf(v * std::f32::consts::FRAC_1_SQRT_2))
 }
 
 pub(crate) fn relu_in_place(x: &mut [f32]) {

@@ -3,6 +3,7 @@
 
 use rayon::prelude::*;
 
+use super::activation::gelu_value;
 use crate::checkpoint::WeightLoader;
 use crate::fmap::FeatureMap;
 
@@ -30,6 +31,16 @@ impl DepthwiseConv2d {
     }
 
     pub fn forward(&self, x: &FeatureMap) -> FeatureMap {
+        self.run(x, false)
+    }
+
+    /// GELU(conv(x)), the activation applied to each output row while it is
+    /// still in L1 (saves a pass over the map; same numbers as separately).
+    pub fn forward_gelu(&self, x: &FeatureMap) -> FeatureMap {
+        self.run(x, true)
+    }
+
+    fn run(&self, x: &FeatureMap, gelu: bool) -> FeatureMap {
         assert_eq!(x.c, self.channels, "depthwise conv channels");
         let (h, w, k) = (x.h, x.w, self.k);
         let mut out = FeatureMap::zeros(x.c, h, w);
@@ -39,7 +50,7 @@ impl DepthwiseConv2d {
             .for_each(|(c, dst)| {
                 let bias = self.bias.as_ref().map_or(0.0, |b| b[c]);
                 let taps = &self.weight[c * k * k..(c + 1) * k * k];
-                depthwise_plane(x.channel(c), dst, taps, k, w, bias);
+                depthwise_plane(x.channel(c), dst, taps, k, w, bias, gelu);
             });
         out
     }
@@ -47,8 +58,17 @@ impl DepthwiseConv2d {
 
 super::simd::avx2_dispatch! {
     /// One channel: out = bias + Σ taps ⊛ src (zero padding k/2), computed
-    /// row by row so the k input rows and the output row stay in L1.
-    fn depthwise_plane(src: &[f32], dst: &mut [f32], taps: &[f32], k: usize, w: usize, bias: f32) {
+    /// row by row so the k input rows and the output row stay in L1; then
+    /// GELU on the row if `gelu`.
+    fn depthwise_plane(
+        src: &[f32],
+        dst: &mut [f32],
+        taps: &[f32],
+        k: usize,
+        w: usize,
+        bias: f32,
+        gelu: bool,
+    ) {
         let h = src.len() / w;
         let p = (k / 2) as isize;
         for (y, out_row) in dst.chunks_exact_mut(w).enumerate() {
@@ -75,6 +95,9 @@ super::simd::avx2_dispatch! {
                     }
                 }
             }
+            if gelu {
+                out_row.iter_mut().for_each(|v| *v = gelu_value(*v));
+            }
         }
     }
 }
@@ -83,6 +106,20 @@ super::simd::avx2_dispatch! {
 mod tests {
     use super::*;
     use crate::ops::conv::tests::pseudo_random;
+
+    #[test]
+    fn fused_gelu_equals_conv_then_gelu() {
+        let dw = DepthwiseConv2d {
+            weight: pseudo_random(4 * 9, 11),
+            bias: None,
+            channels: 4,
+            k: 3,
+        };
+        let x = FeatureMap::from_vec(4, 5, 6, pseudo_random(4 * 30, 12));
+        let mut want = dw.forward(&x);
+        crate::ops::activation::gelu_in_place(&mut want.data);
+        assert_eq!(dw.forward_gelu(&x), want);
+    }
 
     #[test]
     fn matches_the_definition() {
