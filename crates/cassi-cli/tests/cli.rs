@@ -568,3 +568,88 @@ fn eval_writes_the_study_and_resumes_without_rerunning() {
         &dir.join("none"),
     );
 }
+
+/// The network methods refuse solver flags and need --weights, whatever the
+/// build; without `--features nets` they say how to get them.
+#[test]
+fn network_methods_check_their_flags() {
+    let dir = scratch("nets-flags");
+    let out = dir.join("cube.npy");
+    let (y, m, w) = (dir.join("y.npy"), dir.join("mask.npy"), dir.join("w.pth"));
+    let base = ["reconstruct", s(&y), "--mask", s(&m), "-o", s(&out)];
+    let with = |extra: &[&'static str]| -> Vec<String> {
+        base.iter()
+            .map(|a| a.to_string())
+            .chain(extra.iter().map(|a| a.to_string()))
+            .collect()
+    };
+    let run = |args: Vec<String>, needles: &[&str]| {
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        assert_fails(&args, needles, &out);
+    };
+    run(with(&["--method", "mst-s"]), &["needs --weights"]);
+    run(
+        with(&[
+            "--method",
+            "hdnet",
+            "--weights",
+            "w.pth",
+            "--iterations",
+            "5",
+        ]),
+        &["--iterations does not apply to --method hdnet"],
+    );
+    run(
+        with(&["--method", "gap-tv", "--weights", "w.pth"]),
+        &["--weights is for the network methods"],
+    );
+    if cfg!(not(feature = "nets")) {
+        let mut args = with(&["--method", "mst-l", "--weights"]);
+        args.push(s(&w).to_string());
+        run(
+            args,
+            &["built without the deep networks", "--features nets"],
+        );
+    }
+}
+
+/// With `--features nets`: the official MST-S weights on the reference
+/// measurement give PSNR 26.79 dB (the README of shared/data/nets).
+#[cfg(feature = "nets")]
+#[test]
+fn mst_s_reconstructs_the_reference_measurement() {
+    let data = std::env::var_os("CASSI_SHARED_DATA")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data"));
+    if !data.join("nets").is_dir() {
+        eprintln!("note: no shared data directory (set CASSI_SHARED_DATA); skipping");
+        return;
+    }
+    let dir = scratch("nets-mst-s");
+    let out = dir.join("cube.npy");
+    let common = data.join("nets/common");
+    let res = cassi(&[
+        "reconstruct",
+        s(&common.join("y.npy")),
+        "--mask",
+        s(&common.join("mask.npy")),
+        "--method",
+        "mst-s",
+        "--weights",
+        s(&data.join("weights/mst_s.pth")),
+        "--truth",
+        s(&common.join("cube.npy")),
+        "-o",
+        s(&out),
+        "--json",
+    ]);
+    assert!(
+        res.status.success(),
+        "{}",
+        String::from_utf8_lossy(&res.stderr)
+    );
+    let report: serde_json::Value = serde_json::from_slice(&res.stdout).unwrap();
+    let psnr = report["metrics"]["psnr"].as_f64().unwrap();
+    assert!((psnr - 26.79).abs() < 0.01, "PSNR {psnr}");
+    assert!(out.with_extension("png").exists());
+}

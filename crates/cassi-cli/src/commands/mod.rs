@@ -3,5 +3,6 @@ pub mod demo;
 pub mod eval;
 pub mod info;
 pub mod inputs;
+pub mod net_reconstruct;
 pub mod reconstruct;
 pub mod simulate;

@@ -15,6 +15,7 @@ use clap::Args;
 use serde::Serialize;
 
 use super::inputs::{LayoutArg, MeasurementArgs};
+use super::net_reconstruct::{self, NET_METHOD_NAMES};
 use super::simulate::check_output;
 use crate::report::Reporter;
 
@@ -26,9 +27,14 @@ pub struct ReconstructArgs {
     /// (its true parameters: the oracle model). Without it: the nominal model.
     #[arg(long)]
     pub calibration: Option<PathBuf>,
-    /// Reconstruction method.
-    #[arg(long, default_value = "gap-tv", value_parser = METHOD_NAMES)]
+    /// Reconstruction method: an iterative solver, or a pretrained network
+    /// (mst-s, mst-l, hdnet: needs --weights and a build with `--features nets`).
+    #[arg(long, default_value = "gap-tv", value_parser = method_names())]
     pub method: String,
+    /// Network weights for --method mst-s / mst-l / hdnet: a PyTorch
+    /// state-dict .pth or a .safetensors file.
+    #[arg(long)]
+    pub weights: Option<PathBuf>,
     /// Override the method's iteration count.
     #[arg(long)]
     pub iterations: Option<usize>,
@@ -49,6 +55,11 @@ pub struct ReconstructArgs {
     /// Axis order of the truth cube.
     #[arg(long, value_enum, default_value = "auto")]
     pub layout: LayoutArg,
+}
+
+/// Solver and network method names, for `--method`.
+fn method_names() -> clap::builder::PossibleValuesParser {
+    clap::builder::PossibleValuesParser::new(METHOD_NAMES.iter().chain(&NET_METHOD_NAMES))
 }
 
 /// The model parameters and dispersion model a calibration or sidecar file gives.
@@ -103,6 +114,16 @@ struct ReconstructionReport {
 }
 
 pub fn run(args: &ReconstructArgs, reporter: &Reporter) -> anyhow::Result<()> {
+    if NET_METHOD_NAMES.contains(&args.method.as_str()) {
+        return net_reconstruct::run(args, reporter);
+    }
+    if args.weights.is_some() {
+        bail!(
+            "--weights is for the network methods ({}), not --method {}",
+            NET_METHOD_NAMES.join(", "),
+            args.method
+        );
+    }
     check_output(&args.output)?;
     let (measurement, mask, bands) = args.input.load()?;
     let (params, file_model) = match &args.calibration {

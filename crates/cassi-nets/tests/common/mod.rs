@@ -1,0 +1,64 @@
+//! Locating and reading the PyTorch test vectors of `../shared/data/nets`.
+//! Same rule as cassi-io's shared-data test: `$CASSI_SHARED_DATA`, else
+//! `<crate>/../../../shared/data`; absent → the test prints a note and passes.
+#![allow(dead_code)]
+
+pub mod sha256;
+
+use std::path::PathBuf;
+
+use cassi_nets::Tensor;
+
+pub fn shared_data() -> Option<PathBuf> {
+    let dir = match std::env::var_os("CASSI_SHARED_DATA") {
+        Some(d) => PathBuf::from(d),
+        None => PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data"),
+    };
+    dir.is_dir().then_some(dir)
+}
+
+/// `shared_data()/nets`, or `None` after printing why the test skips.
+pub fn nets_dir(test: &str) -> Option<PathBuf> {
+    let dir = shared_data().map(|d| d.join("nets")).filter(|d| d.is_dir());
+    if dir.is_none() {
+        eprintln!("note: {test}: no shared data directory (set CASSI_SHARED_DATA); skipping");
+    }
+    dir
+}
+
+/// A float32 .npy as a tensor of its NumPy shape.
+pub fn npy(path: PathBuf) -> Tensor {
+    let a = cassi_io::load_array(&path, None).unwrap_or_else(|e| panic!("{e}"));
+    Tensor::new(a.shape, a.data).unwrap()
+}
+
+/// Max |a − b|, printed with the test vector's name (the report quotes it).
+pub fn check(name: &str, got: &Tensor, want: &Tensor, tol: f32) -> f32 {
+    assert_eq!(got.shape(), want.shape(), "{name}: shape");
+    let d = got.max_abs_diff(want);
+    eprintln!("{name}: max |Δ| = {d:.3e} (tolerance {tol:.0e})");
+    assert!(d <= tol, "{name}: max |Δ| = {d:e} > {tol:e}");
+    d
+}
+
+/// The MST inputs of README §1 (what `common/make_inputs.py` writes), from
+/// `y.npy` (1, 256, 310) and `mask.npy` (256, 256) by the library's
+/// [`cassi_nets::toolbox_inputs`].
+pub fn mst_inputs(nets: &std::path::Path) -> (Tensor, Tensor) {
+    let y = npy(nets.join("common/y.npy"));
+    let mask = npy(nets.join("common/mask.npy"));
+    let y = cassi_core::Measurement::from_vec(256, 310, y.into_data()).unwrap();
+    let mask = cassi_core::Mask::from_vec(256, 256, mask.into_data()).unwrap();
+    cassi_nets::toolbox_inputs(&y, &mask, 28, 2).unwrap()
+}
+
+/// Rows 0..rows of a (1, C, H, W) tensor (the reference dumps the top 32
+/// rows of large activations).
+pub fn top_rows(t: &Tensor, rows: usize) -> Tensor {
+    let [_, c, h, w] = t.nchw("activation", None).unwrap();
+    let mut data = Vec::with_capacity(c * rows * w);
+    for ch in 0..c {
+        data.extend_from_slice(&t.data()[ch * h * w..][..rows * w]);
+    }
+    Tensor::new(vec![1, c, rows, w], data).unwrap()
+}
