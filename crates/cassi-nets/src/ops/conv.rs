@@ -1,5 +1,7 @@
 //! Dense 2-D convolution (groups = 1, zero padding), as PyTorch's Conv2d:
-//! im2col on tiles of output rows, one gemm per tile, tiles in parallel.
+//! im2col on tiles of output rows, one gemm per tile, tiles in parallel;
+//! 3×3 "same" convolutions loaded with [`Conv2d::load`] go through Winograd
+//! F(2×2, 3×3) instead ([`super::winograd`]).
 
 use rayon::prelude::*;
 
@@ -290,19 +292,24 @@ pub(crate) mod tests {
             (3, 2, 0, 11, 8),
         ] {
             let (ci, co) = (3, 4);
-            let conv = Conv2d {
-                weight: pseudo_random(co * ci * k * k, 1),
+            let weight = pseudo_random(co * ci * k * k, 1);
+            let mut conv = Conv2d {
+                winograd: None,
+                weight: weight.clone(),
                 bias: Some(pseudo_random(co, 2)),
                 out_ch: co,
                 in_ch: ci,
                 k,
                 stride,
                 pad,
-                winograd: None,
             };
             let x = FeatureMap::from_vec(ci, h, w, pseudo_random(ci * h * w, 3));
-            let got = conv.forward(&x);
             let want = naive_conv(&x, &conv);
+            if (k, stride, pad) == (3, 1, 1) {
+                // the Winograd path (with the bias) against the same definition
+                conv.winograd = Some(WinogradWeights::new(&weight, co, ci));
+            }
+            let got = conv.forward(&x);
             assert_eq!((got.h, got.w), (want.h, want.w));
             let err = got
                 .data
