@@ -569,8 +569,9 @@ fn eval_writes_the_study_and_resumes_without_rerunning() {
     );
 }
 
-/// The network methods refuse solver flags and need --weights, whatever the
-/// build; without `--features nets` they say how to get them.
+/// The learned methods refuse solver flags (networks) and need --weights,
+/// whatever the build, saying where official weights come from; without
+/// `--features nets` they say how to get them.
 #[test]
 fn network_methods_check_their_flags() {
     let dir = scratch("nets-flags");
@@ -587,7 +588,14 @@ fn network_methods_check_their_flags() {
         let args: Vec<&str> = args.iter().map(String::as_str).collect();
         assert_fails(&args, needles, &out);
     };
-    run(with(&["--method", "mst-s"]), &["needs --weights"]);
+    run(
+        with(&["--method", "mst-s"]),
+        &["needs --weights", "caiyuanhao1998/MST"],
+    );
+    run(
+        with(&["--method", "pnp-hsicnn"]),
+        &["needs --weights", "zsm1211/PnP-CASSI", "deep_denoiser.pth"],
+    );
     run(
         with(&[
             "--method",
@@ -601,15 +609,174 @@ fn network_methods_check_their_flags() {
     );
     run(
         with(&["--method", "gap-tv", "--weights", "w.pth"]),
-        &["--weights is for the network methods"],
+        &["--weights is for the learned methods"],
     );
     if cfg!(not(feature = "nets")) {
-        let mut args = with(&["--method", "mst-l", "--weights"]);
-        args.push(s(&w).to_string());
-        run(
-            args,
-            &["built without the deep networks", "--features nets"],
+        for method in ["mst-l", "pnp-hsicnn"] {
+            let mut args = with(&["--weights"]);
+            args.extend([s(&w).to_string(), "--method".into(), method.into()]);
+            run(
+                args,
+                &["built without the deep networks", "--features nets"],
+            );
+        }
+        // eval: the same advice before any work
+        assert_fails(
+            &[
+                "eval",
+                "--synthetic",
+                "--methods",
+                "gap-tv,mst-s",
+                "-o",
+                s(&dir.join("study")),
+            ],
+            &["--methods mst-s", "--features nets"],
+            &dir.join("study"),
         );
+    }
+}
+
+/// `cassi eval` with learned methods: weights are required (with where to
+/// get them), checked before any scene, and shapes a network cannot take
+/// are refused with both shapes.
+#[cfg(feature = "nets")]
+#[test]
+fn eval_checks_learned_methods_before_running() {
+    let dir = scratch("eval-nets-errors");
+    let study = dir.join("study");
+    let eval = |extra: &[&str]| {
+        let mut args = vec!["eval", "--synthetic", "--size", "64", "-o", s(&study)];
+        args.extend_from_slice(extra);
+        args.iter().map(|a| a.to_string()).collect::<Vec<_>>()
+    };
+    let fails = |args: Vec<String>, needles: &[&str]| {
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        assert_fails(&args, needles, &study);
+    };
+    fails(
+        eval(&["--methods", "gap-tv,mst-l"]),
+        &[
+            "--methods mst-l needs weights",
+            "--weights-dir",
+            "caiyuanhao1998/MST",
+        ],
+    );
+    fails(
+        eval(&["--methods", "pnp-hsicnn", "--weights-dir", s(&dir)]),
+        &["deep_denoiser.pth", "zsm1211/PnP-CASSI"],
+    );
+    fails(
+        eval(&["--methods", "hdnet", "--weights", "mst-s=x.pth"]),
+        &["--methods does not include mst-s"],
+    );
+    fails(
+        eval(&["--methods", "gap-tv,mst-xl"]),
+        &["unknown method 'mst-xl'", "pnp-hsicnn"],
+    );
+    let garbage = dir.join("mst_s.pth");
+    std::fs::write(&garbage, b"not a checkpoint").unwrap();
+    fails(
+        eval(&["--methods", "mst-s", "--weights-dir", s(&dir)]),
+        &["mst_s.pth"],
+    );
+    let Some(data) = shared_data() else { return };
+    fails(
+        eval(&[
+            "--methods",
+            "mst-s",
+            "--weights",
+            &format!("mst-s={}", s(&data.join("weights/mst_s.pth"))),
+        ]),
+        &["mst-s takes 256×256", "64×64"],
+    );
+}
+
+/// `cassi eval` runs a network and PnP-HSICNN next to GAP-TV through all
+/// five scenarios (seeded test-vector weights: plumbing, not quality).
+#[cfg(feature = "nets")]
+#[test]
+fn eval_runs_learned_methods_in_every_scenario() {
+    let Some(data) = shared_data() else { return };
+    let dir = scratch("eval-nets");
+    let out = dir.join("study");
+    let hdnet = format!(
+        "hdnet={}",
+        s(&data.join("nets/hdnet/hdnet_seed0.safetensors"))
+    );
+    let pnp = format!(
+        "pnp-hsicnn={}",
+        s(&data.join("nets/hsi_sdecnn/hsi_sdecnn_seed0.safetensors"))
+    );
+    let res = cassi(&[
+        "eval",
+        "--synthetic",
+        "--size",
+        "64",
+        "--iterations",
+        "84",
+        "--methods",
+        "gap-tv,hdnet,pnp-hsicnn",
+        "--weights",
+        &hdnet,
+        "--weights",
+        &pnp,
+        "-o",
+        s(&out),
+        "--quiet",
+    ]);
+    assert!(
+        res.status.success(),
+        "{}",
+        String::from_utf8_lossy(&res.stderr)
+    );
+    let csv = std::fs::read_to_string(out.join("outcomes.csv")).unwrap();
+    for method in ["gap-tv", "hdnet", "pnp-hsicnn"] {
+        assert_eq!(
+            csv.lines().filter(|l| l.contains(method)).count(),
+            5,
+            "{method}: {csv}"
+        );
+    }
+    let record: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("scenes/synthetic_0.json")).unwrap())
+            .unwrap();
+    let methods = &record["study"]["methods"];
+    assert_eq!(methods[1]["method"], "hdnet");
+    assert!(
+        methods[1]["weights"]
+            .as_str()
+            .unwrap()
+            .ends_with("hdnet_seed0.safetensors")
+    );
+    assert_eq!(methods[2]["iterations"], 84);
+    // HDNet never sees the mask: Assumed, Corrected and Oracle coincide
+    let psnr = |scenario: &str| {
+        record["result"]["outcomes"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|o| o["method"] == "hdnet" && o["scenario"] == scenario)
+            .unwrap()["metrics"]["psnr"]
+            .as_f64()
+            .unwrap()
+    };
+    assert_eq!(psnr("assumed"), psnr("oracle"));
+    assert_eq!(psnr("assumed"), psnr("corrected"));
+    let report = std::fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(report.contains("Learned methods"), "{report}");
+}
+
+/// ../shared/data (or $CASSI_SHARED_DATA) when it holds the network files.
+#[cfg(feature = "nets")]
+fn shared_data() -> Option<PathBuf> {
+    let data = std::env::var_os("CASSI_SHARED_DATA")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data"));
+    if data.join("nets").is_dir() {
+        Some(data)
+    } else {
+        eprintln!("note: no shared data directory (set CASSI_SHARED_DATA); skipping");
+        None
     }
 }
 
@@ -652,4 +819,131 @@ fn mst_s_reconstructs_the_reference_measurement() {
     let psnr = report["metrics"]["psnr"].as_f64().unwrap();
     assert!((psnr - 26.79).abs() < 0.01, "PSNR {psnr}");
     assert!(out.with_extension("png").exists());
+}
+
+/// `--calibration` reaches the networks as the mask pose: the report
+/// carries it, a1/α are noted as unused, and the cube differs from the
+/// nominal one (the reference measurement is nominal, so it gets worse).
+#[cfg(feature = "nets")]
+#[test]
+fn mst_s_takes_a_calibrated_mask() {
+    let Some(data) = shared_data() else { return };
+    let dir = scratch("nets-mst-s-calibrated");
+    let common = data.join("nets/common");
+    let calib = dir.join("calib.json");
+    std::fs::write(
+        &calib,
+        r#"{"parameters": {"dx": 1.5, "dy": 1.0, "theta_deg": 0.3, "a1": 2.04, "alpha_deg": 0.0}}"#,
+    )
+    .unwrap();
+    let run = |out: &Path, calibration: Option<&Path>| {
+        let mut args = vec![
+            "reconstruct".to_string(),
+            s(&common.join("y.npy")).into(),
+            "--mask".into(),
+            s(&common.join("mask.npy")).into(),
+            "--method".into(),
+            "mst-s".into(),
+            "--weights".into(),
+            s(&data.join("weights/mst_s.pth")).into(),
+            "--truth".into(),
+            s(&common.join("cube.npy")).into(),
+            "-o".into(),
+            s(out).into(),
+            "--json".into(),
+        ];
+        if let Some(c) = calibration {
+            args.extend(["--calibration".into(), s(c).into()]);
+        }
+        let res = Command::new(env!("CARGO_BIN_EXE_cassi"))
+            .args(&args)
+            .output()
+            .unwrap();
+        assert!(
+            res.status.success(),
+            "{}",
+            String::from_utf8_lossy(&res.stderr)
+        );
+        let report: serde_json::Value = serde_json::from_slice(&res.stdout).unwrap();
+        report
+    };
+    let nominal = run(&dir.join("nominal.npy"), None);
+    let posed = run(&dir.join("posed.npy"), Some(&calib));
+    assert_eq!(nominal["mask_pose"]["dx"], 0.0);
+    assert!(nominal["unused_dispersion"].is_null());
+    assert_eq!(posed["mask_pose"]["dx"], 1.5);
+    assert_eq!(posed["mask_pose"]["theta_deg"], 0.3);
+    assert_eq!(posed["unused_dispersion"]["a1"], 2.04);
+    let (pn, pp) = (
+        nominal["metrics"]["psnr"].as_f64().unwrap(),
+        posed["metrics"]["psnr"].as_f64().unwrap(),
+    );
+    assert!(
+        pp < pn - 1.0,
+        "a moved mask should hurt on a nominal measurement: {pp} vs {pn}"
+    );
+}
+
+/// PnP-HSICNN from the command line with the seeded denoiser weights: the
+/// schedule in the report (85 iterations: 83 TV + 2 network), the
+/// calibration's whole model used.
+#[cfg(feature = "nets")]
+#[test]
+fn pnp_hsicnn_runs_its_schedule_from_the_command_line() {
+    let Some(data) = shared_data() else { return };
+    let dir = scratch("nets-pnp");
+    let meas = dir.join("meas.npy");
+    let sim = cassi(&[
+        "simulate",
+        "--synthetic",
+        "--size",
+        "24",
+        "--bands",
+        "8",
+        "--random-mask",
+        "--dx",
+        "0.5",
+        "--no-noise",
+        "-o",
+        s(&meas),
+        "--quiet",
+    ]);
+    assert!(
+        sim.status.success(),
+        "{}",
+        String::from_utf8_lossy(&sim.stderr)
+    );
+    // the random mask is regenerated from its seed
+    let mask = dir.join("mask.npy");
+    cassi_io::save_frame(&mask, &random_binary_mask(24, 24, 0.5, 1).unwrap(), "mask").unwrap();
+    let out = dir.join("cube.npy");
+    let res = cassi(&[
+        "reconstruct",
+        s(&meas),
+        "--mask",
+        s(&mask),
+        "--calibration",
+        s(&meas.with_extension("json")),
+        "--method",
+        "pnp-hsicnn",
+        "--weights",
+        s(&data.join("nets/hsi_sdecnn/hsi_sdecnn_seed0.safetensors")),
+        "--iterations",
+        "85",
+        "-o",
+        s(&out),
+        "--json",
+    ]);
+    assert!(
+        res.status.success(),
+        "{}",
+        String::from_utf8_lossy(&res.stderr)
+    );
+    let report: serde_json::Value = serde_json::from_slice(&res.stdout).unwrap();
+    assert_eq!(report["iterations"], 85);
+    assert_eq!(report["tv_iterations"], 83);
+    assert_eq!(report["network_iterations"], 2);
+    assert_eq!(report["model_parameters"]["dx"], 0.5);
+    assert_eq!(report["params"]["schedule"]["warmup"], 83);
+    assert!(out.is_file() && out.with_extension("png").is_file());
 }

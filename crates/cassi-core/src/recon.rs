@@ -131,6 +131,72 @@ pub fn fit_width(measurement: &Measurement, cols: usize) -> Frame {
     out
 }
 
+/// What every model-based recipe starts from: the operator of the assumed
+/// instrument and the measurement fitted to its detector width. Recipes
+/// outside this module (e.g. plug-and-play with a learned denoiser in
+/// cassi-nets) build one, run a solver on it and call
+/// [`finish`](Self::finish), so the checks and width handling are shared.
+pub struct ModelProblem {
+    pub op: CassiOperator,
+    /// The measurement, cropped or zero-padded on the right to the model's
+    /// detector width.
+    pub y: Frame,
+    /// (measurement columns, model columns) when they differed.
+    pub width_fitted: Option<(usize, usize)>,
+}
+
+impl ModelProblem {
+    /// The instrument `nominal_mask` moved and dispersed as `model_params`
+    /// says (the nominal parameters, or a calibration's), for a cube of
+    /// `bands` bands, with `measurement` fitted to it.
+    pub fn new(
+        measurement: &Measurement,
+        nominal_mask: &Mask,
+        bands: usize,
+        model_params: &Mismatch,
+        model: DispersionModel,
+    ) -> Result<Self> {
+        measurement.check_finite("measurement")?;
+        if measurement.rows() != nominal_mask.rows() {
+            return Err(crate::error::shape_error(
+                "measurement rows",
+                format!("{}", measurement.rows()),
+                format!("{} (the mask's rows)", nominal_mask.rows()),
+            ));
+        }
+        let op = CassiOperator::with_mismatch(nominal_mask, bands, model_params, model)?;
+        let (_, det_cols) = op.measurement_shape();
+        let width_fitted =
+            (measurement.cols() != det_cols).then_some((measurement.cols(), det_cols));
+        let y = if width_fitted.is_some() {
+            fit_width(measurement, det_cols)
+        } else {
+            measurement.clone()
+        };
+        Ok(Self {
+            op,
+            y,
+            width_fitted,
+        })
+    }
+
+    /// (bands, rows, cols) of the cube to reconstruct.
+    pub fn cube_shape(&self) -> (usize, usize, usize) {
+        self.op.cube_shape()
+    }
+
+    /// A solver's solution as this problem's reconstruction.
+    pub fn finish(&self, solution: Solution) -> Reconstruction {
+        Reconstruction {
+            cube: solution.cube,
+            solution_iterations: solution.iterations,
+            stop: solution.stop,
+            relative_residual: solution.relative_residual,
+            width_fitted: self.width_fitted,
+        }
+    }
+}
+
 /// Reconstructs a cube of `bands` bands from `measurement`, taking the
 /// instrument to be `nominal_mask` moved and dispersed as `model_params`
 /// says (the nominal parameters, or a calibration's).
@@ -143,26 +209,8 @@ pub fn reconstruct(
     method: &Method,
     observer: &mut dyn Observer,
 ) -> Result<Reconstruction> {
-    measurement.check_finite("measurement")?;
-    if measurement.rows() != nominal_mask.rows() {
-        return Err(crate::error::shape_error(
-            "measurement rows",
-            format!("{}", measurement.rows()),
-            format!("{} (the mask's rows)", nominal_mask.rows()),
-        ));
-    }
-    let op = CassiOperator::with_mismatch(nominal_mask, bands, model_params, model)?;
-    let (rows, det_cols) = op.measurement_shape();
-    let width_fitted = (measurement.cols() != det_cols).then_some((measurement.cols(), det_cols));
-    let fitted;
-    let y = if width_fitted.is_some() {
-        fitted = fit_width(measurement, det_cols);
-        &fitted
-    } else {
-        measurement
-    };
-    debug_assert_eq!(y.rows(), rows);
-    let shape = op.cube_shape();
+    let problem = ModelProblem::new(measurement, nominal_mask, bands, model_params, model)?;
+    let (op, y, shape) = (&problem.op, problem.y.as_slice(), problem.cube_shape());
     let tv2d = |iters: usize| {
         TvChambolle2d::new(TvChambolleParams {
             max_iter: iters,
@@ -172,20 +220,14 @@ pub fn reconstruct(
     let solution: Solution = match *method {
         Method::GapTv { gap, tv_iterations } => {
             let mut d = tv2d(tv_iterations);
-            Gap::new(gap).solve(
-                &op,
-                y.as_slice(),
-                shape,
-                &mut d as &mut dyn Denoiser,
-                observer,
-            )?
+            Gap::new(gap).solve(op, y, shape, &mut d as &mut dyn Denoiser, observer)?
         }
         Method::AdmmTv {
             admm,
             tv_iterations,
         } => {
             let mut d = tv2d(tv_iterations);
-            Admm::new(admm).solve(&op, y.as_slice(), shape, &mut d, observer)?
+            Admm::new(admm).solve(op, y, shape, &mut d, observer)?
         }
         Method::PnpTv {
             gap,
@@ -199,14 +241,8 @@ pub fn reconstruct(
                 },
                 spectral_weight,
             );
-            Gap::new(gap).solve(&op, y.as_slice(), shape, &mut d, observer)?
+            Gap::new(gap).solve(op, y, shape, &mut d, observer)?
         }
     };
-    Ok(Reconstruction {
-        cube: solution.cube,
-        solution_iterations: solution.iterations,
-        stop: solution.stop,
-        relative_residual: solution.relative_residual,
-        width_fitted,
-    })
+    Ok(problem.finish(solution))
 }

@@ -1,9 +1,12 @@
 //! Evaluation of reconstruction and self-calibration: the four-scenario
 //! protocol (Ideal, Assumed, Corrected, Oracle) per scene, summaries,
 //! tables, figures and a report. Above `cassi-core` and `cassi-io`; the CLI
-//! (`cassi eval`) is a thin layer over it.
+//! (`cassi eval`) is a thin layer over it. Learned methods (MST-S/L, HDNet,
+//! PnP-HSICNN) run with the `nets` feature.
 
 pub mod figures;
+pub mod learned;
+pub mod method;
 pub mod protocol;
 pub mod report;
 pub mod study;
@@ -11,3 +14,4 @@ pub mod study_figures;
 pub mod summary;
 pub mod sweep;
 pub mod tables;
+pub mod weights;

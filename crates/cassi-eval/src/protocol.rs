@@ -12,6 +12,9 @@
 //!   is `subpixel`, its measurement is simulated on a 2× finer grid and
 //!   binned ([`cassi_core::optics::simulate_oversampled`]), so the oracle's
 //!   operator is not the one that made the data (no inverse crime).
+//!
+//! Learned methods take what they can of each scenario's model: networks
+//! the mask pose, PnP-HSICNN all of it ([`crate::learned`]).
 
 use std::time::Instant;
 
@@ -19,10 +22,12 @@ use anyhow::Context;
 use cassi_core::calib::{Calibration, CalibrationProblem, Preset, calibrate};
 use cassi_core::metrics::{Metrics, evaluate};
 use cassi_core::optics::{DispersionModel, NoiseModel, SimulationSpec, simulate};
-use cassi_core::recon::{Method, reconstruct};
+use cassi_core::recon::reconstruct;
 use cassi_core::solvers::Silent;
 use cassi_core::{Cube, Mask, Measurement, Mismatch};
 use serde::{Deserialize, Serialize};
+
+use crate::method::StudyMethod;
 
 /// What a study fixes for every scene.
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -34,7 +39,7 @@ pub struct Study {
     pub instrument: DispersionModel,
     pub noise: NoiseModel,
     pub preset: Preset,
-    pub methods: Vec<Method>,
+    pub methods: Vec<StudyMethod>,
     /// Nominal dispersion stride, px per band.
     pub stride: f64,
 }
@@ -200,7 +205,7 @@ pub fn run_scenario(
     mask: &Mask,
     study: &Study,
     prepared: &Prepared,
-    method: &Method,
+    method: &StudyMethod,
     scenario: Scenario,
 ) -> anyhow::Result<(Outcome, Cube)> {
     let nominal = Mismatch::nominal(study.stride);
@@ -228,19 +233,27 @@ pub fn run_scenario(
 
 /// Reconstructs `y` with the model (`params`, `model`), clips to [0, 1] and
 /// scores against `scene`: the metrics, the reconstruction's seconds and
-/// the clipped cube.
+/// the clipped cube. Learned methods take what they can of the model
+/// ([`crate::learned`]: networks use the mask pose only).
 pub fn reconstruct_and_score(
     scene: &Cube,
     mask: &Mask,
     y: &Measurement,
     params: &Mismatch,
     model: DispersionModel,
-    method: &Method,
+    method: &StudyMethod,
 ) -> anyhow::Result<(Metrics, f64, Cube)> {
     let t = Instant::now();
-    let recon = reconstruct(y, mask, scene.bands(), params, model, method, &mut Silent)?;
+    let cube = match method {
+        StudyMethod::Solver(m) => {
+            reconstruct(y, mask, scene.bands(), params, model, m, &mut Silent)?.cube
+        }
+        StudyMethod::Learned(l) => {
+            crate::learned::reconstruct(l, y, mask, scene.bands(), params, model)?
+        }
+    };
     let seconds = t.elapsed().as_secs_f64();
-    let cube = recon.cube.clipped_to_unit();
+    let cube = cube.clipped_to_unit();
     Ok((evaluate(scene, &cube)?, seconds, cube))
 }
 

@@ -38,7 +38,8 @@ fn scenarios_order_as_they_must_and_calibration_closes_the_gap() {
         methods: vec![
             Method::by_name("gap-tv")
                 .unwrap()
-                .with_overrides(Some(40), None),
+                .with_overrides(Some(40), None)
+                .into(),
         ],
         stride: 2.0,
     };

@@ -2,16 +2,23 @@
 //! 256² stack), median of 5 after a warm-up, on a 2-thread pool. Weights
 //! come from `../shared/data` (or $CASSI_SHARED_DATA); without them the
 //! benchmark says so and exits. Writes `bench/results/nets_forward.json`
-//! (or $CASSI_BENCH_OUT).
+//! (or $CASSI_BENCH_OUT). Each network runs in its own child process (the
+//! benchmark re-executes itself), so a row's peak resident memory (VmHWM,
+//! reset before each row through /proc/self/clear_refs) is that network's:
+//! weights, inputs, activations, and what the allocator keeps cached.
 //!
 //! Run: `cargo bench -p cassi-nets --bench forward` (`-- mst_s` for one network)
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
+use std::process::Command;
 use std::time::Instant;
 
 use cassi_nets::{HdNet, HsiSdecnn, MST_BANDS, MST_MASK_WIDTH, MST_SIZE, Mst, MstConfig, Tensor};
 
 const THREADS: usize = 2;
+const NETWORKS: [&str; 4] = ["mst_s", "mst_l", "hdnet", "hsi_sdecnn"];
+/// Set in a child process: where it writes its rows.
+const CHILD_ENV: &str = "CASSI_NETS_FORWARD_CHILD";
 const RUNS: usize = 5;
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -60,7 +67,55 @@ fn main() {
         .filter(|a| !a.starts_with('-'))
         .collect();
     let wanted = |name: &str| only.is_empty() || only.iter().any(|o| o == name);
+    if let Some(part) = std::env::var_os(CHILD_ENV) {
+        let rows = run_networks(&data, &wanted);
+        let text = serde_json::to_string(&rows).unwrap();
+        std::fs::write(&part, text)
+            .unwrap_or_else(|e| panic!("{}: {e}", Path::new(&part).display()));
+        return;
+    }
     let load_before = load_average();
+    let exe = std::env::current_exe().expect("the benchmark's own path");
+    let mut rows: Vec<serde_json::Value> = Vec::new();
+    for name in NETWORKS.iter().filter(|n| wanted(n)) {
+        let part = std::env::temp_dir().join(format!(
+            "cassi-nets-forward-{}-{name}.json",
+            std::process::id()
+        ));
+        let status = Command::new(&exe)
+            .arg(name)
+            .env(CHILD_ENV, &part)
+            .status()
+            .expect("the benchmark re-executes itself");
+        assert!(status.success(), "{name}: child process failed");
+        let text = std::fs::read_to_string(&part).unwrap();
+        let _ = std::fs::remove_file(&part);
+        let part_rows: Vec<serde_json::Value> = serde_json::from_str(&text).unwrap();
+        rows.extend(part_rows);
+    }
+
+    let out = std::env::var_os("CASSI_BENCH_OUT")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| {
+            PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../bench/results/nets_forward.json")
+        });
+    let doc = serde_json::json!({
+        "benchmark": "cassi-nets: one forward pass per network, batch 1, f32, CPU",
+        "machine": { "cpu": cpu_model(), "threads": THREADS },
+        // Other work on the machine inflates the times; the 1-minute load
+        // average before and after the runs says how much there was.
+        "load_average_1min": { "before": load_before, "after": load_average() },
+        "protocol": format!("median of {RUNS} after 1 warm-up; rayon pool of {THREADS} threads"),
+        "memory": "each network in its own process; peak_rss_mib: that process's VmHWM over a row's loading, warm-up and runs (reset per row, so a _reused row's peak includes what the full forward left in the allocator); rss_at_start_mib: VmRSS when the row started",
+        "results": rows,
+    });
+    std::fs::write(&out, serde_json::to_string_pretty(&doc).unwrap() + "\n")
+        .unwrap_or_else(|e| panic!("{}: {e}", out.display()));
+    eprintln!("wrote {}", out.display());
+}
+
+/// The rows of the networks `wanted` selects, timed in this process.
+fn run_networks(data: &Path, wanted: &dyn Fn(&str) -> bool) -> Vec<serde_json::Value> {
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(THREADS)
         .build()
@@ -74,11 +129,17 @@ fn main() {
     )
     .unwrap();
     let mut rows = Vec::new();
+    let mut baseline = reset_peak_rss();
     let mut record = |name: &str, input: String, (med, runs): (f64, Vec<f64>)| {
-        eprintln!("{name}: median {med:.3} s over {RUNS} runs {runs:.3?}");
+        let peak = memory_mib("VmHWM");
+        eprintln!(
+            "{name}: median {med:.3} s over {RUNS} runs {runs:.3?}; peak RSS {peak:?} MiB (at start {baseline:?})"
+        );
         rows.push(serde_json::json!({
             "network": name, "input": input, "median_s": med, "runs_s": runs,
+            "peak_rss_mib": peak, "rss_at_start_mib": baseline,
         }));
+        baseline = reset_peak_rss();
     };
 
     for (name, file, config) in [
@@ -122,23 +183,22 @@ fn main() {
         record("hsi_sdecnn", format!("1×7×{n}×{n} (one band of a cube)"), t);
     }
 
-    let out = std::env::var_os("CASSI_BENCH_OUT")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| {
-            PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../bench/results/nets_forward.json")
-        });
-    let doc = serde_json::json!({
-        "benchmark": "cassi-nets: one forward pass per network, batch 1, f32, CPU",
-        "machine": { "cpu": cpu_model(), "threads": THREADS },
-        // Other work on the machine inflates the times; the 1-minute load
-        // average before and after the runs says how much there was.
-        "load_average_1min": { "before": load_before, "after": load_average() },
-        "protocol": format!("median of {RUNS} after 1 warm-up; rayon pool of {THREADS} threads"),
-        "results": rows,
-    });
-    std::fs::write(&out, serde_json::to_string_pretty(&doc).unwrap() + "\n")
-        .unwrap_or_else(|e| panic!("{}: {e}", out.display()));
-    eprintln!("wrote {}", out.display());
+    rows
+}
+
+/// Resets the peak resident set size to the current one (Linux 4.0+:
+/// "5" to /proc/self/clear_refs) and returns the current one, MiB.
+fn reset_peak_rss() -> Option<f64> {
+    std::fs::write("/proc/self/clear_refs", "5").ok()?;
+    memory_mib("VmRSS")
+}
+
+/// A /proc/self/status memory line (kB) in MiB.
+fn memory_mib(field: &str) -> Option<f64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with(field))?;
+    let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb / 1024.0)
 }
 
 fn load_average() -> Option<f64> {

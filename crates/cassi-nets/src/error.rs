@@ -24,6 +24,9 @@ pub enum NetError {
         got: String,
         expected: String,
     },
+    /// An error of the optics or a solver (a recipe built on cassi-core).
+    #[error(transparent)]
+    Core(#[from] cassi_core::CassiError),
 }
 
 pub type Result<T> = std::result::Result<T, NetError>;

@@ -8,7 +8,11 @@
 //! * [`HsiSdecnnDenoiser`] plugs HSI-SDeCNN into cassi-core's PnP solvers
 //!   as a [`cassi_core::Denoiser`].
 //! * [`toolbox_inputs`] builds the networks' H and Phi from a measurement
-//!   and mask the way the MST toolbox does.
+//!   and mask the way the MST toolbox does; [`posed_inputs`] does it with
+//!   the mask moved to a calibrated (or true) pose.
+//! * [`PnpHsicnn`] is plug-and-play GAP with a TV warm-up then scheduled
+//!   HSI-SDeCNN / TV steps (the paper's PnP-HSICNN), on the nominal or a
+//!   calibrated instrument model.
 //! * [`Reconstructor`] picks a network by name and maps a measurement and
 //!   mask to a cube.
 //! * Inputs and outputs are [`Tensor`]s in PyTorch's NCHW layout, so test
@@ -26,6 +30,7 @@ mod hsi_sdecnn;
 mod inputs;
 mod mst;
 mod ops;
+mod pnp;
 mod reconstructor;
 mod tensor;
 
@@ -34,9 +39,12 @@ pub use denoiser::HsiSdecnnDenoiser;
 pub use error::{NetError, Result};
 pub use hdnet::HdNet;
 pub use hsi_sdecnn::HsiSdecnn;
-pub use inputs::toolbox_inputs;
+pub use inputs::{PosedInputs, posed_inputs, toolbox_inputs};
 pub use mst::{
     MST_BANDS, MST_MASK_WIDTH, MST_SIZE, Mst, MstActivations, MstConfig, MstMaskGuidance,
 };
-pub use reconstructor::{Reconstructor, TRAINED_STEP};
+pub use pnp::{
+    DenoiserSchedule, PnpHsicnn, PnpHsicnnParams, PnpReconstruction, ScheduledDenoiser, Stage,
+};
+pub use reconstructor::{NetReconstruction, Reconstructor, TRAINED_STEP};
 pub use tensor::Tensor;

@@ -3,11 +3,11 @@
 
 use std::path::Path;
 
-use cassi_core::{Cube, Mask, Measurement};
+use cassi_core::{Cube, Mask, MaskPose, Measurement};
 
 use crate::error::{NetError, Result};
 use crate::hdnet::HdNet;
-use crate::inputs::toolbox_inputs;
+use crate::inputs::{PosedInputs, posed_inputs};
 use crate::mst::{MST_BANDS, Mst, MstConfig};
 use crate::tensor::Tensor;
 
@@ -40,17 +40,40 @@ impl Reconstructor {
         })
     }
 
-    /// The cube (28 bands, rows, cols) from a measurement `y` (rows × (cols + 54))
-    /// and the coded aperture (rows × cols), with the toolbox's input
-    /// convention ([`toolbox_inputs`], step 2). MST needs 256 × 256.
-    pub fn reconstruct(&self, y: &Measurement, mask: &Mask) -> Result<Cube> {
-        let (h, phi) = toolbox_inputs(y, mask, MST_BANDS, TRAINED_STEP)?;
+    /// The cube (28 bands, rows, cols) from a measurement `y` (rows × cols
+    /// plus 54 columns) and the coded aperture `nominal_mask` (rows × cols) placed at
+    /// `pose` (identity: the nominal instrument; a calibration's or the true
+    /// dx, dy, θ), with the toolbox's input convention
+    /// ([`crate::posed_inputs`], trained step 2; a1 and α are not inputs of
+    /// the networks). MST needs 256 × 256; HDNet does not use the mask.
+    pub fn reconstruct(
+        &self,
+        y: &Measurement,
+        nominal_mask: &Mask,
+        pose: &MaskPose,
+    ) -> Result<NetReconstruction> {
+        let PosedInputs {
+            h,
+            phi,
+            width_fitted,
+        } = posed_inputs(y, nominal_mask, pose, MST_BANDS, TRAINED_STEP)?;
         let out = match self {
             Self::Mst(net) => net.forward(&h, &phi)?,
             Self::HdNet(net) => net.forward(&h)?,
         };
-        cube_of(out)
+        Ok(NetReconstruction {
+            cube: cube_of(out)?,
+            width_fitted,
+        })
     }
+}
+
+/// A network's cube and how the measurement was fitted to its input.
+#[derive(Debug, Clone)]
+pub struct NetReconstruction {
+    pub cube: Cube,
+    /// (measurement columns, network columns) when they differed.
+    pub width_fitted: Option<(usize, usize)>,
 }
 
 /// A (1, L, rows, cols) tensor as a cube.

@@ -84,7 +84,11 @@ fn reconstructor_runs_mst_s_from_the_official_pth() {
     let mask = npy(nets.join("common/mask.npy"));
     let y = cassi_core::Measurement::from_vec(256, 310, y.into_data()).unwrap();
     let mask = cassi_core::Mask::from_vec(256, 256, mask.into_data()).unwrap();
-    let cube = net.reconstruct(&y, &mask).unwrap();
+    let r = net
+        .reconstruct(&y, &mask, &cassi_core::MaskPose::default())
+        .unwrap();
+    assert_eq!(r.width_fitted, None);
+    let cube = r.cube;
     assert_eq!(cube.shape(), (28, 256, 256));
     let got = cassi_nets::Tensor::new(vec![1, 28, 256, 256], cube.into_vec()).unwrap();
     check(

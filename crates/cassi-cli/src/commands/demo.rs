@@ -126,7 +126,7 @@ pub fn run(args: &DemoArgs, reporter: &Reporter) -> anyhow::Result<()> {
         instrument: spec.model,
         noise: NoiseModel::default(),
         preset: Preset::Default(DefaultPreset::default()),
-        methods: vec![method],
+        methods: vec![method.into()],
         stride: inputs.instrument.stride,
     };
     let (ideal_clean, ideal_noisy) = ideal_measurements(

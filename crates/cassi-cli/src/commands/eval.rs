@@ -5,14 +5,19 @@ use std::path::PathBuf;
 use anyhow::Context;
 use cassi_core::calib::{PRESET_NAMES, Preset};
 use cassi_core::optics::NoiseModel;
-use cassi_core::recon::Method;
+use cassi_core::recon::{METHOD_NAMES, Method};
 use cassi_core::synth::random_binary_mask;
 use cassi_core::{Instrument, Mismatch};
+use cassi_eval::learned::{check_shape, check_stride, check_weights};
+use cassi_eval::method::{LearnedMethod, StudyMethod};
 use cassi_eval::protocol::Study;
 use cassi_eval::report::{Setup, Sweeps, write_all};
 use cassi_eval::study::{Event, SceneSource, run_study, scenes_in};
 use cassi_eval::summary::summarize;
 use cassi_eval::sweep::{ablation, sensitivity};
+use cassi_eval::weights::{
+    LEARNED_METHOD_NAMES, NETS_BUILT, is_learned, parse_weight_flags, resolve_weights,
+};
 use clap::Args;
 
 use super::inputs::{MismatchArgs, NoiseArgs};
@@ -45,10 +50,22 @@ pub struct EvalArgs {
     /// Variable name inside the mask file.
     #[arg(long)]
     pub mask_var: Option<String>,
-    /// Reconstruction methods, comma-separated.
+    /// Reconstruction methods, comma-separated: solvers (gap-tv, admm-tv,
+    /// pnp-tv) and, in a build with `--features nets`, learned methods
+    /// (mst-s, mst-l, hdnet, pnp-hsicnn; they need weights).
     #[arg(long, default_value = "gap-tv", value_delimiter = ',')]
     pub methods: Vec<String>,
-    /// Solver iterations (default: each method's own).
+    /// Weights of one learned method, METHOD=FILE (.pth state dict or
+    /// .safetensors); repeat the flag for several methods.
+    #[arg(long = "weights", value_name = "METHOD=FILE")]
+    pub weights: Vec<String>,
+    /// A folder of weights, searched as <method>.pth / .safetensors with -
+    /// or _ (mst_s.pth, mst-l.safetensors, hdnet.pth; pnp-hsicnn also
+    /// deep_denoiser.pth); --weights overrides it per method.
+    #[arg(long)]
+    pub weights_dir: Option<PathBuf>,
+    /// Solver iterations, PnP-HSICNN included (default: each method's own;
+    /// networks have none).
     #[arg(long)]
     pub iterations: Option<usize>,
     /// Calibration preset.
@@ -82,12 +99,45 @@ pub struct EvalArgs {
     pub sweep_presets: Vec<String>,
 }
 
-pub fn run(args: &EvalArgs, reporter: &Reporter) -> anyhow::Result<()> {
-    let methods = args
-        .methods
+/// The study's methods: solvers by name, learned methods with their
+/// weights (checked to load before any scene runs).
+fn study_methods(args: &EvalArgs) -> anyhow::Result<Vec<StudyMethod>> {
+    let names: Vec<String> = args.methods.iter().map(|m| m.trim().to_string()).collect();
+    let given = parse_weight_flags(&args.weights, &names)?;
+    names
         .iter()
-        .map(|m| Ok(Method::by_name(m.trim())?.with_overrides(args.iterations, None)))
-        .collect::<anyhow::Result<Vec<_>>>()?;
+        .map(|name| {
+            if !is_learned(name) {
+                let method = Method::by_name(name).map_err(|_| {
+                    anyhow::anyhow!(
+                        "--methods: unknown method '{name}' (solvers: {}; learned, with weights: {})",
+                        METHOD_NAMES.join(", "),
+                        LEARNED_METHOD_NAMES.join(", ")
+                    )
+                })?;
+                return Ok(method.with_overrides(args.iterations, None).into());
+            }
+            if !NETS_BUILT {
+                anyhow::bail!(
+                    "--methods {name}: this cassi was built without the deep networks; \
+                     rebuild it with `cargo build --release -p cassi-cli --features nets`"
+                );
+            }
+            let weights = resolve_weights(name, &given, args.weights_dir.as_deref())?;
+            let learned = LearnedMethod {
+                method: name.clone(),
+                weights,
+                iterations: args.iterations.filter(|_| name == "pnp-hsicnn"),
+            };
+            check_stride(&learned, args.stride)?;
+            check_weights(&learned)?;
+            Ok(StudyMethod::Learned(learned))
+        })
+        .collect()
+}
+
+pub fn run(args: &EvalArgs, reporter: &Reporter) -> anyhow::Result<()> {
+    let methods = study_methods(args)?;
     // the paper's mismatch, single values overridden by the flags
     let m = &args.mismatch;
     let p = Mismatch::paper();
@@ -131,6 +181,18 @@ pub fn run(args: &EvalArgs, reporter: &Reporter) -> anyhow::Result<()> {
             format!("random binary {0}×{0}, 50 % open, seed 1", args.size),
         ),
     };
+    for method in &methods {
+        if let StudyMethod::Learned(l) = method {
+            // the scenes' band count is checked as each loads
+            let bands = if args.scenes.is_some() {
+                cassi_eval::learned::NETWORK_BANDS
+            } else {
+                Instrument::default().wavelengths_nm.len()
+            };
+            check_shape(l, bands, mask.rows(), mask.cols())
+                .with_context(|| format!("--methods {} with mask {mask_label}", l.method))?;
+        }
+    }
     let study = Study {
         mismatch,
         instrument: m.model,

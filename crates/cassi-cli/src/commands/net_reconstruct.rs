@@ -1,42 +1,52 @@
-//! `cassi reconstruct --method mst-s|mst-l|hdnet --weights FILE`: a
-//! pretrained network instead of an iterative solver. Needs a build with
-//! `--features nets`; without it these methods say how to get one.
+//! `cassi reconstruct --method mst-s|mst-l|hdnet|pnp-hsicnn --weights FILE`:
+//! a pretrained network, or plug-and-play GAP with the learned HSI-SDeCNN
+//! denoiser, instead of a TV solver. Needs a build with `--features nets`;
+//! without it these methods say how to get one.
+//!
+//! `--calibration` applies to both: a network is guided by the mask moved to
+//! the calibrated pose (dx, dy, θ) and keeps its trained step-2 dispersion;
+//! PnP-HSICNN uses the whole calibrated model, like the TV solvers.
 
 use anyhow::bail;
+use cassi_eval::weights::{LEARNED_METHOD_NAMES, official_weights};
 
 use super::reconstruct::ReconstructArgs;
 use crate::report::Reporter;
 
-/// The deep methods; listed in `--help` whether or not they are built in.
-pub const NET_METHOD_NAMES: [&str; 3] = ["mst-s", "mst-l", "hdnet"];
+/// The learned methods; listed in `--help` whether or not they are built in.
+pub const NET_METHOD_NAMES: [&str; 4] = LEARNED_METHOD_NAMES;
 
 pub fn run(args: &ReconstructArgs, reporter: &Reporter) -> anyhow::Result<()> {
-    // Flags of the iterative solvers mean nothing to a network: refuse them
-    // rather than ignore them.
-    for (given, flag) in [
-        (args.calibration.is_some(), "--calibration"),
-        (args.iterations.is_some(), "--iterations"),
-        (args.weight.is_some(), "--weight"),
-        (args.model.is_some(), "--model"),
-    ] {
-        if given {
-            bail!(
-                "{flag} does not apply to --method {} (a pretrained network for the nominal instrument)",
-                args.method
-            );
+    if args.method != "pnp-hsicnn" {
+        // Solver flags mean nothing to a network: refuse them rather than
+        // ignore them.
+        for (given, flag) in [
+            (args.iterations.is_some(), "--iterations"),
+            (args.weight.is_some(), "--weight"),
+            (args.model.is_some(), "--model"),
+        ] {
+            if given {
+                bail!(
+                    "{flag} does not apply to --method {} (a pretrained network: no iterations, \
+                     no TV weight, its trained dispersion)",
+                    args.method
+                );
+            }
         }
     }
     if args.weights.is_none() {
         bail!(
-            "--method {} needs --weights FILE (a PyTorch .pth state dict or .safetensors)",
-            args.method
+            "--method {} needs --weights FILE (a PyTorch .pth state dict or .safetensors); \
+             official weights: {}",
+            args.method,
+            official_weights(&args.method)
         );
     }
-    run_network(args, reporter)
+    run_learned(args, reporter)
 }
 
 #[cfg(not(feature = "nets"))]
-fn run_network(args: &ReconstructArgs, _reporter: &Reporter) -> anyhow::Result<()> {
+fn run_learned(args: &ReconstructArgs, _reporter: &Reporter) -> anyhow::Result<()> {
     bail!(
         "--method {}: this cassi was built without the deep networks; \
          rebuild it with `cargo build --release -p cassi-cli --features nets`",
@@ -45,26 +55,57 @@ fn run_network(args: &ReconstructArgs, _reporter: &Reporter) -> anyhow::Result<(
 }
 
 #[cfg(feature = "nets")]
-fn run_network(args: &ReconstructArgs, reporter: &Reporter) -> anyhow::Result<()> {
+fn run_learned(args: &ReconstructArgs, reporter: &Reporter) -> anyhow::Result<()> {
     use std::path::PathBuf;
     use std::time::Instant;
 
     use anyhow::Context;
-    use cassi_core::Instrument;
     use cassi_core::color::pseudo_rgb;
     use cassi_core::metrics::{Metrics, evaluate};
-    use cassi_nets::{MST_BANDS, Reconstructor, TRAINED_STEP};
+    use cassi_core::solvers::{Control, IterationInfo};
+    use cassi_core::{Cube, Instrument, MaskPose, Mismatch};
+    use cassi_nets::{MST_BANDS, PnpHsicnn, PnpHsicnnParams, Reconstructor, Stage, TRAINED_STEP};
     use serde::Serialize;
 
+    use super::reconstruct::read_model_file;
     use super::simulate::check_output;
 
+    /// What each learned method reports besides the common fields.
     #[derive(Serialize)]
-    struct NetReconstructionReport {
+    #[serde(untagged)]
+    enum Details {
+        Network {
+            /// The pose the mask was moved to (identity: the nominal mask).
+            mask_pose: MaskPose,
+            /// Networks keep the dispersion they were trained with.
+            trained_step: usize,
+            /// The calibration's a1 and α when they differ from the trained
+            /// dispersion: not used by the network.
+            unused_dispersion: Option<cassi_core::DispersionParams>,
+        },
+        Pnp {
+            model_parameters: Mismatch,
+            dispersion_model: cassi_core::optics::DispersionModel,
+            params: PnpHsicnnParams,
+            network_iterations: usize,
+            tv_iterations: usize,
+            iterations: usize,
+            stop: cassi_core::solvers::StopReason,
+            relative_residual: f64,
+        },
+    }
+
+    #[derive(Serialize)]
+    struct LearnedReconstructionReport {
         measurement: PathBuf,
         mask: PathBuf,
+        calibration: Option<PathBuf>,
         method: String,
         weights: PathBuf,
         bands: usize,
+        #[serde(flatten)]
+        details: Details,
+        width_fitted: Option<(usize, usize)>,
         seconds: f64,
         /// Metrics of the reconstruction clipped to [0, 1] against the truth.
         metrics: Option<Metrics>,
@@ -73,7 +114,8 @@ fn run_network(args: &ReconstructArgs, reporter: &Reporter) -> anyhow::Result<()
 
     check_output(&args.output)?;
     let weights = args.weights.clone().unwrap_or_default();
-    if args.input.stride != TRAINED_STEP as f64 {
+    let pnp = args.method == "pnp-hsicnn";
+    if !pnp && args.input.stride != TRAINED_STEP as f64 {
         bail!(
             "--method {} was trained for --stride {TRAINED_STEP}, not {}",
             args.method,
@@ -81,12 +123,16 @@ fn run_network(args: &ReconstructArgs, reporter: &Reporter) -> anyhow::Result<()
         );
     }
     let (measurement, mask, bands) = args.input.load()?;
-    if bands != MST_BANDS {
+    if !pnp && bands != MST_BANDS {
         bail!(
             "--method {} reconstructs {MST_BANDS} bands; the measurement and mask give {bands}",
             args.method
         );
     }
+    let (params, file_model) = match &args.calibration {
+        Some(path) => read_model_file(path)?,
+        None => (Mismatch::nominal(args.input.stride), None),
+    };
     let truth = match &args.truth {
         Some(path) => Some(cassi_io::load_cube(
             path,
@@ -95,14 +141,63 @@ fn run_network(args: &ReconstructArgs, reporter: &Reporter) -> anyhow::Result<()
         )?),
         None => None,
     };
-    let net = reporter.stage(&format!("loading {} weights", args.method), || {
-        Ok(Reconstructor::load(&args.method, &weights)?)
-    })?;
+
     let t0 = Instant::now();
-    let cube = reporter.stage(&format!("reconstructing ({})", args.method), || {
-        Ok(net.reconstruct(&measurement, &mask)?)
-    })?;
+    let (cube, details, width_fitted): (Cube, Details, Option<(usize, usize)>) = if pnp {
+        let model = args.model.or(file_model).unwrap_or_default();
+        let settings = PnpHsicnnParams::default().with_overrides(args.iterations, args.weight);
+        let mut pnp = reporter.stage("loading the HSI-SDeCNN weights", || {
+            Ok(PnpHsicnn::load(&weights, settings)?)
+        })?;
+        let progress = reporter.progress("pnp-hsicnn ", settings.gap.iterations as u64);
+        let mut observer = |info: &IterationInfo| {
+            progress.set(info.iteration as u64);
+            Control::Continue
+        };
+        let r = reporter.stage("reconstructing (pnp-hsicnn)", || {
+            Ok(pnp.reconstruct(&measurement, &mask, bands, &params, model, &mut observer)?)
+        })?;
+        drop(progress);
+        let count = |s: Stage| r.stages.iter().filter(|&&x| x == s).count();
+        let details = Details::Pnp {
+            model_parameters: params,
+            dispersion_model: model,
+            params: settings,
+            network_iterations: count(Stage::Dnn),
+            tv_iterations: count(Stage::Tv),
+            iterations: r.reconstruction.solution_iterations,
+            stop: r.reconstruction.stop,
+            relative_residual: r.reconstruction.relative_residual,
+        };
+        let fitted = r.reconstruction.width_fitted;
+        (r.reconstruction.cube, details, fitted)
+    } else {
+        let unused_dispersion = (args.calibration.is_some()
+            && (params.a1 != TRAINED_STEP as f64 || params.alpha_deg != 0.0))
+            .then(|| params.dispersion());
+        if unused_dispersion.is_some() {
+            reporter.say(&format!(
+                "note: {} keeps its trained dispersion (step {TRAINED_STEP}, α 0°); the \
+                 calibration's a1 = {}, α = {}° are not used (only the mask pose dx, dy, θ)",
+                args.method, params.a1, params.alpha_deg
+            ));
+        }
+        let net = reporter.stage(&format!("loading {} weights", args.method), || {
+            Ok(Reconstructor::load(&args.method, &weights)?)
+        })?;
+        let pose = params.pose();
+        let r = reporter.stage(&format!("reconstructing ({})", args.method), || {
+            Ok(net.reconstruct(&measurement, &mask, &pose)?)
+        })?;
+        let details = Details::Network {
+            mask_pose: pose,
+            trained_step: TRAINED_STEP,
+            unused_dispersion,
+        };
+        (r.cube, details, r.width_fitted)
+    };
     let seconds = t0.elapsed().as_secs_f64();
+
     let metrics = match &truth {
         Some(t) => {
             Some(evaluate(t, &cube.clipped_to_unit()).with_context(|| "comparing with --truth")?)
@@ -116,18 +211,26 @@ fn run_network(args: &ReconstructArgs, reporter: &Reporter) -> anyhow::Result<()
         cassi_io::write_rgb_png(args.output.with_extension("png"), &rgb)?;
         Ok(())
     })?;
-    let report = NetReconstructionReport {
+    let report = LearnedReconstructionReport {
         measurement: args.input.measurement.clone(),
         mask: args.input.mask.clone(),
+        calibration: args.calibration.clone(),
         method: args.method.clone(),
         weights,
         bands,
+        details,
+        width_fitted,
         seconds,
         metrics,
         metric_definitions: metrics.map(|_| cassi_core::metrics::METRIC_DEFINITIONS),
     };
     let text = serde_json::to_string_pretty(&report)? + "\n";
     cassi_io::write_atomic(args.output.with_extension("json"), text.as_bytes())?;
+    if let Some((got, want)) = width_fitted {
+        reporter.say(&format!(
+            "note: the measurement has {got} columns, the model {want}: fitted on the right"
+        ));
+    }
     let (_, rows, cols) = cube.shape();
     let mut summary = format!(
         "wrote {} ({bands}×{rows}×{cols}) with {}, {seconds:.2} s",

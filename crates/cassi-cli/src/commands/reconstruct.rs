@@ -25,14 +25,16 @@ pub struct ReconstructArgs {
     pub input: MeasurementArgs,
     /// A calibration JSON (from `cassi calibrate`) or a simulation sidecar
     /// (its true parameters: the oracle model). Without it: the nominal model.
+    /// Networks (mst-s, mst-l, hdnet) use its mask pose (dx, dy, θ) only.
     #[arg(long)]
     pub calibration: Option<PathBuf>,
     /// Reconstruction method: an iterative solver, or a pretrained network
-    /// (mst-s, mst-l, hdnet: needs --weights and a build with `--features nets`).
+    /// (mst-s, mst-l, hdnet) or PnP with a learned denoiser (pnp-hsicnn); these
+    /// need --weights and a build with `--features nets`.
     #[arg(long, default_value = "gap-tv", value_parser = method_names())]
     pub method: String,
-    /// Network weights for --method mst-s / mst-l / hdnet: a PyTorch
-    /// state-dict .pth or a .safetensors file.
+    /// Weights for --method mst-s / mst-l / hdnet / pnp-hsicnn (the HSI-SDeCNN
+    /// denoiser): a PyTorch state-dict .pth or a .safetensors file.
     #[arg(long)]
     pub weights: Option<PathBuf>,
     /// Override the method's iteration count.
@@ -119,7 +121,7 @@ pub fn run(args: &ReconstructArgs, reporter: &Reporter) -> anyhow::Result<()> {
     }
     if args.weights.is_some() {
         bail!(
-            "--weights is for the network methods ({}), not --method {}",
+            "--weights is for the learned methods ({}), not --method {}",
             NET_METHOD_NAMES.join(", "),
             args.method
         );

@@ -59,6 +59,21 @@ impl SharedOut {
             len: out.len(),
         }
     }
+
+    /// Elements `offset .. offset + len` as a slice.
+    ///
+    /// # Safety
+    /// No other thread may touch those elements while the slice lives, and
+    /// the slice behind `self` must outlive it.
+    #[allow(clippy::mut_from_ref)]
+    pub unsafe fn slice_mut(&self, offset: usize, len: usize) -> &mut [f32] {
+        assert!(
+            offset + len <= self.len,
+            "shared output range out of bounds"
+        );
+        // SAFETY: in bounds (checked); exclusivity is the caller's contract.
+        unsafe { std::slice::from_raw_parts_mut(self.ptr.add(offset), len) }
+    }
 }
 
 /// `out[offset + i*out_rs + j*out_cs] (+)= Σ_k a(i,k) b(k,j)` for

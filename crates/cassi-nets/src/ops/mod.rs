@@ -10,3 +10,4 @@ pub(crate) mod norm;
 pub(crate) mod pixel_shuffle;
 pub(crate) mod pool;
 pub(crate) mod simd;
+pub(crate) mod winograd;

@@ -3,6 +3,7 @@
 //! `<crate>/../../../shared/data`; absent → the test prints a note and passes.
 #![allow(dead_code)]
 
+pub mod cave;
 pub mod sha256;
 
 use std::path::PathBuf;
@@ -61,4 +62,26 @@ pub fn top_rows(t: &Tensor, rows: usize) -> Tensor {
         data.extend_from_slice(&t.data()[ch * h * w..][..rows * w]);
     }
     Tensor::new(vec![1, c, rows, w], data).unwrap()
+}
+
+/// The 1-minute load average (benchmarks record it: other work on the
+/// machine inflates times).
+pub fn load_average() -> Option<f64> {
+    std::fs::read_to_string("/proc/loadavg")
+        .ok()?
+        .split_whitespace()
+        .next()?
+        .parse()
+        .ok()
+}
+
+pub fn cpu_model() -> String {
+    std::fs::read_to_string("/proc/cpuinfo")
+        .ok()
+        .and_then(|s| {
+            s.lines()
+                .find(|l| l.starts_with("model name"))
+                .map(|l| l.split(':').nth(1).unwrap_or("").trim().to_string())
+        })
+        .unwrap_or_else(|| "unknown".into())
 }
