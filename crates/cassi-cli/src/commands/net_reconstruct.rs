@@ -59,15 +59,13 @@ fn run_learned(args: &ReconstructArgs, reporter: &Reporter) -> anyhow::Result<()
     use std::path::PathBuf;
     use std::time::Instant;
 
-    use anyhow::Context;
-    use cassi_core::color::pseudo_rgb;
-    use cassi_core::metrics::{Metrics, evaluate};
+    use cassi_core::metrics::Metrics;
     use cassi_core::solvers::{Control, IterationInfo};
     use cassi_core::{Cube, Instrument, MaskPose, Mismatch};
     use cassi_nets::{MST_BANDS, PnpHsicnn, PnpHsicnnParams, Reconstructor, Stage, TRAINED_STEP};
     use serde::Serialize;
 
-    use super::reconstruct::read_model_file;
+    use super::reconstruct::{Outputs, read_model_file, score_against_truth};
     use super::simulate::check_output;
 
     /// What each learned method reports besides the common fields.
@@ -198,19 +196,8 @@ fn run_learned(args: &ReconstructArgs, reporter: &Reporter) -> anyhow::Result<()
     };
     let seconds = t0.elapsed().as_secs_f64();
 
-    let metrics = match &truth {
-        Some(t) => {
-            Some(evaluate(t, &cube.clipped_to_unit()).with_context(|| "comparing with --truth")?)
-        }
-        None => None,
-    };
+    let metrics = score_against_truth(truth.as_ref(), &cube)?;
     let instrument = Instrument::with_bands(bands, args.input.stride)?;
-    reporter.stage("writing the cube and preview", || {
-        cassi_io::save_cube(&args.output, &cube, "cube")?;
-        let rgb = pseudo_rgb(&cube, &instrument.wavelengths_nm)?;
-        cassi_io::write_rgb_png(args.output.with_extension("png"), &rgb)?;
-        Ok(())
-    })?;
     let report = LearnedReconstructionReport {
         measurement: args.input.measurement.clone(),
         mask: args.input.mask.clone(),
@@ -224,26 +211,17 @@ fn run_learned(args: &ReconstructArgs, reporter: &Reporter) -> anyhow::Result<()
         metrics,
         metric_definitions: metrics.map(|_| cassi_core::metrics::METRIC_DEFINITIONS),
     };
-    let text = serde_json::to_string_pretty(&report)? + "\n";
-    cassi_io::write_atomic(args.output.with_extension("json"), text.as_bytes())?;
-    if let Some((got, want)) = width_fitted {
-        reporter.say(&format!(
-            "note: the measurement has {got} columns, the model {want}: fitted on the right"
-        ));
-    }
     let (_, rows, cols) = cube.shape();
-    let mut summary = format!(
+    let summary = format!(
         "wrote {} ({bands}×{rows}×{cols}) with {}, {seconds:.2} s",
         args.output.display(),
         args.method
     );
-    if let Some(m) = metrics {
-        summary += &format!(
-            "\nPSNR {:.2} dB   SSIM {:.4}   SAM {:.2}°",
-            m.psnr, m.ssim, m.sam_deg
-        );
-    }
-    reporter.say(&summary);
-    reporter.emit(&serde_json::to_value(&report)?);
-    Ok(())
+    let outputs = Outputs {
+        path: &args.output,
+        cube: &cube,
+        wavelengths_nm: &instrument.wavelengths_nm,
+        width_fitted,
+    };
+    outputs.write(reporter, &report, summary, metrics.as_ref())
 }

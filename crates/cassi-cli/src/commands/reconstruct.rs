@@ -171,18 +171,7 @@ pub fn run(args: &ReconstructArgs, reporter: &Reporter) -> anyhow::Result<()> {
     drop(progress);
     let seconds = t0.elapsed().as_secs_f64();
 
-    let metrics = match &truth {
-        Some(t) => Some(
-            evaluate(t, &recon.cube.clipped_to_unit()).with_context(|| "comparing with --truth")?,
-        ),
-        None => None,
-    };
-    reporter.stage("writing the cube and preview", || {
-        cassi_io::save_cube(&args.output, &recon.cube, "cube")?;
-        let rgb = pseudo_rgb(&recon.cube, &instrument.wavelengths_nm)?;
-        cassi_io::write_rgb_png(args.output.with_extension("png"), &rgb)?;
-        Ok(())
-    })?;
+    let metrics = score_against_truth(truth.as_ref(), &recon.cube)?;
     let report = ReconstructionReport {
         measurement: args.input.measurement.clone(),
         mask: args.input.mask.clone(),
@@ -199,15 +188,7 @@ pub fn run(args: &ReconstructArgs, reporter: &Reporter) -> anyhow::Result<()> {
         metrics,
         metric_definitions: metrics.map(|_| cassi_core::metrics::METRIC_DEFINITIONS),
     };
-    let text = serde_json::to_string_pretty(&report)? + "\n";
-    cassi_io::write_atomic(args.output.with_extension("json"), text.as_bytes())?;
-
-    if let Some((got, want)) = recon.width_fitted {
-        reporter.say(&format!(
-            "note: the measurement has {got} columns, the model {want}: fitted on the right"
-        ));
-    }
-    let mut summary = format!(
+    let summary = format!(
         "wrote {} ({}×{}×{}), {} iterations, residual {:.2e}, {seconds:.2} s",
         args.output.display(),
         bands,
@@ -216,13 +197,63 @@ pub fn run(args: &ReconstructArgs, reporter: &Reporter) -> anyhow::Result<()> {
         recon.solution_iterations,
         recon.relative_residual
     );
-    if let Some(m) = metrics {
-        summary += &format!(
-            "\nPSNR {:.2} dB   SSIM {:.4}   SAM {:.2}°",
-            m.psnr, m.ssim, m.sam_deg
-        );
+    let outputs = Outputs {
+        path: &args.output,
+        cube: &recon.cube,
+        wavelengths_nm: &instrument.wavelengths_nm,
+        width_fitted: recon.width_fitted,
+    };
+    outputs.write(reporter, &report, summary, metrics.as_ref())
+}
+
+/// PSNR/SSIM/SAM of the clipped estimate against `--truth`, if given.
+pub(crate) fn score_against_truth(
+    truth: Option<&cassi_core::Cube>,
+    cube: &cassi_core::Cube,
+) -> anyhow::Result<Option<Metrics>> {
+    truth
+        .map(|t| evaluate(t, &cube.clipped_to_unit()).with_context(|| "comparing with --truth"))
+        .transpose()
+}
+
+/// What every reconstruction writes: the cube, its pseudo-RGB preview, the
+/// JSON report beside them, and a summary line (+ metrics) on the terminal.
+pub(crate) struct Outputs<'a> {
+    pub path: &'a Path,
+    pub cube: &'a cassi_core::Cube,
+    pub wavelengths_nm: &'a [f64],
+    pub width_fitted: Option<(usize, usize)>,
+}
+
+impl Outputs<'_> {
+    pub(crate) fn write(
+        &self,
+        reporter: &Reporter,
+        report: &impl Serialize,
+        mut summary: String,
+        metrics: Option<&Metrics>,
+    ) -> anyhow::Result<()> {
+        reporter.stage("writing the cube and preview", || {
+            cassi_io::save_cube(self.path, self.cube, "cube")?;
+            let rgb = pseudo_rgb(self.cube, self.wavelengths_nm)?;
+            cassi_io::write_rgb_png(self.path.with_extension("png"), &rgb)?;
+            Ok(())
+        })?;
+        let text = serde_json::to_string_pretty(report)? + "\n";
+        cassi_io::write_atomic(self.path.with_extension("json"), text.as_bytes())?;
+        if let Some((got, want)) = self.width_fitted {
+            reporter.say(&format!(
+                "note: the measurement has {got} columns, the model {want}: fitted on the right"
+            ));
+        }
+        if let Some(m) = metrics {
+            summary += &format!(
+                "\nPSNR {:.2} dB   SSIM {:.4}   SAM {:.2}°",
+                m.psnr, m.ssim, m.sam_deg
+            );
+        }
+        reporter.say(&summary);
+        reporter.emit(&serde_json::to_value(report)?);
+        Ok(())
     }
-    reporter.say(&summary);
-    reporter.emit(&serde_json::to_value(&report)?);
-    Ok(())
 }
