@@ -9,6 +9,9 @@
 //!
 //! Run: `cargo bench -p cassi-nets --bench forward` (`-- mst_s` for one network)
 
+#[path = "../tests/common/mod.rs"]
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Instant;
@@ -52,16 +55,10 @@ fn time(mut f: impl FnMut()) -> (f64, Vec<f64>) {
 }
 
 fn main() {
-    let data = std::env::var_os("CASSI_SHARED_DATA")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data"));
-    if !data.join("nets").is_dir() {
-        eprintln!(
-            "no shared data at {} (set CASSI_SHARED_DATA): nothing to time",
-            data.display()
-        );
+    let Some(data) = common::shared_data().filter(|d| d.join("nets").is_dir()) else {
+        eprintln!("no ../shared/data/nets (set CASSI_SHARED_DATA): nothing to time");
         return;
-    }
+    };
     let only: Vec<String> = std::env::args()
         .skip(1)
         .filter(|a| !a.starts_with('-'))
@@ -74,7 +71,7 @@ fn main() {
             .unwrap_or_else(|e| panic!("{}: {e}", Path::new(&part).display()));
         return;
     }
-    let load_before = load_average();
+    let load_before = common::load_average();
     let exe = std::env::current_exe().expect("the benchmark's own path");
     let mut rows: Vec<serde_json::Value> = Vec::new();
     for name in NETWORKS.iter().filter(|n| wanted(n)) {
@@ -101,10 +98,10 @@ fn main() {
         });
     let doc = serde_json::json!({
         "benchmark": "cassi-nets: one forward pass per network, batch 1, f32, CPU",
-        "machine": { "cpu": cpu_model(), "threads": THREADS },
+        "machine": { "cpu": common::cpu_model(), "threads": THREADS },
         // Other work on the machine inflates the times; the 1-minute load
         // average before and after the runs says how much there was.
-        "load_average_1min": { "before": load_before, "after": load_average() },
+        "load_average_1min": { "before": load_before, "after": common::load_average() },
         "protocol": format!("median of {RUNS} after 1 warm-up; rayon pool of {THREADS} threads"),
         "memory": "each network in its own process; peak_rss_mib: that process's VmHWM over a row's loading, warm-up and runs (reset per row, so a _reused row's peak includes what the full forward left in the allocator); rss_at_start_mib: VmRSS when the row started",
         "results": rows,
@@ -199,24 +196,4 @@ fn memory_mib(field: &str) -> Option<f64> {
     let line = status.lines().find(|l| l.starts_with(field))?;
     let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
     Some(kb / 1024.0)
-}
-
-fn load_average() -> Option<f64> {
-    std::fs::read_to_string("/proc/loadavg")
-        .ok()?
-        .split_whitespace()
-        .next()?
-        .parse()
-        .ok()
-}
-
-fn cpu_model() -> String {
-    std::fs::read_to_string("/proc/cpuinfo")
-        .ok()
-        .and_then(|s| {
-            s.lines()
-                .find(|l| l.starts_with("model name"))
-                .map(|l| l.split(':').nth(1).unwrap_or("").trim().to_string())
-        })
-        .unwrap_or_else(|| "unknown".into())
 }

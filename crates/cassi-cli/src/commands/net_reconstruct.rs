@@ -65,7 +65,7 @@ fn run_learned(args: &ReconstructArgs, reporter: &Reporter) -> anyhow::Result<()
     use cassi_nets::{MST_BANDS, PnpHsicnn, PnpHsicnnParams, Reconstructor, Stage, TRAINED_STEP};
     use serde::Serialize;
 
-    use super::reconstruct::{Outputs, read_model_file, score_against_truth};
+    use super::reconstruct::{Outputs, score_against_truth};
     use super::simulate::check_output;
 
     /// What each learned method reports besides the common fields.
@@ -127,18 +127,8 @@ fn run_learned(args: &ReconstructArgs, reporter: &Reporter) -> anyhow::Result<()
             args.method
         );
     }
-    let (params, file_model) = match &args.calibration {
-        Some(path) => read_model_file(path)?,
-        None => (Mismatch::nominal(args.input.stride), None),
-    };
-    let truth = match &args.truth {
-        Some(path) => Some(cassi_io::load_cube(
-            path,
-            args.truth_var.as_deref(),
-            args.layout.into(),
-        )?),
-        None => None,
-    };
+    let (params, file_model) = args.model_parameters()?;
+    let truth = args.load_truth()?;
 
     let t0 = Instant::now();
     let (cube, details, width_fitted): (Cube, Details, Option<(usize, usize)>) = if pnp {

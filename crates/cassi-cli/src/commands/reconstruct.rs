@@ -128,23 +128,10 @@ pub fn run(args: &ReconstructArgs, reporter: &Reporter) -> anyhow::Result<()> {
     }
     check_output(&args.output)?;
     let (measurement, mask, bands) = args.input.load()?;
-    let (params, file_model) = match &args.calibration {
-        Some(path) => {
-            let (m, model) = read_model_file(path)?;
-            (m, model)
-        }
-        None => (Mismatch::nominal(args.input.stride), None),
-    };
+    let (params, file_model) = args.model_parameters()?;
     let model = args.model.or(file_model).unwrap_or_default();
     let instrument = Instrument::with_bands(bands, args.input.stride)?;
-    let truth = match &args.truth {
-        Some(path) => Some(cassi_io::load_cube(
-            path,
-            args.truth_var.as_deref(),
-            args.layout.into(),
-        )?),
-        None => None,
-    };
+    let truth = args.load_truth()?;
     let method = Method::by_name(&args.method)?.with_overrides(args.iterations, args.weight);
     let max_iter = match method {
         Method::GapTv { gap, .. } | Method::PnpTv { gap, .. } => gap.iterations,
@@ -204,6 +191,28 @@ pub fn run(args: &ReconstructArgs, reporter: &Reporter) -> anyhow::Result<()> {
         width_fitted: recon.width_fitted,
     };
     outputs.write(reporter, &report, summary, metrics.as_ref())
+}
+
+impl ReconstructArgs {
+    /// The model's parameters (and the dispersion model a file names):
+    /// `--calibration`'s, or the nominal instrument's.
+    pub(crate) fn model_parameters(&self) -> anyhow::Result<(Mismatch, Option<DispersionModel>)> {
+        match &self.calibration {
+            Some(path) => read_model_file(path),
+            None => Ok((Mismatch::nominal(self.input.stride), None)),
+        }
+    }
+
+    /// The `--truth` cube, if given.
+    pub(crate) fn load_truth(&self) -> anyhow::Result<Option<cassi_core::Cube>> {
+        self.truth
+            .as_ref()
+            .map(|path| {
+                cassi_io::load_cube(path, self.truth_var.as_deref(), self.layout.into())
+                    .map_err(Into::into)
+            })
+            .transpose()
+    }
 }
 
 /// PSNR/SSIM/SAM of the clipped estimate against `--truth`, if given.

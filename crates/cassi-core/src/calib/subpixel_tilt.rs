@@ -50,3 +50,35 @@ pub(crate) fn subpixel_tilt(
     let evals = scored.len();
     (scored, evals)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn alpha_is_tried_with_the_theta_it_was_traded_for_and_the_middle_row_held() {
+        // the pose fit at α = 0 settled on θ = 0.05 for a truth of
+        // (α 0.5°, θ 0.3°): only the hypothesis that moves θ by ½·α reaches it
+        let from = Mismatch {
+            theta_deg: 0.05,
+            a1: 2.04,
+            dy: 1.0,
+            ..Mismatch::nominal(2.0)
+        };
+        let truth = (0.5, 0.3);
+        let search = |m: &Mismatch| (m.alpha_deg - truth.0).abs() + (m.theta_deg - truth.1).abs();
+        let (scored, evals) = subpixel_tilt(&search, &from, 28, 1.0);
+        assert_eq!(evals, scored.len());
+        let best = scored[0].1;
+        assert!(
+            (best.alpha_deg - 0.5).abs() < 1e-12 && (best.theta_deg - 0.3).abs() < 1e-12,
+            "{best:?}"
+        );
+        // band 13.5's row is where it was: dy + a1·13.5·sin α unchanged
+        let row = |m: &Mismatch| m.dy + m.a1 * 13.5 * m.alpha_deg.to_radians().sin();
+        assert!((row(&best) - row(&from)).abs() < 1e-12);
+        assert!(best.dy < from.dy);
+        // every α of the ±1° grid is tried (9 angles), with 3 θ moves each but one
+        assert_eq!(evals, 1 + 8 * 3);
+    }
+}
