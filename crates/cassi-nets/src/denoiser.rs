@@ -39,7 +39,7 @@ impl Denoiser for HsiSdecnnDenoiser {
                     stack.extend_from_slice(cube.band(k));
                 }
                 let stack = FeatureMap::from_vec(HsiSdecnn::IN_BANDS, h, w, stack);
-                self.net.denoise_stack(&stack, strength).data
+                self.net.denoise_stack(&stack, strength).into_data()
             })
             .collect();
         for (b, band) in denoised.into_iter().enumerate() {

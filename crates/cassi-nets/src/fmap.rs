@@ -1,5 +1,8 @@
 //! One sample's feature map, (channels, rows, cols) row-major: the working
-//! array of every layer.
+//! array of every layer. Large maps take and return their storage through
+//! [`crate::buffer_pool`].
+
+use crate::buffer_pool;
 
 #[derive(Debug, Clone, PartialEq)]
 pub struct FeatureMap {
@@ -9,14 +12,32 @@ pub struct FeatureMap {
     pub data: Vec<f32>,
 }
 
+impl Drop for FeatureMap {
+    fn drop(&mut self) {
+        buffer_pool::give(std::mem::take(&mut self.data));
+    }
+}
+
 impl FeatureMap {
     pub fn zeros(c: usize, h: usize, w: usize) -> Self {
-        Self {
-            c,
-            h,
-            w,
-            data: vec![0.0; c * h * w],
+        let mut map = Self::for_overwrite(c, h, w);
+        map.data.fill(0.0);
+        map
+    }
+    /// A map whose values are unspecified (recycled storage): only for
+    /// outputs that write every element.
+    pub fn for_overwrite(c: usize, h: usize, w: usize) -> Self {
+        let mut data = buffer_pool::take(c * h * w);
+        if cfg!(any(test, debug_assertions)) {
+            // An element a layer forgot to write shows up as NaN in the
+            // unit tests, which compare every op with its definition.
+            data.fill(f32::NAN);
         }
+        Self { c, h, w, data }
+    }
+    /// The storage, kept out of the pool.
+    pub fn into_data(mut self) -> Vec<f32> {
+        std::mem::take(&mut self.data)
     }
     /// Wraps `data`; the caller guarantees `data.len() == c * h * w`.
     pub fn from_vec(c: usize, h: usize, w: usize, data: Vec<f32>) -> Self {
@@ -41,9 +62,10 @@ impl FeatureMap {
     /// Channels `self` then `other` (same rows and cols).
     pub fn concat_channels(&self, other: &FeatureMap) -> FeatureMap {
         assert_eq!((self.h, self.w), (other.h, other.w), "concat sizes");
-        let mut data = Vec::with_capacity(self.data.len() + other.data.len());
-        data.extend_from_slice(&self.data);
-        data.extend_from_slice(&other.data);
-        FeatureMap::from_vec(self.c + other.c, self.h, self.w, data)
+        let mut out = FeatureMap::for_overwrite(self.c + other.c, self.h, self.w);
+        let (a, b) = out.data.split_at_mut(self.data.len());
+        a.copy_from_slice(&self.data);
+        b.copy_from_slice(&other.data);
+        out
     }
 }

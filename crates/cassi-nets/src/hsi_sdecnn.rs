@@ -68,7 +68,7 @@ impl HsiSdecnn {
                 w,
                 x.data()[i * c * h * w..(i + 1) * c * h * w].to_vec(),
             );
-            out.extend(self.denoise_stack(&xi, sigma.data()[i]).data);
+            out.extend_from_slice(&self.denoise_stack(&xi, sigma.data()[i]).data);
         }
         Tensor::new(vec![b, 1, h, w], out)
     }
@@ -79,9 +79,10 @@ impl HsiSdecnn {
         assert_eq!(stack.c, Self::IN_BANDS, "HSI-SDeCNN band stack");
         let padded = replicate_pad_to_even(stack);
         let u = pixel_unshuffle2(&padded);
-        let mut data = u.data;
-        data.resize(data.len() + u.h * u.w, sigma);
-        let mut f = FeatureMap::from_vec(u.c + 1, u.h, u.w, data);
+        let (c, h, w) = (u.c, u.h, u.w);
+        let mut data = u.into_data();
+        data.resize(data.len() + h * w, sigma);
+        let mut f = FeatureMap::from_vec(c + 1, h, w, data);
         for (i, conv) in self.convs.iter().enumerate() {
             f = conv.forward(&f);
             if i + 1 < self.convs.len() {

@@ -21,6 +21,7 @@
 //! Heavy numerics (gemm, rayon) live in this crate only; the core build of
 //! cassi does not depend on it.
 
+mod buffer_pool;
 pub mod checkpoint;
 mod denoiser;
 mod error;
@@ -34,6 +35,7 @@ mod pnp;
 mod reconstructor;
 mod tensor;
 
+pub use buffer_pool::{MAX_POOLED_BYTES, cached_buffer_bytes, release_cached_buffers};
 pub use checkpoint::{DType, StoredTensor, TensorMap, WeightLoader};
 pub use denoiser::HsiSdecnnDenoiser;
 pub use error::{NetError, Result};

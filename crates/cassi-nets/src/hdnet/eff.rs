@@ -82,7 +82,7 @@ impl Eff {
                 x.w,
                 x.data[i * GROUP * n..(i + 1) * GROUP * n].to_vec(),
             );
-            data.extend(dsc.forward(&z).data);
+            data.extend_from_slice(&dsc.forward(&z).data);
         }
         FeatureMap::from_vec(x.c, x.h, x.w, data)
     }

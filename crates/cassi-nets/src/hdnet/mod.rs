@@ -107,7 +107,7 @@ impl HdNet {
         let mut out = Vec::with_capacity(x.numel());
         for i in 0..b {
             let xi = FeatureMap::from_vec(c, h, w, x.data()[i * len..(i + 1) * len].to_vec());
-            out.extend(self.forward_sample(&xi).data);
+            out.extend_from_slice(&self.forward_sample(&xi).data);
         }
         Tensor::new(x.shape().to_vec(), out)
     }

@@ -33,7 +33,7 @@ impl SdlAttention {
         let n = x.plane();
         // G1 (`spatial_attention`): g = sigmoid(conv_up(vr · softmax(qr)ᵀ)), per channel.
         let vr = self.conv_v_right.forward(x);
-        let mut p = self.conv_q_right.forward(x).data;
+        let mut p = self.conv_q_right.forward(x).into_data();
         softmax_in_place(&mut p);
         let context: Vec<f32> = (0..vr.c).map(|c| dot(vr.channel(c), &p)).collect();
         let gate = self
@@ -55,7 +55,7 @@ impl SdlAttention {
         softmax_in_place(&mut t);
         t.iter_mut().for_each(|v| *v = sigmoid(*v));
 
-        let mut out = FeatureMap::zeros(x.c, x.h, x.w);
+        let mut out = FeatureMap::for_overwrite(x.c, x.h, x.w);
         for c in 0..x.c {
             let g = sigmoid(gate.data[c]);
             let dst = &mut out.data[c * n..(c + 1) * n];

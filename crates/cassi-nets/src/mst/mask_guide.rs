@@ -40,7 +40,7 @@ impl MaskGuide {
 pub(crate) fn shift_back(m: &FeatureMap) -> FeatureMap {
     let h = m.h;
     let d = 256 / h;
-    let mut out = FeatureMap::zeros(m.c, h, h);
+    let mut out = FeatureMap::for_overwrite(m.c, h, h);
     for c in 0..m.c {
         let off = 2 * c / (d * d);
         assert!(off + h <= m.w, "mask too narrow for the shift-back");

@@ -190,7 +190,7 @@ impl Mst {
         self.check_guidance(guidance)?;
         let mut out = Vec::with_capacity(h.numel());
         for i in 0..b {
-            out.extend(self.forward_sample(sample(h, i), guidance, false).0.data);
+            out.extend_from_slice(&self.forward_sample(sample(h, i), guidance, false).0.data);
         }
         Tensor::new(h.shape().to_vec(), out)
     }
@@ -279,7 +279,7 @@ impl Mst {
 /// A feature map as a batch of one, (1, C, h, w).
 fn batch_of_one(f: FeatureMap) -> Tensor {
     let shape = vec![1, f.c, f.h, f.w];
-    Tensor::new(shape, f.data).expect("a feature map's data fits its shape")
+    Tensor::new(shape, f.into_data()).expect("a feature map's data fits its shape")
 }
 
 /// Batch element `i` of an NCHW tensor as a feature map.

@@ -8,6 +8,7 @@ use crate::ops::activation::softmax_in_place;
 use crate::ops::conv::Conv2d;
 use crate::ops::depthwise::DepthwiseConv2d;
 use crate::ops::matmul::{Mat, matmul};
+use crate::ops::pointwise::{Activation, MixWeights};
 
 /// Channels per head in every MST stage.
 pub(crate) const HEAD_DIM: usize = 28;
@@ -46,17 +47,15 @@ impl MsMsa {
         let mut q = self.to_q.forward(x);
         let mut k = self.to_k.forward(x);
         let v_in = self.to_v.forward(x);
-        let v: Vec<f32> = v_in
-            .data
-            .iter()
-            .zip(&emb.data)
-            .map(|(a, b)| a * b)
-            .collect();
+        let mut v = FeatureMap::for_overwrite(x.c, x.h, x.w);
+        for ((o, a), b) in v.data.iter_mut().zip(&v_in.data).zip(&emb.data) {
+            *o = a * b;
+        }
         normalize_rows(&mut q.data, n);
         normalize_rows(&mut k.data, n);
 
         let d = HEAD_DIM;
-        let mut heads_out = FeatureMap::zeros(x.c, x.h, x.w);
+        let mut heads_out = FeatureMap::for_overwrite(x.c, x.h, x.w);
         for h in 0..self.heads {
             let rows = h * d * n..(h + 1) * d * n;
             // A[i, j] = Σ_p k̂[i, p] q̂[j, p]  (d × d)
@@ -70,9 +69,11 @@ impl MsMsa {
                 row.iter_mut().for_each(|a| *a *= self.rescale[h]);
                 softmax_in_place(row);
             }
-            matmul(
-                Mat::rows(&attn, d, d, d),
-                Mat::rows(&v[rows.clone()], d, n, n),
+            MixWeights::new(attn, d, d).apply(
+                &v.data[rows.clone()],
+                n,
+                None,
+                Activation::Identity,
                 &mut heads_out.data[rows],
             );
         }

@@ -5,7 +5,6 @@ use super::mask_guide::MaskGuide;
 use super::ms_msa::MsMsa;
 use crate::checkpoint::WeightLoader;
 use crate::fmap::FeatureMap;
-use crate::ops::activation::gelu_in_place;
 use crate::ops::conv::Conv2d;
 use crate::ops::depthwise::DepthwiseConv2d;
 use crate::ops::norm::LayerNormChannels;
@@ -29,8 +28,7 @@ impl FeedForward {
     }
 
     fn forward(&self, x: &FeatureMap) -> FeatureMap {
-        let mut t = self.expand.forward(&self.norm.forward(x));
-        gelu_in_place(&mut t.data);
+        let t = self.expand.forward_gelu(&self.norm.forward(x));
         self.reduce.forward(&self.depthwise.forward_gelu(&t))
     }
 }

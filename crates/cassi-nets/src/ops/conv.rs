@@ -5,7 +5,8 @@
 
 use rayon::prelude::*;
 
-use super::matmul::{Mat, SharedOut, matmul, matmul_into};
+use super::matmul::{Mat, SharedOut, matmul_into};
+use super::pointwise::{Activation, MixWeights};
 use super::winograd::WinogradWeights;
 use crate::checkpoint::WeightLoader;
 use crate::fmap::FeatureMap;
@@ -26,6 +27,8 @@ pub(crate) struct Conv2d {
     /// The weights transformed for Winograd F(2×2, 3×3), for 3×3 "same"
     /// convolutions (2.25× fewer multiplications than im2col + gemm).
     winograd: Option<WinogradWeights>,
+    /// The weights packed for the channel-mixing kernel, for 1×1 convolutions.
+    mix: Option<MixWeights>,
 }
 
 impl Conv2d {
@@ -44,6 +47,7 @@ impl Conv2d {
             .into_data();
         let bias = bias.then(|| w.take(&format!("{name}.bias"), &[out_ch]).into_data());
         let winograd = (k == 3).then(|| WinogradWeights::new(&weight, out_ch, in_ch));
+        let mix = (k == 1).then(|| MixWeights::new(weight.clone(), out_ch, in_ch));
         Self {
             weight,
             bias,
@@ -53,6 +57,7 @@ impl Conv2d {
             stride: 1,
             pad: k / 2,
             winograd,
+            mix,
         }
     }
 
@@ -79,6 +84,7 @@ impl Conv2d {
             stride,
             pad,
             winograd: None,
+            mix: None,
         }
     }
 
@@ -96,6 +102,7 @@ impl Conv2d {
             .take(&format!("{name}.weight"), &[out_ch, in_ch])
             .into_data();
         let bias = bias.then(|| w.take(&format!("{name}.bias"), &[out_ch]).into_data());
+        let mix = Some(MixWeights::new(weight.clone(), out_ch, in_ch));
         Self {
             weight,
             bias,
@@ -105,6 +112,7 @@ impl Conv2d {
             stride: 1,
             pad: 0,
             winograd: None,
+            mix,
         }
     }
 
@@ -114,7 +122,31 @@ impl Conv2d {
     }
 
     pub fn forward(&self, x: &FeatureMap) -> FeatureMap {
+        self.forward_act(x, Activation::Identity)
+    }
+
+    /// GELU(conv(x)); for 1×1 convolutions the GELU runs on each block of
+    /// outputs while it is in cache (saves a pass over the map).
+    pub fn forward_gelu(&self, x: &FeatureMap) -> FeatureMap {
+        self.forward_act(x, Activation::Gelu)
+    }
+
+    fn forward_act(&self, x: &FeatureMap, act: Activation) -> FeatureMap {
         assert_eq!(x.c, self.in_ch, "conv input channels");
+        if let Some(mix) = &self.mix {
+            let mut out = FeatureMap::for_overwrite(self.out_ch, x.h, x.w);
+            mix.apply(&x.data, x.plane(), self.bias.as_deref(), act, &mut out.data);
+            return out;
+        }
+        let mut out = self.forward_unfused(x);
+        if act == Activation::Gelu {
+            super::activation::gelu_in_place(&mut out.data);
+        }
+        out
+    }
+
+    /// Winograd or im2col + gemm, then the bias.
+    fn forward_unfused(&self, x: &FeatureMap) -> FeatureMap {
         if let Some(wg) = &self.winograd {
             let mut out = wg.forward(x);
             if let Some(b) = &self.bias {
@@ -123,42 +155,33 @@ impl Conv2d {
             return out;
         }
         let (ho, wo) = self.out_size(x.h, x.w);
-        let mut out = FeatureMap::zeros(self.out_ch, ho, wo);
+        let mut out = FeatureMap::for_overwrite(self.out_ch, ho, wo);
         let kk = self.in_ch * self.k * self.k;
         let wmat = Mat::rows(&self.weight, self.out_ch, kk, kk);
-        if self.k == 1 && self.stride == 1 && self.pad == 0 {
-            // A 1×1 convolution is one product with the input as it lies.
-            matmul(
-                wmat,
-                Mat::rows(&x.data, x.c, x.plane(), x.plane()),
-                &mut out.data,
-            );
-        } else {
-            let rows_per_tile = (TILE_COLS / wo).max(1);
-            let shared = SharedOut::new(&mut out.data);
-            (0..ho.div_ceil(rows_per_tile))
-                .into_par_iter()
-                .for_each(|t| {
-                    let r0 = t * rows_per_tile;
-                    let r1 = (r0 + rows_per_tile).min(ho);
-                    let cols = (r1 - r0) * wo;
-                    let mut col = take_scratch();
-                    self.im2col(x, r0, r1, wo, &mut col);
-                    // SAFETY: each tile writes only its own output rows r0..r1
-                    // (columns [r0*wo, r1*wo) of every output channel).
-                    unsafe {
-                        matmul_into(
-                            wmat,
-                            Mat::rows(&col, kk, cols, cols),
-                            shared,
-                            r0 * wo,
-                            (ho * wo, 1),
-                            false,
-                        )
-                    };
-                    return_scratch(col);
-                });
-        }
+        let rows_per_tile = (TILE_COLS / wo).max(1);
+        let shared = SharedOut::new(&mut out.data);
+        (0..ho.div_ceil(rows_per_tile))
+            .into_par_iter()
+            .for_each(|t| {
+                let r0 = t * rows_per_tile;
+                let r1 = (r0 + rows_per_tile).min(ho);
+                let cols = (r1 - r0) * wo;
+                let mut col = take_scratch();
+                self.im2col(x, r0, r1, wo, &mut col);
+                // SAFETY: each tile writes only its own output rows r0..r1
+                // (columns [r0*wo, r1*wo) of every output channel).
+                unsafe {
+                    matmul_into(
+                        wmat,
+                        Mat::rows(&col, kk, cols, cols),
+                        shared,
+                        r0 * wo,
+                        (ho * wo, 1),
+                        false,
+                    )
+                };
+                return_scratch(col);
+            });
         if let Some(b) = &self.bias {
             add_channel_bias(&mut out, b);
         }
@@ -295,6 +318,7 @@ pub(crate) mod tests {
             let weight = pseudo_random(co * ci * k * k, 1);
             let mut conv = Conv2d {
                 winograd: None,
+                mix: None,
                 weight: weight.clone(),
                 bias: Some(pseudo_random(co, 2)),
                 out_ch: co,
@@ -305,19 +329,35 @@ pub(crate) mod tests {
             };
             let x = FeatureMap::from_vec(ci, h, w, pseudo_random(ci * h * w, 3));
             let want = naive_conv(&x, &conv);
+            let mut gelu_want = want.clone();
+            crate::ops::activation::gelu_in_place(&mut gelu_want.data);
+            let check = |conv: &Conv2d, path: &str| {
+                for (got, want) in [
+                    (conv.forward(&x), &want),
+                    (conv.forward_gelu(&x), &gelu_want),
+                ] {
+                    assert_eq!((got.h, got.w), (want.h, want.w));
+                    let err = (got.data.iter().zip(&want.data))
+                        .map(|(a, b)| {
+                            if a.is_nan() {
+                                f32::INFINITY
+                            } else {
+                                (a - b).abs()
+                            }
+                        })
+                        .fold(0.0, f32::max);
+                    assert!(err < 1e-5, "{path} k{k} s{stride} p{pad}: {err}");
+                }
+            };
+            check(&conv, "im2col");
             if (k, stride, pad) == (3, 1, 1) {
-                // the Winograd path (with the bias) against the same definition
                 conv.winograd = Some(WinogradWeights::new(&weight, co, ci));
+                check(&conv, "winograd");
             }
-            let got = conv.forward(&x);
-            assert_eq!((got.h, got.w), (want.h, want.w));
-            let err = got
-                .data
-                .iter()
-                .zip(&want.data)
-                .map(|(a, b)| (a - b).abs())
-                .fold(0.0, f32::max);
-            assert!(err < 1e-5, "k{k} s{stride} p{pad}: {err}");
+            if (k, stride, pad) == (1, 1, 0) {
+                conv.mix = Some(MixWeights::new(weight.clone(), co, ci));
+                check(&conv, "channel mix");
+            }
         }
     }
 }

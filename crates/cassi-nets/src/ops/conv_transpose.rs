@@ -34,21 +34,21 @@ impl ConvTranspose2x2 {
         let n = x.plane();
         // T[(o, a, b), p] = Σ_c W[c, (o, a, b)] · in[c, p]: Wᵀ as a strided view.
         let taps = self.out_ch * 4;
-        let mut t = vec![0.0; taps * n];
+        let mut t = FeatureMap::for_overwrite(taps, x.h, x.w);
         matmul(
             Mat::transposed(&self.weight, taps, self.in_ch, taps),
             Mat::rows(&x.data, self.in_ch, n, n),
-            &mut t,
+            &mut t.data,
         );
         let (h2, w2) = (2 * x.h, 2 * x.w);
-        let mut out = FeatureMap::zeros(self.out_ch, h2, w2);
+        let mut out = FeatureMap::for_overwrite(self.out_ch, h2, w2);
         out.data
             .par_chunks_mut(h2 * w2)
             .enumerate()
             .for_each(|(o, dst)| {
                 for a in 0..2 {
                     for b in 0..2 {
-                        let src = &t[(o * 4 + a * 2 + b) * n..][..n];
+                        let src = &t.data[(o * 4 + a * 2 + b) * n..][..n];
                         for r in 0..x.h {
                             let row = &mut dst[(2 * r + a) * w2..][..w2];
                             for s in 0..x.w {

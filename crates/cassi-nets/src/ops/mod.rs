@@ -8,6 +8,7 @@ pub(crate) mod depthwise;
 pub(crate) mod matmul;
 pub(crate) mod norm;
 pub(crate) mod pixel_shuffle;
+pub(crate) mod pointwise;
 pub(crate) mod pool;
 pub(crate) mod simd;
 pub(crate) mod winograd;

@@ -52,7 +52,7 @@ impl LayerNormChannels {
                 r.iter_mut()
                     .for_each(|a| *a = 1.0 / (*a / c as f32 + self.eps).sqrt());
             });
-        let mut out = FeatureMap::zeros(c, x.h, x.w);
+        let mut out = FeatureMap::for_overwrite(c, x.h, x.w);
         out.data
             .par_chunks_mut(n)
             .enumerate()

@@ -10,7 +10,7 @@ pub(crate) fn pixel_unshuffle2(x: &FeatureMap) -> FeatureMap {
         "pixel unshuffle needs even sizes"
     );
     let (h2, w2) = (x.h / 2, x.w / 2);
-    let mut out = FeatureMap::zeros(4 * x.c, h2, w2);
+    let mut out = FeatureMap::for_overwrite(4 * x.c, h2, w2);
     for c in 0..x.c {
         for a in 0..2 {
             for e in 0..2 {
@@ -30,7 +30,7 @@ pub(crate) fn pixel_unshuffle2(x: &FeatureMap) -> FeatureMap {
 pub(crate) fn pixel_shuffle2(t: &FeatureMap) -> FeatureMap {
     assert!(t.c % 4 == 0, "pixel shuffle needs a multiple of 4 channels");
     let (h, w) = (2 * t.h, 2 * t.w);
-    let mut out = FeatureMap::zeros(t.c / 4, h, w);
+    let mut out = FeatureMap::for_overwrite(t.c / 4, h, w);
     for c in 0..t.c / 4 {
         for a in 0..2 {
             for e in 0..2 {
@@ -52,7 +52,7 @@ pub(crate) fn replicate_pad_to_even(x: &FeatureMap) -> FeatureMap {
     if (h, w) == (x.h, x.w) {
         return x.clone();
     }
-    let mut out = FeatureMap::zeros(x.c, h, w);
+    let mut out = FeatureMap::for_overwrite(x.c, h, w);
     for c in 0..x.c {
         for y in 0..h {
             let src = &x.data[(c * x.h + y.min(x.h - 1)) * x.w..][..x.w];

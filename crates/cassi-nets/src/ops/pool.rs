@@ -7,7 +7,7 @@ use crate::fmap::FeatureMap;
 
 pub(crate) fn max_pool_3x3(x: &FeatureMap) -> FeatureMap {
     let (h, w) = (x.h, x.w);
-    let mut out = FeatureMap::zeros(x.c, h, w);
+    let mut out = FeatureMap::for_overwrite(x.c, h, w);
     out.data
         .par_chunks_mut(h * w)
         .enumerate()

@@ -61,7 +61,7 @@ impl WinogradWeights {
         let (h, w) = (x.h, x.w);
         let (th, tw) = (h.div_ceil(2), w.div_ceil(2));
         let rows_per_block = (BLOCK_TILES / tw).max(1);
-        let mut out = FeatureMap::zeros(self.out_ch, h, w);
+        let mut out = FeatureMap::for_overwrite(self.out_ch, h, w);
         let shared = SharedOut::new(&mut out.data);
         (0..th.div_ceil(rows_per_block))
             .into_par_iter()
