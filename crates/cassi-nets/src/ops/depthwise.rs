@@ -72,13 +72,14 @@ super::simd::avx2_dispatch! {
         let h = src.len() / w;
         let p = (k / 2) as isize;
         for (y, out_row) in dst.chunks_exact_mut(w).enumerate() {
-            if k == 3 && y >= 1 && y + 1 < h && w >= 3 {
-                let rows = [
-                    &src[(y - 1) * w..][..w],
-                    &src[y * w..][..w],
-                    &src[(y + 1) * w..][..w],
-                ];
-                interior_row_3x3(rows, out_row, taps, bias);
+            let interior = y >= k / 2 && y + k / 2 < h && w >= k;
+            if interior && (k == 3 || k == 5) {
+                let rows = &src[(y - k / 2) * w..][..k * w];
+                if k == 3 {
+                    interior_row::<3>(rows, out_row, taps, bias);
+                } else {
+                    interior_row::<5>(rows, out_row, taps, bias);
+                }
                 if gelu {
                     out_row.iter_mut().for_each(|v| *v = gelu_value(*v));
                 }
@@ -114,47 +115,48 @@ super::simd::avx2_dispatch! {
     }
 }
 
-/// One output row of a 3×3 depthwise conv whose three input rows all exist:
-/// each output written once from nine taps held in registers (the generic
-/// loop re-reads and re-writes the row per tap). Taps are added in the
-/// generic loop's order, so the results are bit-identical to it.
+/// One output row of a K×K depthwise conv whose K input rows (`rows`,
+/// K·w floats) all exist: each output written once, eight at a time, from
+/// taps held in registers (the generic loop re-reads and re-writes the row
+/// per tap). Taps are added in the generic loop's order, so the results are
+/// bit-identical to it.
 #[inline(always)]
-fn interior_row_3x3(rows: [&[f32]; 3], out: &mut [f32], taps: &[f32], bias: f32) {
+fn interior_row<const K: usize>(rows: &[f32], out: &mut [f32], taps: &[f32], bias: f32) {
+    const LANES: usize = 8;
     let w = out.len();
-    let t: [f32; 9] = taps[..9].try_into().expect("3×3 taps");
-    // Left and right border columns: the tap outside the row is skipped.
-    for x in [0, w - 1] {
+    let p = K / 2;
+    let t = &taps[..K * K];
+    let row = |ky: usize| &rows[ky * w..(ky + 1) * w];
+    let pixel = |x: usize| {
         let mut acc = bias;
-        for (ky, row) in rows.iter().enumerate() {
-            for kx in 0..3 {
-                let ix = x as isize + kx as isize - 1;
-                if ix >= 0 && (ix as usize) < w {
-                    acc += t[ky * 3 + kx] * row[ix as usize];
+        for ky in 0..K {
+            for kx in 0..K {
+                // Skips the taps outside the row (zero padding).
+                if let Some(v) = (x + kx).checked_sub(p).and_then(|ix| row(ky).get(ix)) {
+                    acc += t[ky * K + kx] * v;
                 }
             }
         }
-        out[x] = acc;
+        acc
+    };
+    let (x0, x1) = (p, w - p);
+    let mut x = x0;
+    while x + LANES <= x1 {
+        let mut acc = [bias; LANES];
+        for ky in 0..K {
+            for kx in 0..K {
+                let tap = t[ky * K + kx];
+                let v: &[f32; LANES] = row(ky)[x + kx - p..][..LANES].try_into().unwrap();
+                for l in 0..LANES {
+                    acc[l] += tap * v[l];
+                }
+            }
+        }
+        out[x..x + LANES].copy_from_slice(&acc);
+        x += LANES;
     }
-    // Interior columns 1..w−1: equal-length shifted views, so the loop has
-    // no bounds checks and vectorises.
-    let n = w - 2;
-    let [r0, r1, r2] = rows;
-    let (a0, b0, c0) = (&r0[..n], &r0[1..n + 1], &r0[2..n + 2]);
-    let (a1, b1, c1) = (&r1[..n], &r1[1..n + 1], &r1[2..n + 2]);
-    let (a2, b2, c2) = (&r2[..n], &r2[1..n + 1], &r2[2..n + 2]);
-    let o = &mut out[1..n + 1];
-    for i in 0..n {
-        let mut acc = bias;
-        acc += t[0] * a0[i];
-        acc += t[1] * b0[i];
-        acc += t[2] * c0[i];
-        acc += t[3] * a1[i];
-        acc += t[4] * b1[i];
-        acc += t[5] * c1[i];
-        acc += t[6] * a2[i];
-        acc += t[7] * b2[i];
-        acc += t[8] * c2[i];
-        o[i] = acc;
+    for x in (0..x0).chain(x..w) {
+        out[x] = pixel(x);
     }
 }
 
@@ -179,8 +181,17 @@ mod tests {
 
     #[test]
     fn matches_the_definition() {
-        // 7×9 takes the 3×3 interior-row path; 2×2 and 3×3 its fallbacks.
-        for (k, h, w) in [(1, 7, 9), (3, 7, 9), (5, 7, 9), (3, 2, 2), (3, 3, 3)] {
+        // 3×3 and 5×5 take the interior-row path (with a tail past eight
+        // lanes at 23 columns); 2×2 and 3×3 maps its fallbacks.
+        for (k, h, w) in [
+            (1, 7, 9),
+            (3, 7, 9),
+            (5, 7, 9),
+            (3, 6, 23),
+            (5, 9, 23),
+            (3, 2, 2),
+            (3, 3, 3),
+        ] {
             let c = 3;
             let dw = DepthwiseConv2d {
                 weight: pseudo_random(c * k * k, 5),
