@@ -3,7 +3,7 @@
 
 use rayon::prelude::*;
 
-use super::activation::gelu_value;
+use super::activation::gelu_slice;
 use crate::checkpoint::WeightLoader;
 use crate::fmap::FeatureMap;
 
@@ -81,7 +81,7 @@ super::simd::avx2_dispatch! {
                     interior_row::<5>(rows, out_row, taps, bias);
                 }
                 if gelu {
-                    out_row.iter_mut().for_each(|v| *v = gelu_value(*v));
+                    gelu_slice(out_row);
                 }
                 continue;
             }
@@ -109,7 +109,7 @@ super::simd::avx2_dispatch! {
                 }
             }
             if gelu {
-                out_row.iter_mut().for_each(|v| *v = gelu_value(*v));
+                gelu_slice(out_row);
             }
         }
     }
@@ -126,19 +126,7 @@ fn interior_row<const K: usize>(rows: &[f32], out: &mut [f32], taps: &[f32], bia
     let w = out.len();
     let p = K / 2;
     let t = &taps[..K * K];
-    let row = |ky: usize| &rows[ky * w..(ky + 1) * w];
-    let pixel = |x: usize| {
-        let mut acc = bias;
-        for ky in 0..K {
-            for kx in 0..K {
-                // Skips the taps outside the row (zero padding).
-                if let Some(v) = (x + kx).checked_sub(p).and_then(|ix| row(ky).get(ix)) {
-                    acc += t[ky * K + kx] * v;
-                }
-            }
-        }
-        acc
-    };
+    let row: [&[f32]; K] = std::array::from_fn(|ky| &rows[ky * w..(ky + 1) * w]);
     let (x0, x1) = (p, w - p);
     let mut x = x0;
     while x + LANES <= x1 {
@@ -146,7 +134,7 @@ fn interior_row<const K: usize>(rows: &[f32], out: &mut [f32], taps: &[f32], bia
         for ky in 0..K {
             for kx in 0..K {
                 let tap = t[ky * K + kx];
-                let v: &[f32; LANES] = row(ky)[x + kx - p..][..LANES].try_into().unwrap();
+                let v: &[f32; LANES] = row[ky][x + kx - p..][..LANES].try_into().unwrap();
                 for l in 0..LANES {
                     acc[l] += tap * v[l];
                 }
@@ -156,7 +144,16 @@ fn interior_row<const K: usize>(rows: &[f32], out: &mut [f32], taps: &[f32], bia
         x += LANES;
     }
     for x in (0..x0).chain(x..w) {
-        out[x] = pixel(x);
+        let mut acc = bias;
+        for ky in 0..K {
+            for kx in 0..K {
+                // Skips the taps outside the row (zero padding).
+                if let Some(v) = (x + kx).checked_sub(p).and_then(|ix| row[ky].get(ix)) {
+                    acc += t[ky * K + kx] * v;
+                }
+            }
+        }
+        out[x] = acc;
     }
 }
 
@@ -173,9 +170,10 @@ mod tests {
             channels: 4,
             k: 3,
         };
-        let x = FeatureMap::from_vec(4, 5, 6, pseudo_random(4 * 30, 12));
+        // 17 columns: GELU's eight-lane path and its scalar tail on each row.
+        let x = FeatureMap::from_vec(4, 5, 17, pseudo_random(4 * 5 * 17, 12));
         let mut want = dw.forward(&x);
-        crate::ops::activation::gelu_in_place(&mut want.data);
+        want.data.chunks_mut(17).for_each(gelu_slice);
         assert_eq!(dw.forward_gelu(&x), want);
     }
 

@@ -9,7 +9,7 @@
 
 use rayon::prelude::*;
 
-use super::activation::gelu_value;
+use super::activation::{gelu_slice, gelu_value};
 use super::matmul::{Mat, matmul};
 
 /// Output channels per register block.
@@ -184,7 +184,10 @@ impl MixWeights {
                 for o in 0..co {
                     // SAFETY: this task's pixels of row o.
                     let row = unsafe { out.slice_mut(o * n + b0, b1 - b0) };
-                    row.iter_mut().for_each(|v| *v = finish(*v, act));
+                    match act {
+                        Activation::Identity => {}
+                        Activation::Gelu => gelu_slice(row),
+                    }
                 }
             }
             b0 = b1;
