@@ -10,7 +10,7 @@
 use rayon::prelude::*;
 
 use super::activation::{gelu_slice, gelu_value};
-use super::matmul::{Mat, matmul};
+use super::matmul::{Mat, SharedOut, matmul, matmul_into};
 
 /// Output channels per register block.
 const OB: usize = 6;
@@ -56,6 +56,7 @@ impl MixWeights {
 
     /// `out (out_ch × n) = act(W · x + bias)` for `x (in_ch × n)`, both
     /// row-major with rows n apart; every element of `out` is written.
+    /// Parallel over pixel chunks.
     pub fn apply(
         &self,
         x: &[f32],
@@ -63,6 +64,31 @@ impl MixWeights {
         bias: Option<&[f32]>,
         act: Activation,
         out: &mut [f32],
+    ) {
+        self.run(x, n, bias, act, out, true)
+    }
+
+    /// [`apply`](Self::apply) in this thread only, for callers that are
+    /// already one of many parallel tasks.
+    pub fn apply_serial(
+        &self,
+        x: &[f32],
+        n: usize,
+        bias: Option<&[f32]>,
+        act: Activation,
+        out: &mut [f32],
+    ) {
+        self.run(x, n, bias, act, out, false)
+    }
+
+    fn run(
+        &self,
+        x: &[f32],
+        n: usize,
+        bias: Option<&[f32]>,
+        act: Activation,
+        out: &mut [f32],
+        parallel: bool,
     ) {
         assert_eq!(x.len(), self.in_ch * n, "mix input size");
         assert_eq!(out.len(), self.out_ch * n, "mix output size");
@@ -72,10 +98,10 @@ impl MixWeights {
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
         {
-            self.apply_blocked(x, n, bias, act, out);
+            self.apply_blocked(x, n, bias, act, out, parallel);
             return;
         }
-        self.apply_gemm(x, n, bias, act, out);
+        self.apply_gemm(x, n, bias, act, out, parallel);
     }
 
     /// The portable path: gemm, then bias and activation.
@@ -86,18 +112,24 @@ impl MixWeights {
         bias: Option<&[f32]>,
         act: Activation,
         out: &mut [f32],
+        parallel: bool,
     ) {
-        matmul(
-            Mat::rows(&self.weight, self.out_ch, self.in_ch, self.in_ch),
-            Mat::rows(x, self.in_ch, n, n),
-            out,
-        );
-        out.par_chunks_mut(n).enumerate().for_each(|(o, row)| {
+        let w = Mat::rows(&self.weight, self.out_ch, self.in_ch, self.in_ch);
+        let x = Mat::rows(x, self.in_ch, n, n);
+        let finish_row = |(o, row): (usize, &mut [f32])| {
             let b = bias.map_or(0.0, |b| b[o]);
             for v in row {
                 *v = finish(*v + b, act);
             }
-        });
+        };
+        if parallel {
+            matmul(w, x, out);
+            out.par_chunks_mut(n).enumerate().for_each(finish_row);
+        } else {
+            // SAFETY: `out` is exclusively borrowed and holds out_ch × n.
+            unsafe { matmul_into(w, x, SharedOut::new(out), 0, (n, 1), false) };
+            out.chunks_mut(n).enumerate().for_each(finish_row);
+        }
     }
 
     #[cfg(target_arch = "x86_64")]
@@ -108,17 +140,22 @@ impl MixWeights {
         bias: Option<&[f32]>,
         act: Activation,
         out: &mut [f32],
+        parallel: bool,
     ) {
-        use super::matmul::SharedOut;
-        let chunk = pixel_chunk(n);
         let shared = SharedOut::new(out);
-        (0..n.div_ceil(chunk)).into_par_iter().for_each(|t| {
+        let chunk = if parallel { pixel_chunk(n) } else { n.max(1) };
+        let task = |t: usize| {
             let p0 = t * chunk;
             let p1 = (p0 + chunk).min(n);
             // SAFETY: the CPU has AVX2 and FMA (checked by the caller);
             // tasks write disjoint pixel ranges [p0, p1) of every row.
             unsafe { self.columns(x, n, p0, p1, bias, act, shared) };
-        });
+        };
+        if parallel {
+            (0..n.div_ceil(chunk)).into_par_iter().for_each(task);
+        } else {
+            (0..n.div_ceil(chunk)).for_each(task);
+        }
     }
 
     /// Pixels p0..p1 of every output row, in blocks whose input columns
@@ -138,7 +175,7 @@ impl MixWeights {
         p1: usize,
         bias: Option<&[f32]>,
         act: Activation,
-        out: super::matmul::SharedOut,
+        out: SharedOut,
     ) {
         let (ci, co) = (self.in_ch, self.out_ch);
         // Input columns per block: the packed block (ci × block floats)
@@ -234,7 +271,7 @@ unsafe fn block_6x16(
     o0: usize,
     outs: usize,
     bias: Option<&[f32]>,
-    out: super::matmul::SharedOut,
+    out: SharedOut,
 ) {
     use std::arch::x86_64::*;
     assert!(w.len() == ci * OB && xs.len() == ci * PB && p + PB <= n);
@@ -321,8 +358,17 @@ mod tests {
                 let mut got = vec![f32::NAN; co * n];
                 mix.apply(&x, n, b, act, &mut got);
                 let mut portable = vec![f32::NAN; co * n];
-                mix.apply_gemm(&x, n, b, act, &mut portable);
-                for (name, g) in [("dispatched", &got), ("portable", &portable)] {
+                mix.apply_gemm(&x, n, b, act, &mut portable, true);
+                let mut serial = vec![f32::NAN; co * n];
+                mix.apply_serial(&x, n, b, act, &mut serial);
+                let mut portable_serial = vec![f32::NAN; co * n];
+                mix.apply_gemm(&x, n, b, act, &mut portable_serial, false);
+                for (name, g) in [
+                    ("dispatched", &got),
+                    ("portable", &portable),
+                    ("serial", &serial),
+                    ("portable serial", &portable_serial),
+                ] {
                     let err = (g.iter().zip(&want))
                         .map(|(a, b)| {
                             if a.is_nan() {

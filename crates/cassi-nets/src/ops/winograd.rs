@@ -7,7 +7,8 @@
 
 use rayon::prelude::*;
 
-use super::matmul::{Mat, SharedOut, matmul_into};
+use super::matmul::SharedOut;
+use super::pointwise::{Activation, MixWeights};
 use crate::fmap::FeatureMap;
 
 /// Output tiles (2×2 each) per block: the block's V and M scratch
@@ -15,9 +16,10 @@ use crate::fmap::FeatureMap;
 const BLOCK_TILES: usize = 256;
 
 /// Weights transformed for F(2×2, 3×3): u[ξ] is the (out × in) matrix of
-/// the ξ-th element (ξ = 4a + b) of G g Gᵀ for every channel pair.
+/// the ξ-th element (ξ = 4a + b) of G g Gᵀ for every channel pair, packed
+/// for the channel-mixing kernel (each product U[ξ]·V[ξ] is one).
 pub(crate) struct WinogradWeights {
-    u: Vec<f32>,
+    u: Vec<MixWeights>,
     out_ch: usize,
     in_ch: usize,
 }
@@ -52,6 +54,10 @@ impl WinogradWeights {
                 }
             }
         }
+        let u = u
+            .chunks_exact(out_ch * in_ch)
+            .map(|m| MixWeights::new(m.to_vec(), out_ch, in_ch))
+            .collect();
         Self { u, out_ch, in_ch }
     }
 
@@ -139,12 +145,14 @@ impl WinogradWeights {
                 }
             }
         }
-        let m_out = SharedOut::new(m);
-        for xi in 0..16 {
-            let a = Mat::rows(&self.u[xi * co * ci..][..co * ci], co, ci, ci);
-            let b = Mat::rows(&v[xi * ci * tiles..][..ci * tiles], ci, tiles, tiles);
-            // SAFETY: `m` is this block's own; each ξ writes its own (co × tiles) slab.
-            unsafe { matmul_into(a, b, m_out, xi * co * tiles, (tiles, 1), false) };
+        for (xi, u) in self.u.iter().enumerate() {
+            u.apply_serial(
+                &v[xi * ci * tiles..][..ci * tiles],
+                tiles,
+                None,
+                Activation::Identity,
+                &mut m[xi * co * tiles..][..co * tiles],
+            );
         }
         // Aᵀ M A with Aᵀ = [1 1 1 0; 0 1 −1 −1]: first over rows (s), then columns.
         let mut s = vec![0.0f32; 8 * tw];
