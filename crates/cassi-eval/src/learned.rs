@@ -10,13 +10,19 @@
 //! * PnP-HSICNN: a model-based solver, so it gets the whole model (pose, a1,
 //!   α, dispersion model) exactly as the TV solvers do.
 //!
-//! Weights are loaded for each reconstruction: milliseconds, against a
-//! second or more for a forward pass and minutes for PnP-HSICNN.
+//! A study loads each learned method once, before its first scene
+//! ([`LearnedMethod::load`]): every reconstruction after that — each
+//! scenario of each scene, the sweeps' too — runs with that one
+//! [`LearnedModel`], which the study's clones share (`Arc`). Networks run
+//! through `&self`; PnP-HSICNN's denoiser (a `cassi_core::Denoiser`) needs
+//! `&mut self`, so its model runs one reconstruction at a time.
 
 use cassi_core::optics::DispersionModel;
 use cassi_core::{Cube, Mask, Measurement, Mismatch};
 
 use crate::method::LearnedMethod;
+
+pub use run::LearnedModel;
 
 /// Bands of the networks' training data (MST toolbox).
 pub const NETWORK_BANDS: usize = 28;
@@ -62,15 +68,10 @@ pub fn check_shape(
     Ok(())
 }
 
-/// Loads the weights once (strictly), so a wrong or mismatched file is an
-/// error before the study starts.
-pub fn check_weights(method: &LearnedMethod) -> anyhow::Result<()> {
-    run::load_check(method)
-}
-
 /// The reconstruction of `y` by `method`, the instrument assumed to be
 /// `nominal_mask` placed and dispersed as `params` / `model` say (see the
-/// module notes for what each method uses of it).
+/// module notes for what each method uses of it), with the model `method`
+/// was loaded with.
 pub fn reconstruct(
     method: &LearnedMethod,
     y: &Measurement,
@@ -81,11 +82,14 @@ pub fn reconstruct(
 ) -> anyhow::Result<Cube> {
     let (rows, cols) = nominal_mask.shape();
     check_shape(method, bands, rows, cols)?;
-    run::reconstruct(method, y, nominal_mask, bands, params, model)
+    let loaded = method.model().ok_or_else(|| run::not_loaded(method))?;
+    loaded.reconstruct(y, nominal_mask, bands, params, model)
 }
 
 #[cfg(feature = "nets")]
 mod run {
+    use std::sync::{Mutex, PoisonError};
+
     use anyhow::Context;
     use cassi_core::optics::DispersionModel;
     use cassi_core::solvers::Silent;
@@ -94,39 +98,66 @@ mod run {
 
     use crate::method::LearnedMethod;
 
-    fn pnp(method: &LearnedMethod) -> anyhow::Result<PnpHsicnn> {
-        let params = PnpHsicnnParams::default().with_overrides(method.iterations, None);
-        PnpHsicnn::load(&method.weights, params).context("pnp-hsicnn weights")
+    /// A learned method's weights, loaded.
+    // one per method, held once behind an Arc: the variants' sizes don't matter
+    #[allow(clippy::large_enum_variant)]
+    pub enum LearnedModel {
+        /// MST-S, MST-L or HDNet.
+        Network(Reconstructor),
+        /// PnP-HSICNN, locked while it reconstructs (it needs `&mut self`).
+        PnpHsicnn(Mutex<PnpHsicnn>),
     }
 
-    fn network(method: &LearnedMethod) -> anyhow::Result<Reconstructor> {
-        Reconstructor::load(&method.method, &method.weights)
-            .with_context(|| format!("{} weights", method.method))
-    }
+    impl LearnedModel {
+        /// `method`'s weights, loaded strictly.
+        pub(crate) fn load(method: &LearnedMethod) -> anyhow::Result<Self> {
+            if method.method == "pnp-hsicnn" {
+                let params = PnpHsicnnParams::default().with_overrides(method.iterations, None);
+                let pnp = PnpHsicnn::load(&method.weights, params).context("pnp-hsicnn weights")?;
+                return Ok(Self::PnpHsicnn(Mutex::new(pnp)));
+            }
+            let network = Reconstructor::load(&method.method, &method.weights)
+                .with_context(|| format!("{} weights", method.method))?;
+            Ok(Self::Network(network))
+        }
 
-    pub(super) fn load_check(method: &LearnedMethod) -> anyhow::Result<()> {
-        if method.method == "pnp-hsicnn" {
-            pnp(method).map(drop)
-        } else {
-            network(method).map(drop)
+        pub(super) fn reconstruct(
+            &self,
+            y: &Measurement,
+            nominal_mask: &Mask,
+            bands: usize,
+            params: &Mismatch,
+            model: DispersionModel,
+        ) -> anyhow::Result<Cube> {
+            match self {
+                Self::Network(network) => {
+                    Ok(network.reconstruct(y, nominal_mask, &params.pose())?.cube)
+                }
+                Self::PnpHsicnn(pnp) => {
+                    // a reconstruction keeps no state in the model, so one
+                    // that panicked leaves nothing to distrust
+                    let mut pnp = pnp.lock().unwrap_or_else(PoisonError::into_inner);
+                    let r = pnp.reconstruct(y, nominal_mask, bands, params, model, &mut Silent)?;
+                    Ok(r.reconstruction.cube)
+                }
+            }
         }
     }
 
-    pub(super) fn reconstruct(
-        method: &LearnedMethod,
-        y: &Measurement,
-        nominal_mask: &Mask,
-        bands: usize,
-        params: &Mismatch,
-        model: DispersionModel,
-    ) -> anyhow::Result<Cube> {
-        if method.method == "pnp-hsicnn" {
-            let r = pnp(method)?.reconstruct(y, nominal_mask, bands, params, model, &mut Silent)?;
-            return Ok(r.reconstruction.cube);
+    impl std::fmt::Debug for LearnedModel {
+        fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+            f.write_str(match self {
+                Self::Network(_) => "LearnedModel::Network",
+                Self::PnpHsicnn(_) => "LearnedModel::PnpHsicnn",
+            })
         }
-        Ok(network(method)?
-            .reconstruct(y, nominal_mask, &params.pose())?
-            .cube)
+    }
+
+    pub(super) fn not_loaded(method: &LearnedMethod) -> anyhow::Error {
+        anyhow::anyhow!(
+            "{}: weights not loaded (LearnedMethod::load, before the study runs)",
+            method.method
+        )
     }
 }
 
@@ -137,6 +168,27 @@ mod run {
 
     use crate::method::LearnedMethod;
 
+    /// Has no values: this build has no deep networks, so nothing loads.
+    #[derive(Debug)]
+    pub enum LearnedModel {}
+
+    impl LearnedModel {
+        pub(crate) fn load(method: &LearnedMethod) -> anyhow::Result<Self> {
+            Err(unavailable(method))
+        }
+
+        pub(super) fn reconstruct(
+            &self,
+            _y: &Measurement,
+            _nominal_mask: &Mask,
+            _bands: usize,
+            _params: &Mismatch,
+            _model: DispersionModel,
+        ) -> anyhow::Result<Cube> {
+            match *self {}
+        }
+    }
+
     fn unavailable(method: &LearnedMethod) -> anyhow::Error {
         anyhow::anyhow!(
             "{}: this build has no deep networks; rebuild with `--features nets` \
@@ -145,19 +197,8 @@ mod run {
         )
     }
 
-    pub(super) fn load_check(method: &LearnedMethod) -> anyhow::Result<()> {
-        Err(unavailable(method))
-    }
-
-    pub(super) fn reconstruct(
-        method: &LearnedMethod,
-        _y: &Measurement,
-        _nominal_mask: &Mask,
-        _bands: usize,
-        _params: &Mismatch,
-        _model: DispersionModel,
-    ) -> anyhow::Result<Cube> {
-        Err(unavailable(method))
+    pub(super) fn not_loaded(method: &LearnedMethod) -> anyhow::Error {
+        unavailable(method)
     }
 }
 
@@ -166,11 +207,7 @@ mod tests {
     use super::*;
 
     fn learned(name: &str) -> LearnedMethod {
-        LearnedMethod {
-            method: name.into(),
-            weights: "w.pth".into(),
-            iterations: None,
-        }
+        LearnedMethod::new(name, "w.pth", None)
     }
 
     #[test]
@@ -196,7 +233,39 @@ mod tests {
     #[cfg(not(feature = "nets"))]
     #[test]
     fn without_the_feature_learned_methods_say_how_to_rebuild() {
-        let e = check_weights(&learned("mst-s")).unwrap_err().to_string();
+        let e = learned("mst-s").load().unwrap_err().to_string();
         assert!(e.contains("--features nets"), "{e}");
+    }
+
+    /// A study runs only loaded methods: the load that checked the weights
+    /// is the one every reconstruction uses.
+    #[test]
+    fn a_method_that_was_not_loaded_does_not_run() {
+        let (y, mask) = (Measurement::zeros(8, 16), Mask::zeros(8, 8));
+        let nominal = Mismatch::nominal(TRAINED_STRIDE);
+        let e = reconstruct(
+            &learned("pnp-hsicnn"),
+            &y,
+            &mask,
+            4,
+            &nominal,
+            DispersionModel::Rounded,
+        )
+        .unwrap_err()
+        .to_string();
+        let expected = if cfg!(feature = "nets") {
+            "not loaded"
+        } else {
+            "--features nets"
+        };
+        assert!(e.contains(expected), "{e}");
+    }
+
+    /// The study shares its models by reference (`Arc`), across threads too.
+    #[test]
+    fn models_and_studies_can_be_shared_across_threads() {
+        fn shareable<T: Send + Sync>() {}
+        shareable::<LearnedModel>();
+        shareable::<crate::protocol::Study>();
     }
 }

@@ -1,11 +1,14 @@
 //! A method of a study: an iterative solver of cassi-core, or a learned
 //! method (pretrained network, or PnP with a learned denoiser) with its
-//! weights file.
+//! weights file and, once loaded, its model.
 
 use std::path::PathBuf;
+use std::sync::Arc;
 
 use cassi_core::recon::Method;
 use serde::{Deserialize, Serialize};
+
+use crate::learned::LearnedModel;
 
 /// Serialised untagged: a solver is written exactly as before learned
 /// methods existed (so earlier study records still resume), a learned
@@ -17,8 +20,10 @@ pub enum StudyMethod {
     Learned(LearnedMethod),
 }
 
-/// A learned method and the weights it runs with.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+/// A learned method and the weights it runs with. A study runs it only
+/// once [`load`](Self::load)ed: the model is kept here, and the study's
+/// clones (the sweeps') share it.
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct LearnedMethod {
     /// One of [`crate::weights::LEARNED_METHOD_NAMES`].
     pub method: String,
@@ -27,6 +32,50 @@ pub struct LearnedMethod {
     /// PnP-HSICNN only: an iteration count other than the paper's 124.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub iterations: Option<usize>,
+    /// The weights, loaded; not part of a record (one read back has none).
+    #[serde(skip)]
+    loaded: Option<Arc<LearnedModel>>,
+}
+
+impl LearnedMethod {
+    /// `method` with `weights`, not loaded yet.
+    pub fn new(
+        method: impl Into<String>,
+        weights: impl Into<PathBuf>,
+        iterations: Option<usize>,
+    ) -> Self {
+        Self {
+            method: method.into(),
+            weights: weights.into(),
+            iterations,
+            loaded: None,
+        }
+    }
+
+    /// This method with its weights loaded, strictly, so a wrong or
+    /// mismatched file is an error before a study starts; every
+    /// reconstruction of the study then runs with this one model.
+    pub fn load(self) -> anyhow::Result<Self> {
+        let model = LearnedModel::load(&self)?;
+        Ok(Self {
+            loaded: Some(Arc::new(model)),
+            ..self
+        })
+    }
+
+    /// The model [`load`](Self::load) made, if it ran.
+    pub fn model(&self) -> Option<&LearnedModel> {
+        self.loaded.as_deref()
+    }
+}
+
+/// The same method, weights file and iterations, loaded or not (a record
+/// read back equals the study that wrote it).
+impl PartialEq for LearnedMethod {
+    fn eq(&self, other: &Self) -> bool {
+        (&self.method, &self.weights, self.iterations)
+            == (&other.method, &other.weights, other.iterations)
+    }
 }
 
 impl StudyMethod {
@@ -58,11 +107,7 @@ mod tests {
             serde_json::to_value(&solver).unwrap(),
             serde_json::to_value(gap).unwrap()
         );
-        let learned = StudyMethod::Learned(LearnedMethod {
-            method: "mst-s".into(),
-            weights: "w/mst_s.pth".into(),
-            iterations: None,
-        });
+        let learned = StudyMethod::Learned(LearnedMethod::new("mst-s", "w/mst_s.pth", None));
         let v = serde_json::to_value(&learned).unwrap();
         assert_eq!(
             v,

@@ -8,7 +8,7 @@ use cassi_core::optics::NoiseModel;
 use cassi_core::recon::{METHOD_NAMES, Method};
 use cassi_core::synth::random_binary_mask;
 use cassi_core::{Instrument, Mismatch};
-use cassi_eval::learned::{check_shape, check_stride, check_weights};
+use cassi_eval::learned::{check_shape, check_stride};
 use cassi_eval::method::{LearnedMethod, StudyMethod};
 use cassi_eval::protocol::Study;
 use cassi_eval::report::{Setup, Sweeps, write_all};
@@ -100,7 +100,7 @@ pub struct EvalArgs {
 }
 
 /// The study's methods: solvers by name, learned methods with their
-/// weights (checked to load before any scene runs).
+/// weights, loaded here, once, before any scene runs (the study reuses them).
 fn study_methods(args: &EvalArgs) -> anyhow::Result<Vec<StudyMethod>> {
     let names: Vec<String> = args.methods.iter().map(|m| m.trim().to_string()).collect();
     let given = parse_weight_flags(&args.weights, &names)?;
@@ -124,14 +124,10 @@ fn study_methods(args: &EvalArgs) -> anyhow::Result<Vec<StudyMethod>> {
                 );
             }
             let weights = resolve_weights(name, &given, args.weights_dir.as_deref())?;
-            let learned = LearnedMethod {
-                method: name.clone(),
-                weights,
-                iterations: args.iterations.filter(|_| name == "pnp-hsicnn"),
-            };
+            let iterations = args.iterations.filter(|_| name == "pnp-hsicnn");
+            let learned = LearnedMethod::new(name, weights, iterations);
             check_stride(&learned, args.stride)?;
-            check_weights(&learned)?;
-            Ok(StudyMethod::Learned(learned))
+            Ok(StudyMethod::Learned(learned.load()?))
         })
         .collect()
 }
