@@ -129,12 +129,14 @@ fn run_networks(data: &Path, wanted: &dyn Fn(&str) -> bool) -> Vec<serde_json::V
     let mut baseline = reset_peak_rss();
     let mut record = |name: &str, input: String, (med, runs): (f64, Vec<f64>)| {
         let peak = memory_mib("VmHWM");
+        let cached = cassi_nets::cached_buffer_bytes() as f64 / (1 << 20) as f64;
         eprintln!(
-            "{name}: median {med:.3} s over {RUNS} runs {runs:.3?}; peak RSS {peak:?} MiB (at start {baseline:?})"
+            "{name}: median {med:.3} s over {RUNS} runs {runs:.3?}; peak RSS {peak:?} MiB (at start {baseline:?}; feature-map buffers kept for reuse {cached:.0} MiB)"
         );
         rows.push(serde_json::json!({
             "network": name, "input": input, "median_s": med, "runs_s": runs,
             "peak_rss_mib": peak, "rss_at_start_mib": baseline,
+            "reuse_pool_mib_after": cached,
         }));
         baseline = reset_peak_rss();
     };

@@ -32,18 +32,22 @@ impl Denoiser for HsiSdecnnDenoiser {
             return;
         }
         let plane = h * w;
-        let denoised: Vec<Vec<f32>> = (0..bands)
+        // Pooled storage for the stacks and outputs (see `buffer_pool`).
+        let denoised: Vec<FeatureMap> = (0..bands)
             .map(|b| {
-                let mut stack = Vec::with_capacity(7 * plane);
-                for k in Self::stack_bands(b, bands) {
-                    stack.extend_from_slice(cube.band(k));
+                let mut stack = FeatureMap::for_overwrite(HsiSdecnn::IN_BANDS, h, w);
+                for (dst, k) in stack
+                    .data
+                    .chunks_mut(plane)
+                    .zip(Self::stack_bands(b, bands))
+                {
+                    dst.copy_from_slice(cube.band(k));
                 }
-                let stack = FeatureMap::from_vec(HsiSdecnn::IN_BANDS, h, w, stack);
-                self.net.denoise_stack(&stack, strength).into_data()
+                self.net.denoise_stack(&stack, strength)
             })
             .collect();
-        for (b, band) in denoised.into_iter().enumerate() {
-            cube.band_mut(b).copy_from_slice(&band);
+        for (b, band) in denoised.iter().enumerate() {
+            cube.band_mut(b).copy_from_slice(&band.data);
         }
     }
 

@@ -4,12 +4,20 @@
 
 use crate::buffer_pool;
 
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, PartialEq)]
 pub struct FeatureMap {
     pub c: usize,
     pub h: usize,
     pub w: usize,
     pub data: Vec<f32>,
+}
+
+/// Copies into pooled storage (a plain `Vec` clone would add a fresh
+/// allocation to the pool at every drop, growing it to its bound).
+impl Clone for FeatureMap {
+    fn clone(&self) -> Self {
+        Self::from_slice(self.c, self.h, self.w, &self.data)
+    }
 }
 
 impl Drop for FeatureMap {
@@ -34,6 +42,12 @@ impl FeatureMap {
             data.fill(f32::NAN);
         }
         Self { c, h, w, data }
+    }
+    /// A copy of `data` (c·h·w floats) in pooled storage.
+    pub fn from_slice(c: usize, h: usize, w: usize, data: &[f32]) -> Self {
+        let mut map = Self::for_overwrite(c, h, w);
+        map.data.copy_from_slice(data);
+        map
     }
     /// The storage, kept out of the pool.
     pub fn into_data(mut self) -> Vec<f32> {

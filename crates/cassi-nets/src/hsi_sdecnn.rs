@@ -79,10 +79,10 @@ impl HsiSdecnn {
         assert_eq!(stack.c, Self::IN_BANDS, "HSI-SDeCNN band stack");
         let padded = replicate_pad_to_even(stack);
         let u = pixel_unshuffle2(&padded);
-        let (c, h, w) = (u.c, u.h, u.w);
-        let mut data = u.into_data();
-        data.resize(data.len() + h * w, sigma);
-        let mut f = FeatureMap::from_vec(c + 1, h, w, data);
+        let mut f = FeatureMap::for_overwrite(u.c + 1, u.h, u.w);
+        let (image, sigma_map) = f.data.split_at_mut(u.data.len());
+        image.copy_from_slice(&u.data);
+        sigma_map.fill(sigma);
         for (i, conv) in self.convs.iter().enumerate() {
             f = conv.forward(&f);
             if i + 1 < self.convs.len() {

@@ -73,17 +73,12 @@ impl Eff {
     }
 
     pub fn forward(&self, x: &FeatureMap) -> FeatureMap {
-        let n = x.plane();
-        let mut data = Vec::with_capacity(x.data.len());
+        let len = GROUP * x.plane();
+        let mut out = FeatureMap::for_overwrite(x.c, x.h, x.w);
         for (i, dsc) in self.groups.iter().enumerate() {
-            let z = FeatureMap::from_vec(
-                GROUP,
-                x.h,
-                x.w,
-                x.data[i * GROUP * n..(i + 1) * GROUP * n].to_vec(),
-            );
-            data.extend_from_slice(&dsc.forward(&z).data);
+            let z = FeatureMap::from_slice(GROUP, x.h, x.w, &x.data[i * len..(i + 1) * len]);
+            out.data[i * len..(i + 1) * len].copy_from_slice(&dsc.forward(&z).data);
         }
-        FeatureMap::from_vec(x.c, x.h, x.w, data)
+        out
     }
 }

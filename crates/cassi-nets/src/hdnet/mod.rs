@@ -106,7 +106,7 @@ impl HdNet {
         let len = c * h * w;
         let mut out = Vec::with_capacity(x.numel());
         for i in 0..b {
-            let xi = FeatureMap::from_vec(c, h, w, x.data()[i * len..(i + 1) * len].to_vec());
+            let xi = FeatureMap::from_slice(c, h, w, &x.data()[i * len..(i + 1) * len]);
             out.extend_from_slice(&self.forward_sample(&xi).data);
         }
         Tensor::new(x.shape().to_vec(), out)

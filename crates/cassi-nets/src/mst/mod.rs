@@ -286,5 +286,5 @@ fn batch_of_one(f: FeatureMap) -> Tensor {
 fn sample(t: &Tensor, i: usize) -> FeatureMap {
     let s = t.shape();
     let len = s[1] * s[2] * s[3];
-    FeatureMap::from_vec(s[1], s[2], s[3], t.data()[i * len..(i + 1) * len].to_vec())
+    FeatureMap::from_slice(s[1], s[2], s[3], &t.data()[i * len..(i + 1) * len])
 }
