@@ -44,7 +44,7 @@ fn gelu_chunk(x: &mut [f32]) {
 /// GELU over a slice, in this thread: eight lanes at a time with FMA where
 /// the CPU has AVX2 + FMA (half the instructions of the plain mul/add
 /// form; MST evaluates ~10⁸ GELUs per pass), else [`gelu_value`]. The two
-/// differ by rounding only (≤ 2 ulp, tested).
+/// differ by rounding only (tested within erf's 4.4e-7 accuracy).
 pub(crate) fn gelu_slice(x: &mut [f32]) {
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma") {
@@ -55,7 +55,8 @@ pub(crate) fn gelu_slice(x: &mut [f32]) {
     x.iter_mut().for_each(|v| *v = gelu_value(*v));
 }
 
-/// [`gelu_value`]'s formula (same erf coefficients) with fused multiply-adds.
+/// [`gelu_value`]'s formula (same erf coefficients) with fused multiply-adds
+/// and a Newton-refined reciprocal for erf's quotient.
 ///
 /// # Safety
 /// The CPU must have AVX2 and FMA.
@@ -83,7 +84,11 @@ unsafe fn gelu_slice_fma(x: &mut [f32]) {
         q = _mm256_fmadd_ps(z2, q, c(-1.682_827e-3));
         q = _mm256_fmadd_ps(z2, q, c(-7.373_329_2e-3));
         q = _mm256_fmadd_ps(z2, q, c(-1.426_473_9e-2));
-        let erf = _mm256_div_ps(p, q);
+        // p / q by a reciprocal estimate and one Newton step (≈ 23 bits;
+        // the division's throughput was half of this loop's time).
+        let r = _mm256_rcp_ps(q);
+        let r = _mm256_mul_ps(r, _mm256_fnmadd_ps(q, r, c(2.0)));
+        let erf = _mm256_mul_ps(p, r);
         // |z| ≥ 3.92: erf is ±1 in f32 (see `erf`).
         let sign = _mm256_and_ps(z, c(-0.0));
         let unit = _mm256_or_ps(sign, c(1.0));
