@@ -89,60 +89,18 @@ impl WinogradWeights {
         let (h, w) = (x.h, x.w);
         let tiles = (ty1 - ty0) * tw;
         let (ci, co) = (self.in_ch, self.out_ch);
-        // A padded input row holds columns −1 … 2·tw (zero outside the image).
-        let wp = 2 * tw + 2;
         let mut scratch = take_scratch();
         let (v, m) = scratch.split(16 * ci * tiles, 16 * co * tiles);
-        let mut d = vec![0.0f32; 4 * wp];
-        let mut r = vec![0.0f32; 4 * wp];
+        // Scratch of the transforms (see `input_tile_row`).
+        let te = tw + 1;
+        let mut d = vec![0.0f32; 8 * te];
+        let mut r = vec![0.0f32; 8 * te];
         for i in 0..ci {
             let plane = x.channel(i);
             for ty in ty0..ty1 {
-                for a in 0..4 {
-                    let row = &mut d[a * wp..(a + 1) * wp];
-                    row.fill(0.0);
-                    let y = (2 * ty + a) as isize - 1;
-                    if y >= 0 && (y as usize) < h {
-                        row[1..1 + w].copy_from_slice(&plane[y as usize * w..][..w]);
-                    }
-                }
-                // Bᵀ d over rows, Bᵀ = [1 0 −1 0; 0 1 1 0; 0 −1 1 0; 0 1 0 −1].
-                {
-                    let (d0, rest) = d.split_at(wp);
-                    let (d1, rest) = rest.split_at(wp);
-                    let (d2, d3) = rest.split_at(wp);
-                    let (r0, rest) = r.split_at_mut(wp);
-                    let (r1, rest) = rest.split_at_mut(wp);
-                    let (r2, r3) = rest.split_at_mut(wp);
-                    for j in 0..wp {
-                        r0[j] = d0[j] - d2[j];
-                        r1[j] = d1[j] + d2[j];
-                        r2[j] = d2[j] - d1[j];
-                        r3[j] = d1[j] - d3[j];
-                    }
-                }
-                // (·) B over the columns of each tile.
+                // V[ξ][i][t0 .. t0 + tw] for the 16 ξ of this tile row.
                 let t0 = (ty - ty0) * tw;
-                for a in 0..4 {
-                    let ra = &r[a * wp..(a + 1) * wp];
-                    let slab = |b: usize| ((4 * a + b) * ci + i) * tiles + t0;
-                    let dst = &mut v[slab(0)..][..tw];
-                    for (tx, o) in dst.iter_mut().enumerate() {
-                        *o = ra[2 * tx] - ra[2 * tx + 2];
-                    }
-                    let dst = &mut v[slab(1)..][..tw];
-                    for (tx, o) in dst.iter_mut().enumerate() {
-                        *o = ra[2 * tx + 1] + ra[2 * tx + 2];
-                    }
-                    let dst = &mut v[slab(2)..][..tw];
-                    for (tx, o) in dst.iter_mut().enumerate() {
-                        *o = ra[2 * tx + 2] - ra[2 * tx + 1];
-                    }
-                    let dst = &mut v[slab(3)..][..tw];
-                    for (tx, o) in dst.iter_mut().enumerate() {
-                        *o = ra[2 * tx + 1] - ra[2 * tx + 3];
-                    }
-                }
+                input_tile_row(plane, w, ty, &mut d, &mut r, v, i * tiles + t0, ci * tiles);
             }
         }
         for (xi, u) in self.u.iter().enumerate() {
@@ -154,45 +112,154 @@ impl WinogradWeights {
                 &mut m[xi * co * tiles..][..co * tiles],
             );
         }
-        // Aᵀ M A with Aᵀ = [1 1 1 0; 0 1 −1 −1]: first over rows (s), then columns.
         let mut s = vec![0.0f32; 8 * tw];
+        let mut pixels = vec![0.0f32; 2 * tw];
         for o in 0..co {
             for ty in ty0..ty1 {
                 let t0 = (ty - ty0) * tw;
-                let mm = |a: usize, b: usize| &m[((4 * a + b) * co + o) * tiles + t0..][..tw];
-                for b in 0..4 {
-                    let (m0, m1, m2, m3) = (mm(0, b), mm(1, b), mm(2, b), mm(3, b));
-                    let (s0, s1) = s.split_at_mut(4 * tw);
-                    let (s0, s1) = (&mut s0[b * tw..][..tw], &mut s1[b * tw..][..tw]);
-                    for t in 0..tw {
-                        s0[t] = m0[t] + m1[t] + m2[t];
-                        s1[t] = m1[t] - m2[t] - m3[t];
-                    }
-                }
-                for dy in 0..2 {
-                    let row = 2 * ty + dy;
-                    if row >= h {
-                        continue;
-                    }
-                    let sr = &s[dy * 4 * tw..(dy + 1) * 4 * tw];
-                    let (c0, c1, c2, c3) = (
-                        &sr[..tw],
-                        &sr[tw..2 * tw],
-                        &sr[2 * tw..3 * tw],
-                        &sr[3 * tw..],
-                    );
-                    // SAFETY: output row `row` of channel `o` is in this block's rows.
-                    let dst = unsafe { out.slice_mut((o * h + row) * w, w) };
-                    for tx in 0..tw {
-                        dst[2 * tx] = c0[tx] + c1[tx] + c2[tx];
-                        if 2 * tx + 1 < w {
-                            dst[2 * tx + 1] = c1[tx] - c2[tx] - c3[tx];
-                        }
-                    }
-                }
+                // SAFETY: output rows 2·ty, 2·ty + 1 of channel `o` are in this
+                // block's rows (the second only if inside the image).
+                let row0 = unsafe { out.slice_mut((o * h + 2 * ty) * w, w) };
+                let row1 =
+                    (2 * ty + 1 < h).then(|| unsafe { out.slice_mut((o * h + 2 * ty + 1) * w, w) });
+                output_tile_row(
+                    m,
+                    o * tiles + t0,
+                    co * tiles,
+                    &mut s,
+                    &mut pixels,
+                    row0,
+                    row1,
+                );
             }
         }
         return_scratch(scratch);
+    }
+}
+
+super::simd::avx2_dispatch! {
+    /// The input transform of one channel's tile row `ty`: Bᵀ d B of each
+    /// 4×4 patch (rows 2·ty − 1 … 2·ty + 2, zero outside the image), element
+    /// ξ of tile t written to v[base + ξ·stride + t]. `d` and `r` are
+    /// scratch of 8·(tw + 1) floats, tw = ⌈w/2⌉.
+    #[allow(clippy::too_many_arguments)]
+    fn input_tile_row(
+        plane: &[f32],
+        w: usize,
+        ty: usize,
+        d: &mut [f32],
+        r: &mut [f32],
+        v: &mut [f32],
+        base: usize,
+        stride: usize,
+    ) {
+        let h = plane.len() / w;
+        let tw = w.div_ceil(2);
+        let te = tw + 1;
+        // Each input row, padded (column −1 … 2·tw) and split into even and
+        // odd padded columns, e[t] = x[2t − 1], o[t] = x[2t]: every
+        // transform below is then a contiguous loop.
+        for a in 0..4 {
+            let (e, o) = d[2 * a * te..(2 * a + 2) * te].split_at_mut(te);
+            e.fill(0.0);
+            o.fill(0.0);
+            let y = (2 * ty + a) as isize - 1;
+            if y >= 0 && (y as usize) < h {
+                let row = &plane[y as usize * w..][..w];
+                for (t, pair) in row.chunks_exact(2).enumerate() {
+                    o[t] = pair[0];
+                    e[t + 1] = pair[1];
+                }
+                if w % 2 == 1 {
+                    o[w / 2] = row[w - 1];
+                }
+            }
+        }
+        // Bᵀ d over rows, Bᵀ = [1 0 −1 0; 0 1 1 0; 0 −1 1 0; 0 1 0 −1], on
+        // the even and odd halves alike.
+        let n = 2 * te;
+        let (d0, rest) = d.split_at(n);
+        let (d1, rest) = rest.split_at(n);
+        let (d2, d3) = rest.split_at(n);
+        let (r0, rest) = r.split_at_mut(n);
+        let (r1, rest) = rest.split_at_mut(n);
+        let (r2, r3) = rest.split_at_mut(n);
+        for j in 0..n {
+            r0[j] = d0[j] - d2[j];
+            r1[j] = d1[j] + d2[j];
+            r2[j] = d2[j] - d1[j];
+            r3[j] = d1[j] - d3[j];
+        }
+        // (·) B over each tile's columns; with P the padded row: P[2t] −
+        // P[2t+2], P[2t+1] + P[2t+2], P[2t+2] − P[2t+1], P[2t+1] − P[2t+3].
+        for a in 0..4 {
+            let (e, o) = r[2 * a * te..(2 * a + 2) * te].split_at(te);
+            let (e0, e1, o0, o1) = (&e[..tw], &e[1..], &o[..tw], &o[1..]);
+            let slab = |b: usize| base + (4 * a + b) * stride;
+            let dst = &mut v[slab(0)..][..tw];
+            for t in 0..tw {
+                dst[t] = e0[t] - e1[t];
+            }
+            let dst = &mut v[slab(1)..][..tw];
+            for t in 0..tw {
+                dst[t] = o0[t] + e1[t];
+            }
+            let dst = &mut v[slab(2)..][..tw];
+            for t in 0..tw {
+                dst[t] = e1[t] - o0[t];
+            }
+            let dst = &mut v[slab(3)..][..tw];
+            for t in 0..tw {
+                dst[t] = o0[t] - o1[t];
+            }
+        }
+    }
+}
+
+super::simd::avx2_dispatch! {
+    /// The output transform of one output channel's tile row: Aᵀ M A,
+    /// Aᵀ = [1 1 1 0; 0 1 −1 −1], with element ξ of tile t at
+    /// m[base + ξ·stride + t]; writes output row 2·ty (`row0`) and, inside
+    /// the image, 2·ty + 1 (`row1`). `s` (8·tw) and `pixels` (2·tw) are scratch.
+    #[allow(clippy::too_many_arguments)]
+    fn output_tile_row(
+        m: &[f32],
+        base: usize,
+        stride: usize,
+        s: &mut [f32],
+        pixels: &mut [f32],
+        row0: &mut [f32],
+        row1: Option<&mut [f32]>,
+    ) {
+        let w = row0.len();
+        let tw = w.div_ceil(2);
+        let mm = |a: usize, b: usize| &m[base + (4 * a + b) * stride..][..tw];
+        // Over rows first (s), then columns into even and odd pixels.
+        for b in 0..4 {
+            let (m0, m1, m2, m3) = (mm(0, b), mm(1, b), mm(2, b), mm(3, b));
+            let (s0, s1) = s.split_at_mut(4 * tw);
+            let (s0, s1) = (&mut s0[b * tw..][..tw], &mut s1[b * tw..][..tw]);
+            for t in 0..tw {
+                s0[t] = m0[t] + m1[t] + m2[t];
+                s1[t] = m1[t] - m2[t] - m3[t];
+            }
+        }
+        for (dy, dst) in std::iter::once(row0).chain(row1).enumerate() {
+            let sr = &s[dy * 4 * tw..(dy + 1) * 4 * tw];
+            let (c0, c1, c2, c3) = (&sr[..tw], &sr[tw..2 * tw], &sr[2 * tw..3 * tw], &sr[3 * tw..]);
+            let (even, odd) = pixels.split_at_mut(tw);
+            for t in 0..tw {
+                even[t] = c0[t] + c1[t] + c2[t];
+                odd[t] = c1[t] - c2[t] - c3[t];
+            }
+            for (t, pair) in dst.chunks_exact_mut(2).enumerate() {
+                pair[0] = even[t];
+                pair[1] = odd[t];
+            }
+            if w % 2 == 1 {
+                dst[w - 1] = even[w / 2];
+            }
+        }
     }
 }
 
