@@ -4,7 +4,7 @@
 
 use crate::checkpoint::WeightLoader;
 use crate::fmap::FeatureMap;
-use crate::ops::activation::sigmoid;
+use crate::ops::activation::sigmoid_gate_in_place;
 use crate::ops::conv::Conv2d;
 use crate::ops::depthwise::DepthwiseConv2d;
 
@@ -28,9 +28,7 @@ impl MaskGuide {
     pub fn forward(&self, mask: &FeatureMap) -> FeatureMap {
         let m1 = self.conv1.forward(mask);
         let mut a = self.depth_conv.forward(&self.conv2.forward(&m1));
-        for (av, m) in a.data.iter_mut().zip(&m1.data) {
-            *av = m * sigmoid(*av) + m;
-        }
+        sigmoid_gate_in_place(&mut a.data, &m1.data);
         shift_back(&a)
     }
 }

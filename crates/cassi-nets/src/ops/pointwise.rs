@@ -9,7 +9,9 @@
 
 use rayon::prelude::*;
 
-use super::activation::{gelu_slice, gelu_value};
+#[cfg(target_arch = "x86_64")]
+use super::activation::gelu_m256;
+use super::activation::gelu_value;
 use super::matmul::{Mat, SharedOut, matmul, matmul_into};
 
 /// Output channels per register block.
@@ -158,8 +160,8 @@ impl MixWeights {
         }
     }
 
-    /// Pixels p0..p1 of every output row, in blocks whose input columns
-    /// (in_ch × block) stay in L1 while each group of OB outputs reads them.
+    /// Pixels p0..p1 of every output row, in blocks whose packed input
+    /// columns (in_ch × block) and outputs (out_ch × block) stay in L2.
     ///
     /// # Safety
     /// The CPU must have AVX2 and FMA; no other thread may write these
@@ -178,9 +180,9 @@ impl MixWeights {
         out: SharedOut,
     ) {
         let (ci, co) = (self.in_ch, self.out_ch);
-        // Input columns per block: the packed block (ci × block floats)
-        // stays in L2 while each group of OB outputs streams through it.
-        let block = ((32768 / ci.max(1)) / PB * PB).max(PB);
+        // Pixels per block: (ci + co) × block floats ≈ 256 KiB, half of L2.
+        let block = ((65536 / (ci + co)) / PB * PB).max(PB);
+        let gelu = act == Activation::Gelu;
         let mut packed = PACKED_INPUT.with(|c| c.take());
         let mut b0 = p0;
         while b0 < p1 {
@@ -203,7 +205,7 @@ impl MixWeights {
                     let xs = &packed[s * ci * PB..(s + 1) * ci * PB];
                     // SAFETY: output rows g·OB .. g·OB + outs exist; the
                     // pixels b0 + s·PB .. + PB are this task's.
-                    unsafe { block_6x16(w, xs, ci, b0 + s * PB, n, g * OB, outs, bias, out) };
+                    unsafe { block_6x16(w, xs, ci, b0 + s * PB, n, g * OB, outs, bias, gelu, out) };
                 }
                 for q in b0 + strips * PB..b1 {
                     for j in 0..outs {
@@ -213,17 +215,7 @@ impl MixWeights {
                             acc += w[c * OB + j] * x[c * n + q];
                         }
                         // SAFETY: pixel q of row o is this task's.
-                        unsafe { out.slice_mut(o * n + q, 1)[0] = acc };
-                    }
-                }
-            }
-            if act != Activation::Identity {
-                for o in 0..co {
-                    // SAFETY: this task's pixels of row o.
-                    let row = unsafe { out.slice_mut(o * n + b0, b1 - b0) };
-                    match act {
-                        Activation::Identity => {}
-                        Activation::Gelu => gelu_slice(row),
+                        unsafe { out.slice_mut(o * n + q, 1)[0] = finish(acc, act) };
                     }
                 }
             }
@@ -253,8 +245,9 @@ fn finish(v: f32, act: Activation) -> f32 {
 }
 
 /// out[o0 + j, p .. p + 16] = bias + Σ_c w[c·OB + j] · xs[c·16 .. c·16 + 16]
-/// for j < outs, with 12 accumulators (6 outputs × 2 vectors); `xs` is one
-/// packed strip (ci × 16), `out` has rows n apart.
+/// for j < outs, with 12 accumulators (6 outputs × 2 vectors), GELU'd in
+/// registers if `gelu`; `xs` is one packed strip (ci × 16), `out` has rows
+/// n apart.
 ///
 /// # Safety
 /// AVX2 + FMA; `p + 16 ≤ n`; rows o0 .. o0 + outs of `out` exist and no
@@ -271,6 +264,7 @@ unsafe fn block_6x16(
     o0: usize,
     outs: usize,
     bias: Option<&[f32]>,
+    gelu: bool,
     out: SharedOut,
 ) {
     use std::arch::x86_64::*;
@@ -294,6 +288,11 @@ unsafe fn block_6x16(
                 a[0] = _mm256_fmadd_ps(wv, xa, a[0]);
                 a[1] = _mm256_fmadd_ps(wv, xb, a[1]);
             }
+        }
+    }
+    if gelu {
+        for a in acc.iter_mut().take(outs) {
+            *a = [gelu_m256(a[0]), gelu_m256(a[1])];
         }
     }
     for (j, a) in acc.iter().enumerate().take(outs) {
