@@ -4,6 +4,10 @@
 
 use crate::buffer_pool;
 
+/// Elements per parallel task of element-wise operations: big enough that
+/// rayon's overhead vanishes, small enough to share work on 2 cores.
+pub(crate) const ELEMENTWISE_CHUNK: usize = 1 << 15;
+
 #[derive(Debug, PartialEq)]
 pub struct FeatureMap {
     pub c: usize,
@@ -65,13 +69,28 @@ impl FeatureMap {
     pub fn channel(&self, c: usize) -> &[f32] {
         &self.data[c * self.plane()..(c + 1) * self.plane()]
     }
-    /// `self += other`, element-wise (same shape).
+    /// `self += other`, element-wise (same shape), in parallel chunks.
     pub fn add_assign(&mut self, other: &FeatureMap) {
+        use rayon::prelude::*;
         assert_eq!(self.data.len(), other.data.len(), "feature map sizes");
-        self.data
-            .iter_mut()
-            .zip(&other.data)
-            .for_each(|(a, b)| *a += b);
+        (self.data.par_chunks_mut(ELEMENTWISE_CHUNK))
+            .zip(other.data.par_chunks(ELEMENTWISE_CHUNK))
+            .for_each(|(a, b)| a.iter_mut().zip(b).for_each(|(a, b)| *a += b));
+    }
+    /// `self ⊙ other`, element-wise (same shape), in parallel chunks.
+    pub fn product(&self, other: &FeatureMap) -> FeatureMap {
+        use rayon::prelude::*;
+        assert_eq!(self.data.len(), other.data.len(), "feature map sizes");
+        let mut out = FeatureMap::for_overwrite(self.c, self.h, self.w);
+        (out.data.par_chunks_mut(ELEMENTWISE_CHUNK))
+            .zip(self.data.par_chunks(ELEMENTWISE_CHUNK))
+            .zip(other.data.par_chunks(ELEMENTWISE_CHUNK))
+            .for_each(|((o, a), b)| {
+                for ((o, a), b) in o.iter_mut().zip(a).zip(b) {
+                    *o = a * b;
+                }
+            });
+        out
     }
     /// Channels `self` then `other` (same rows and cols).
     pub fn concat_channels(&self, other: &FeatureMap) -> FeatureMap {

@@ -47,10 +47,7 @@ impl MsMsa {
         let mut q = self.to_q.forward(x);
         let mut k = self.to_k.forward(x);
         let v_in = self.to_v.forward(x);
-        let mut v = FeatureMap::for_overwrite(x.c, x.h, x.w);
-        for ((o, a), b) in v.data.iter_mut().zip(&v_in.data).zip(&emb.data) {
-            *o = a * b;
-        }
+        let v = v_in.product(emb);
         normalize_rows(&mut q.data, n);
         normalize_rows(&mut k.data, n);
 

@@ -2,9 +2,7 @@
 
 use rayon::prelude::*;
 
-/// Elements per parallel chunk of element-wise maps: big enough that rayon's
-/// overhead vanishes, small enough to share work on 2 cores.
-const CHUNK: usize = 1 << 15;
+use crate::fmap::ELEMENTWISE_CHUNK as CHUNK;
 
 /// erf(x) in f32 by a rational minimax approximation (plain mul/add: `mul_add`
 /// is a libm call unless the build targets FMA) on [−4, 4] (outside,
