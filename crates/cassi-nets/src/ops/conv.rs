@@ -293,6 +293,21 @@ pub(crate) mod tests {
         out
     }
 
+    /// The largest |got − want|, infinite where `got` is NaN (an element an
+    /// op left unwritten, see `FeatureMap::for_overwrite`).
+    pub fn max_abs_err(got: &[f32], want: &[f32]) -> f32 {
+        assert_eq!(got.len(), want.len(), "lengths");
+        (got.iter().zip(want))
+            .map(|(a, b)| {
+                if a.is_nan() {
+                    f32::INFINITY
+                } else {
+                    (a - b).abs()
+                }
+            })
+            .fold(0.0, f32::max)
+    }
+
     pub fn pseudo_random(n: usize, seed: u32) -> Vec<f32> {
         let mut s = seed.wrapping_mul(2654435761).wrapping_add(1);
         (0..n)
@@ -337,15 +352,7 @@ pub(crate) mod tests {
                     (conv.forward_gelu(&x), &gelu_want),
                 ] {
                     assert_eq!((got.h, got.w), (want.h, want.w));
-                    let err = (got.data.iter().zip(&want.data))
-                        .map(|(a, b)| {
-                            if a.is_nan() {
-                                f32::INFINITY
-                            } else {
-                                (a - b).abs()
-                            }
-                        })
-                        .fold(0.0, f32::max);
+                    let err = max_abs_err(&got.data, &want.data);
                     assert!(err < 1e-5, "{path} k{k} s{stride} p{pad}: {err}");
                 }
             };

@@ -308,7 +308,7 @@ unsafe fn block_6x16(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::ops::conv::tests::pseudo_random;
+    use crate::ops::conv::tests::{max_abs_err, pseudo_random};
 
     fn naive(
         w: &[f32],
@@ -368,15 +368,7 @@ mod tests {
                     ("serial", &serial),
                     ("portable serial", &portable_serial),
                 ] {
-                    let err = (g.iter().zip(&want))
-                        .map(|(a, b)| {
-                            if a.is_nan() {
-                                f32::INFINITY
-                            } else {
-                                (a - b).abs()
-                            }
-                        })
-                        .fold(0.0, f32::max);
+                    let err = max_abs_err(g, &want);
                     assert!(err < 1e-5, "{name} {co}×{ci}×{n} {act:?}: {err}");
                 }
             }
