@@ -32,11 +32,7 @@ pub(crate) fn erf(x: f32) -> f32 {
 
 /// Exact (erf) GELU, PyTorch's default: 0.5·x·(1 + erf(x/√2)).
 pub(crate) fn gelu_in_place(x: &mut [f32]) {
-    x.par_chunks_mut(CHUNK).for_each(gelu_chunk);
-}
-
-fn gelu_chunk(x: &mut [f32]) {
-    gelu_slice(x)
+    x.par_chunks_mut(CHUNK).for_each(gelu_slice);
 }
 
 /// GELU over a slice, in this thread: eight lanes at a time with FMA where
@@ -128,19 +124,14 @@ pub(crate) fn leaky_relu_in_place(x: &mut [f32], slope: f32) {
     });
 }
 
-#[inline]
-pub(crate) fn sigmoid(x: f32) -> f32 {
-    1.0 / (1.0 + (-x).exp())
-}
-
-/// [`sigmoid`] with [`exp_poly`]: plain arithmetic, so a loop over it
-/// vectorises (libm's expf is a call per element).
+/// Logistic sigmoid through [`exp_poly`] (so loops over it vectorise).
 #[inline(always)]
-pub(crate) fn sigmoid_poly(x: f32) -> f32 {
+pub(crate) fn sigmoid(x: f32) -> f32 {
     1.0 / (1.0 + exp_poly(-x))
 }
 
-/// eˣ in f32 from multiply/add and exponent bits only (vectorisable):
+/// eˣ in f32 from multiply/add and exponent bits only (vectorisable;
+/// libm's expf is a call per element):
 /// x = n·ln 2 + r with |r| ≤ ln 2 / 2 (Cody–Waite split of ln 2), e^r by
 /// its degree-6 Taylor polynomial, times 2ⁿ. Relative error ≤ 2.5e-7
 /// (tested); saturates to 0 below −87.3 and to f32::MAX·… above 88.7.
@@ -171,7 +162,7 @@ pub(crate) fn sigmoid_gate_in_place(a: &mut [f32], m: &[f32]) {
 super::simd::avx2_dispatch! {
     fn sigmoid_gate_chunk(a: &mut [f32], m: &[f32]) {
         for (av, &mv) in a.iter_mut().zip(m) {
-            *av = mv * sigmoid_poly(*av) + mv;
+            *av = mv * sigmoid(*av) + mv;
         }
     }
 }
@@ -217,7 +208,7 @@ mod tests {
         assert!(worst < 2.5e-7, "exp relative error {worst}");
         for x in [-200.0f32, -30.0, -1.0, 0.0, 0.5, 30.0, 200.0] {
             let want = 1.0 / (1.0 + (-(x as f64)).exp());
-            assert!((sigmoid_poly(x) as f64 - want).abs() < 2e-7, "sigmoid({x})");
+            assert!((sigmoid(x) as f64 - want).abs() < 2e-7, "sigmoid({x})");
         }
         assert!(exp_poly(f32::NAN).is_nan());
     }
