@@ -26,6 +26,13 @@ pub enum CassiError {
         value: f32,
         location: String,
     },
+    /// An array or a problem larger than the element budget (see [`crate::limits`]).
+    #[error("{what} is too large: {detail}")]
+    TooLarge { what: String, detail: String },
+    /// Data that has the right shape but cannot mean anything (an all-zero
+    /// measurement, a mask with no open pixel, …).
+    #[error("{what}: {reason}")]
+    Meaningless { what: String, reason: String },
 }
 
 pub type Result<T> = std::result::Result<T, CassiError>;

@@ -11,6 +11,7 @@ pub mod cube;
 pub mod denoise;
 pub mod error;
 pub mod instrument;
+pub mod limits;
 pub mod linop;
 pub mod metrics;
 pub mod optics;
