@@ -25,6 +25,12 @@ struct Cli {
     /// Print one JSON object with the results on stdout (for scripts).
     #[arg(long, global = true)]
     json: bool,
+    /// The largest array (in elements) that a file, a flag or a result may
+    /// make; anything bigger is refused before work starts. The default fits
+    /// a 660×714×28 real snapshot's cube 2.5 times over.
+    #[arg(long, global = true, env = "CASSI_MAX_ELEMENTS", value_name = "N",
+          default_value_t = cassi_core::limits::DEFAULT_MAX_ELEMENTS)]
+    max_elements: usize,
     #[command(subcommand)]
     command: Command,
 }
@@ -47,6 +53,7 @@ enum Command {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    cassi_core::limits::set_max_elements(cli.max_elements);
     let reporter = Reporter::new(cli.quiet, cli.json);
     let result = match &cli.command {
         Command::Simulate(args) => commands::simulate::run(args, &reporter),

@@ -85,6 +85,15 @@ impl Reporter {
         }
     }
 
+    /// A warning on stderr (not with --quiet): something accepted that the
+    /// user should know about.
+    pub fn warn(&self, text: &str) {
+        if !self.quiet {
+            self.clear();
+            eprintln!("warning: {text}");
+        }
+    }
+
     /// The machine-readable result on stdout, with --json.
     pub fn emit(&self, value: &serde_json::Value) {
         if self.json {

@@ -6,7 +6,7 @@ use thiserror::Error;
 #[derive(Debug, Error, Clone, PartialEq)]
 pub enum CassiError {
     /// A scalar parameter outside its valid range.
-    #[error("invalid parameter {name} = {value}: {reason}")]
+    #[error("invalid parameter {name} = {}: {reason}", compact(*.value))]
     InvalidParameter {
         name: &'static str,
         value: f64,
@@ -36,6 +36,15 @@ pub enum CassiError {
 }
 
 pub type Result<T> = std::result::Result<T, CassiError>;
+
+/// A value as a person reads it: 1.5, 0.001, 1e308, 1e-300 (not 309 digits).
+fn compact(v: f64) -> String {
+    if v != 0.0 && v.is_finite() && !(1e-4..1e9).contains(&v.abs()) {
+        format!("{v:e}")
+    } else {
+        format!("{v}")
+    }
+}
 
 pub(crate) fn shape_error(
     what: impl Into<String>,

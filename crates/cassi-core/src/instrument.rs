@@ -4,6 +4,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::error::{CassiError, Result};
+use crate::params::{MAX_SLOPE, MIN_SLOPE};
 
 /// The 28 band centres (nm) of the standard KAIST/TSA CASSI benchmark.
 pub const STANDARD_WAVELENGTHS_NM: [f64; 28] = [
@@ -69,12 +70,14 @@ impl Instrument {
                 reason: "an instrument needs at least one band".into(),
             });
         }
-        if !(self.stride.is_finite() && self.stride > 0.0) {
+        if !(MIN_SLOPE < self.stride && self.stride < MAX_SLOPE) {
             return Err(CassiError::InvalidParameter {
                 name: "stride",
                 value: self.stride,
-                reason: "the nominal dispersion must be a positive number of pixels per band"
-                    .into(),
+                reason: format!(
+                    "the nominal dispersion must lie between {MIN_SLOPE} and {MAX_SLOPE} \
+                     pixels per band"
+                ),
             });
         }
         if self.wavelengths_nm.len() != self.bands {

@@ -9,6 +9,13 @@ use crate::error::{CassiError, Result};
 /// model (and every calibration search range) is meaningless.
 pub const MAX_ANGLE_DEG: f64 = 45.0;
 
+/// The open range of dispersion slopes (a1, and an instrument's nominal
+/// stride) accepted, pixels per band: outside it the band count or the
+/// detector width is absurd (a stride of 0.001 px would mean 55,000 bands on
+/// a 256-column mask with 55 extra columns).
+pub const MIN_SLOPE: f64 = 1e-3;
+pub const MAX_SLOPE: f64 = 1e3;
+
 /// Rigid placement of the mask relative to its nominal position (DESIGN.md):
 /// a mask point u = (col, row) moves to `R(θ)(u − c) + c + (dx, dy)`, with c the
 /// mask centre ((W−1)/2, (H−1)/2).
@@ -137,11 +144,14 @@ impl MaskPose {
 impl DispersionParams {
     pub fn validate(&self) -> Result<()> {
         finite("a1", self.a1)?;
-        if self.a1 <= 0.0 {
+        if !(MIN_SLOPE < self.a1 && self.a1 < MAX_SLOPE) {
             return Err(CassiError::InvalidParameter {
                 name: "a1",
                 value: self.a1,
-                reason: "the dispersion slope must be positive (pixels per band)".into(),
+                reason: format!(
+                    "the dispersion slope must lie between {MIN_SLOPE} and {MAX_SLOPE} pixels \
+                     per band"
+                ),
             });
         }
         angle("alpha_deg", self.alpha_deg)

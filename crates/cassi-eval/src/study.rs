@@ -1,7 +1,8 @@
 //! A study over many scenes, safe to interrupt: each scene's result is
-//! written (atomically) as it finishes, to `<out>/scenes/<name>.json`, and a
-//! resumed run skips the scenes whose result exists and was made with the
-//! same study settings.
+//! written (atomically) as it finishes, to `<out>/scenes/<name>.json`, with
+//! SHA-256 digests of its inputs (the scene's data, the mask's data, every
+//! setting), and a resumed run reuses a result only when all three match
+//! exactly; otherwise it recomputes the scene and says why.
 
 use std::path::{Path, PathBuf};
 
@@ -9,6 +10,7 @@ use anyhow::Context;
 use cassi_core::synth::{SceneSpec, synthetic_scene};
 use cassi_core::{Cube, Mask};
 use serde::{Deserialize, Serialize};
+use sha2::{Digest, Sha256};
 
 use crate::protocol::{SceneResult, Study, run_scene};
 
@@ -87,18 +89,83 @@ pub enum Event<'a> {
     },
     /// A step inside the current scene.
     Step { name: &'a str },
-    /// A scene's result was found from an earlier run.
+    /// A scene's result was found from an earlier run with the same inputs.
     Skipped { name: &'a str },
+    /// A resumed run found an earlier result for this scene but recomputes
+    /// it: `reason` says which input differs.
+    Recomputed { name: &'a str, reason: String },
     /// A scene finished and its result is on disk.
     SceneDone { result: &'a SceneResult },
 }
 
-/// A scene's result file as written: the study it belongs to, then the result.
+/// A scene's result file as written: the study it belongs to, the digests
+/// of its inputs, then the result.
 #[derive(Serialize, Deserialize)]
 struct Record {
     study: Study,
     noise_seed: u64,
+    /// Absent in records written before digests existed: such a record is
+    /// never reused.
+    #[serde(default)]
+    inputs: Option<InputDigests>,
     result: SceneResult,
+}
+
+/// SHA-256 (hex) of what a scene's result was computed from.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct InputDigests {
+    /// The scene cube: its shape (bands, rows, cols) and f32 values.
+    pub scene: String,
+    /// The nominal mask: its shape and values.
+    pub mask: String,
+    /// Every setting (the study's JSON, the noise seed, the cassi version).
+    pub settings: String,
+}
+
+impl InputDigests {
+    pub fn new(scene: &Cube, mask: &Mask, study: &Study, noise_seed: u64) -> anyhow::Result<Self> {
+        let (l, h, w) = scene.shape();
+        let settings = serde_json::json!({
+            "study": study,
+            "noise_seed": noise_seed,
+            "cassi_version": env!("CARGO_PKG_VERSION"),
+        });
+        Ok(Self {
+            scene: array_digest(&[l, h, w], scene.as_slice()),
+            mask: array_digest(&[mask.rows(), mask.cols()], mask.as_slice()),
+            settings: hex(&Sha256::digest(serde_json::to_vec(&settings)?)),
+        })
+    }
+
+    /// Which inputs differ from `earlier`, in words; `None` when all match.
+    fn difference(&self, earlier: &Self) -> Option<String> {
+        let differ: Vec<&str> = [
+            (self.scene != earlier.scene, "the scene's data"),
+            (self.mask != earlier.mask, "the mask's data"),
+            (self.settings != earlier.settings, "the settings"),
+        ]
+        .into_iter()
+        .filter_map(|(d, what)| d.then_some(what))
+        .collect();
+        (!differ.is_empty())
+            .then(|| format!("{} differ from the earlier run's", differ.join(" and ")))
+    }
+}
+
+/// SHA-256 of a shape and its f32 values (little-endian bytes).
+fn array_digest(shape: &[usize], values: &[f32]) -> String {
+    let mut h = Sha256::new();
+    for &d in shape {
+        h.update((d as u64).to_le_bytes());
+    }
+    for v in values {
+        h.update(v.to_le_bytes());
+    }
+    hex(&h.finalize())
+}
+
+fn hex(bytes: &[u8]) -> String {
+    bytes.iter().map(|b| format!("{b:02x}")).collect()
 }
 
 pub fn scene_path(out: &Path, name: &str) -> PathBuf {
@@ -125,17 +192,27 @@ pub fn run_study(
         let name = source.name();
         let path = scene_path(out, &name);
         let noise_seed = i as u64;
-        if resume && let Some(r) = load_matching(&path, study, noise_seed) {
-            on_event(Event::Skipped { name: &name });
-            results.push(r);
-            continue;
+        let scene = source.load().with_context(|| format!("scene {name}"))?;
+        let inputs = InputDigests::new(&scene, mask, study, noise_seed)?;
+        if resume {
+            match earlier_result(&path, &inputs) {
+                Earlier::Same(r) => {
+                    on_event(Event::Skipped { name: &name });
+                    results.push(*r);
+                    continue;
+                }
+                Earlier::Different(reason) => on_event(Event::Recomputed {
+                    name: &name,
+                    reason,
+                }),
+                Earlier::None => {}
+            }
         }
         on_event(Event::SceneStart {
             index: i,
             count: scenes.len(),
             name: &name,
         });
-        let scene = source.load().with_context(|| format!("scene {name}"))?;
         // the first scene also gets the qualitative figures
         let keep = qualitative && i == 0;
         let (result, kept) = run_scene(&name, &scene, mask, study, noise_seed, keep, &mut |step| {
@@ -149,6 +226,7 @@ pub fn run_study(
         let record = Record {
             study: study.clone(),
             noise_seed,
+            inputs: Some(inputs),
             result,
         };
         let text = serde_json::to_string_pretty(&record)? + "\n";
@@ -161,11 +239,88 @@ pub fn run_study(
     Ok(results)
 }
 
-/// The result in `path` if it exists, parses and was made by `study`.
-fn load_matching(path: &Path, study: &Study, noise_seed: u64) -> Option<SceneResult> {
-    let text = std::fs::read_to_string(path).ok()?;
-    let record: Record = serde_json::from_str(&text).ok()?;
-    // compare through JSON: f64 fields round-trip exactly
-    let same = serde_json::to_value(&record.study).ok()? == serde_json::to_value(study).ok()?;
-    (same && record.noise_seed == noise_seed).then_some(record.result)
+/// What an earlier run left for a scene.
+enum Earlier {
+    /// Nothing (no file): the scene simply runs.
+    None,
+    /// A result made from exactly these inputs.
+    Same(Box<SceneResult>),
+    /// A file that cannot be reused, and why.
+    Different(String),
+}
+
+/// The earlier result at `path`, reusable only when its input digests equal
+/// `inputs`.
+fn earlier_result(path: &Path, inputs: &InputDigests) -> Earlier {
+    let Ok(text) = std::fs::read_to_string(path) else {
+        return Earlier::None;
+    };
+    let record: Record = match serde_json::from_str(&text) {
+        Ok(r) => r,
+        Err(e) => return Earlier::Different(format!("the earlier result is unreadable ({e})")),
+    };
+    match record.inputs {
+        None => Earlier::Different(
+            "the earlier result has no input digests (written by an older cassi)".into(),
+        ),
+        Some(earlier) => match inputs.difference(&earlier) {
+            None => Earlier::Same(Box::new(record.result)),
+            Some(reason) => Earlier::Different(reason),
+        },
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::method::StudyMethod;
+    use cassi_core::Mismatch;
+    use cassi_core::calib::Preset;
+    use cassi_core::optics::{DispersionModel, NoiseModel};
+    use cassi_core::recon::Method;
+
+    fn study() -> Study {
+        Study {
+            mismatch: Mismatch::paper(),
+            instrument: DispersionModel::Rounded,
+            noise: NoiseModel::default(),
+            preset: Preset::by_name("default", 2.0).unwrap(),
+            methods: vec![StudyMethod::from(Method::by_name("gap-tv").unwrap())],
+            stride: 2.0,
+        }
+    }
+
+    #[test]
+    fn digests_tell_which_input_changed() {
+        let scene = Cube::from_vec(2, 3, 4, (0..24).map(|v| v as f32 / 24.0).collect()).unwrap();
+        let mask = Mask::from_vec(
+            3,
+            4,
+            vec![1.0, 0.0, 1.0, 0.0, 0.0, 1.0, 0.0, 1.0, 1.0, 1.0, 0.0, 0.0],
+        )
+        .unwrap();
+        let base = InputDigests::new(&scene, &mask, &study(), 0).unwrap();
+        assert_eq!(base, InputDigests::new(&scene, &mask, &study(), 0).unwrap());
+        assert_eq!(base.difference(&base), None);
+
+        let mut other_mask = mask.clone();
+        other_mask.as_mut_slice()[5] = 0.5;
+        let d = InputDigests::new(&scene, &other_mask, &study(), 0).unwrap();
+        assert_eq!(
+            d.difference(&base).unwrap(),
+            "the mask's data differ from the earlier run's"
+        );
+
+        // same values, another shape: a different scene
+        let reshaped = Cube::from_vec(2, 4, 3, scene.as_slice().to_vec()).unwrap();
+        let d = InputDigests::new(&reshaped, &mask, &study(), 0).unwrap();
+        assert!(d.difference(&base).unwrap().starts_with("the scene's data"));
+
+        let d = InputDigests::new(&scene, &mask, &study(), 1).unwrap();
+        assert!(d.difference(&base).unwrap().starts_with("the settings"));
+        let mut s = study();
+        s.mismatch.dx = 1.25;
+        let d = InputDigests::new(&scene, &mask, &s, 0).unwrap();
+        assert!(d.difference(&base).unwrap().starts_with("the settings"));
+    }
 }

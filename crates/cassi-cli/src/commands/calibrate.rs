@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 
 use cassi_core::calib::{CalibrationProblem, Preset, StageReport, calibrate};
-use cassi_core::optics::{DispersionModel, warp_mask};
+use cassi_core::optics::{DispersionModel, MaskCode, mask_code, warp_mask};
 use clap::Args;
 
 use super::inputs::MeasurementArgs;
@@ -33,7 +33,14 @@ pub fn run(args: &CalibrateArgs, reporter: &Reporter) -> anyhow::Result<()> {
     if let Some(p) = &args.write_mask {
         check_output(p)?;
     }
-    let (measurement, mask, bands) = args.input.load()?;
+    let (measurement, mask, bands) = args.input.load(reporter)?;
+    if let MaskCode::Uniform(v) = mask_code(&mask, "mask")? {
+        anyhow::bail!(
+            "{}: every pixel of the mask transmits {v}: an uncoded aperture leaves no pattern \
+             to calibrate against",
+            args.input.mask.display()
+        );
+    }
     let problem = CalibrationProblem {
         measurement: &measurement,
         nominal_mask: &mask,

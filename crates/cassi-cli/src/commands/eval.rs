@@ -4,17 +4,20 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use cassi_core::calib::{PRESET_NAMES, Preset};
+use cassi_core::limits::check_elements;
+use cassi_core::metrics::SSIM_WIN;
 use cassi_core::optics::NoiseModel;
+use cassi_core::optics::validate_mismatch_for_mask;
 use cassi_core::recon::{METHOD_NAMES, Method};
 use cassi_core::synth::random_binary_mask;
-use cassi_core::{Instrument, Mismatch};
+use cassi_core::{Instrument, Mask, Mismatch};
 use cassi_eval::learned::{check_shape, check_stride};
 use cassi_eval::method::{LearnedMethod, StudyMethod};
 use cassi_eval::protocol::Study;
 use cassi_eval::report::{Setup, Sweeps, write_all};
 use cassi_eval::study::{Event, SceneSource, run_study, scenes_in};
 use cassi_eval::summary::summarize;
-use cassi_eval::sweep::{ablation, sensitivity};
+use cassi_eval::sweep::{ablation, scaled_mismatch, sensitivity};
 use cassi_eval::weights::{
     LEARNED_METHOD_NAMES, NETS_BUILT, is_learned, parse_weight_flags, resolve_weights,
 };
@@ -132,7 +135,70 @@ fn study_methods(args: &EvalArgs) -> anyhow::Result<Vec<StudyMethod>> {
         .collect()
 }
 
+/// Refuses flags that could only fail later, after work: no scenes, scenes
+/// too small to score, sweep scales that are no mismatch.
+fn check_flags(args: &EvalArgs) -> anyhow::Result<()> {
+    if args.synthetic {
+        if args.count == 0 {
+            anyhow::bail!("--count 0: a study needs at least one scene");
+        }
+        if args.size < SSIM_WIN {
+            anyhow::bail!(
+                "--size {}: scenes must be at least {SSIM_WIN}×{SSIM_WIN} pixels (SSIM's \
+                 {SSIM_WIN}×{SSIM_WIN} window)",
+                args.size
+            );
+        }
+        let bands = Instrument::default().bands;
+        check_elements(
+            "a synthetic scene",
+            &[bands, args.size, args.size],
+            &format!("--size {}", args.size),
+        )?;
+    }
+    if args.limit == Some(0) {
+        anyhow::bail!("--limit 0: a study needs at least one scene");
+    }
+    for &s in &args.sensitivity {
+        if !(s.is_finite() && s > 0.0) {
+            anyhow::bail!(
+                "--sensitivity {s}: each scale is a positive multiple of the paper's mismatch"
+            );
+        }
+        scaled_mismatch(s, args.stride)
+            .validate()
+            .with_context(|| format!("--sensitivity {s}: the scaled mismatch"))?;
+    }
+    Ok(())
+}
+
+/// Refuses a mask too small to score, or a mismatch (the study's, or any
+/// sweep's) that moves the mask off itself.
+fn check_mask(
+    args: &EvalArgs,
+    mask: &Mask,
+    mismatch: &Mismatch,
+    label: &str,
+) -> anyhow::Result<()> {
+    if mask.rows() < SSIM_WIN || mask.cols() < SSIM_WIN {
+        anyhow::bail!(
+            "mask {label} is {}×{}: scenes must be at least {SSIM_WIN}×{SSIM_WIN} pixels \
+             (SSIM's window)",
+            mask.rows(),
+            mask.cols()
+        );
+    }
+    validate_mismatch_for_mask(mismatch, mask.rows(), mask.cols())
+        .with_context(|| format!("the mismatch, with mask {label}"))?;
+    for &s in &args.sensitivity {
+        validate_mismatch_for_mask(&scaled_mismatch(s, args.stride), mask.rows(), mask.cols())
+            .with_context(|| format!("--sensitivity {s}, with mask {label}"))?;
+    }
+    Ok(())
+}
+
 pub fn run(args: &EvalArgs, reporter: &Reporter) -> anyhow::Result<()> {
+    check_flags(args)?;
     let methods = study_methods(args)?;
     // the paper's mismatch, single values overridden by the flags
     let m = &args.mismatch;
@@ -177,6 +243,7 @@ pub fn run(args: &EvalArgs, reporter: &Reporter) -> anyhow::Result<()> {
             format!("random binary {0}×{0}, 50 % open, seed 1", args.size),
         ),
     };
+    check_mask(args, &mask, &mismatch, &mask_label)?;
     for method in &methods {
         if let StudyMethod::Learned(l) = method {
             // the scenes' band count is checked as each loads
@@ -218,6 +285,9 @@ pub fn run(args: &EvalArgs, reporter: &Reporter) -> anyhow::Result<()> {
                 done += steps_per_scene;
                 bar.set(done);
                 reporter.say(&format!("  {name:<28} (result from an earlier run)"));
+            }
+            Event::Recomputed { name, reason } => {
+                reporter.say(&format!("  {name:<28} recomputed: {reason}"));
             }
             Event::SceneDone { result } => {
                 let line: Vec<String> = result
@@ -268,6 +338,9 @@ pub fn run(args: &EvalArgs, reporter: &Reporter) -> anyhow::Result<()> {
                     if matches!(e, Event::SceneDone { .. } | Event::Skipped { .. }) {
                         done += 1;
                         bar.set(done);
+                    }
+                    if let Event::Recomputed { name, reason } = &e {
+                        reporter.say(&format!("  {scale}×: {name:<24} recomputed: {reason}"));
                     }
                     if let Event::SceneDone { result } = e {
                         reporter.say(&format!(

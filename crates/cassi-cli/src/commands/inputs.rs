@@ -1,16 +1,18 @@
 //! Argument groups shared by subcommands: where the scene and the mask come
 //! from, the mismatch, the noise.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
-use cassi_core::optics::{DispersionModel, NoiseModel};
+use cassi_core::limits::check_elements;
+use cassi_core::optics::{DispersionModel, MaskCode, NoiseModel, mask_code, validate_measurement};
 use cassi_core::synth::{SceneSpec, random_binary_mask, synthetic_scene};
 use cassi_core::{Cube, Instrument, Mask, Mismatch};
 use cassi_io::CubeLayout;
 use clap::{Args, ValueEnum};
 
-use crate::sidecar::Source;
+use crate::report::Reporter;
+use crate::sidecar::{Source, sidecar_path};
 
 #[derive(Clone, Copy, ValueEnum)]
 pub enum LayoutArg {
@@ -182,6 +184,14 @@ pub fn load_scene(args: &SceneArgs) -> anyhow::Result<(Cube, Source)> {
     if args.bands == 0 {
         bail!("--bands must be at least 1");
     }
+    check_elements(
+        "the synthetic scene",
+        &[args.bands, args.size, args.size],
+        &format!(
+            "--bands {} × --size {} × {}",
+            args.bands, args.size, args.size
+        ),
+    )?;
     let spec = SceneSpec {
         rows: args.size,
         cols: args.size,
@@ -235,7 +245,9 @@ pub struct MeasurementArgs {
     /// Variable name inside the mask file.
     #[arg(long)]
     pub mask_var: Option<String>,
-    /// Number of bands (default: from the measurement width and the stride).
+    /// Number of bands (default: the simulation sidecar's, else 28 when the
+    /// measurement's width fits 28 bands; anything else is an error asking
+    /// for --bands).
     #[arg(long)]
     pub bands: Option<usize>,
     /// Nominal dispersion stride, px per band.
@@ -243,36 +255,153 @@ pub struct MeasurementArgs {
     pub stride: f64,
 }
 
+/// The band count a measurement is assumed to hold when nothing says
+/// otherwise: the benchmark instruments' 28.
+pub const DEFAULT_BANDS: usize = 28;
+
 impl MeasurementArgs {
-    /// Loads and checks both files; returns them with the band count.
-    pub fn load(&self) -> anyhow::Result<(cassi_core::Measurement, Mask, usize)> {
+    /// Loads and checks both files (a measurement with light in it, a mask
+    /// that lets light through, rows that agree, a width that fits the band
+    /// count, a problem within the element budget); returns them with the
+    /// band count, and says on the terminal where the count came from when
+    /// it was not given.
+    pub fn load(
+        &self,
+        reporter: &Reporter,
+    ) -> anyhow::Result<(cassi_core::Measurement, Mask, usize)> {
+        Instrument::with_bands(1, self.stride).context("--stride")?;
         let measurement = cassi_io::load_frame(&self.measurement, self.meas_var.as_deref())?;
         let mask = cassi_io::load_frame(&self.mask, self.mask_var.as_deref())?;
-        cassi_core::optics::validate_mask(&mask, &format!("mask {}", self.mask.display()))?;
-        let bands = match self.bands {
-            Some(b) => b,
-            None => {
-                infer_bands(measurement.cols(), mask.cols(), self.stride).with_context(|| {
-                    format!(
-                        "{}: cannot infer the band count; pass --bands",
-                        self.measurement.display()
-                    )
-                })?
-            }
-        };
+        let mask_what = format!("mask {}", self.mask.display());
+        cassi_core::optics::validate_mask(&mask, &mask_what)?;
+        if let MaskCode::Uniform(v) = mask_code(&mask, &mask_what)? {
+            reporter.warn(&format!(
+                "{mask_what}: every pixel transmits {v}: nothing is coded, so the bands \
+                 overlap uncoded on the detector"
+            ));
+        }
+        validate_measurement(&measurement, &self.measurement.display().to_string())?;
+        if measurement.rows() != mask.rows() {
+            bail!(
+                "{}: the measurement has {} rows but the mask {} has {}; the detector has the \
+                 mask's rows",
+                self.measurement.display(),
+                measurement.rows(),
+                self.mask.display(),
+                mask.rows()
+            );
+        }
+        let (bands, origin) = self.band_count(measurement.cols(), mask.cols())?;
+        check_elements(
+            "the reconstructed cube",
+            &[bands, mask.rows(), mask.cols()],
+            &format!("{bands} bands {origin}"),
+        )?;
+        if self.bands.is_none() {
+            reporter.say(&format!("bands: {bands} ({origin})"));
+        }
         Ok((measurement, mask, bands))
+    }
+
+    /// The band count and where it came from: --bands, the measurement's
+    /// simulation sidecar, or the default 28 when the width fits it. Never a
+    /// guess: a width that fits none of these is an error that shows the
+    /// arithmetic.
+    fn band_count(&self, det_cols: usize, mask_cols: usize) -> anyhow::Result<(usize, String)> {
+        let meas = self.measurement.display();
+        let s = self.stride;
+        if det_cols < mask_cols {
+            bail!(
+                "{meas}: the measurement ({det_cols} columns) is narrower than the mask \
+                 {} ({mask_cols} columns); the detector is the mask's width plus the dispersion",
+                self.mask.display()
+            );
+        }
+        let extra = det_cols - mask_cols;
+        if let Some(bands) = self.bands {
+            if bands == 0 {
+                bail!("--bands must be at least 1");
+            }
+            if !width_fits(bands, s, extra) {
+                bail!(
+                    "{meas}: {det_cols} columns do not fit --bands {bands}: a {mask_cols}-column \
+                     mask with {bands} bands at stride {s} needs {mask_cols} + ({bands} − 1)·{s} \
+                     = {} columns (± {} for a drifted prism)",
+                    mask_cols as f64 + (bands - 1) as f64 * s,
+                    width_slack(bands, s)
+                );
+            }
+            return Ok((bands, "from --bands".into()));
+        }
+        if let Some(bands) = sidecar_bands(&self.measurement) {
+            if width_fits(bands, s, extra) {
+                return Ok((
+                    bands,
+                    format!(
+                        "from the simulation sidecar {}",
+                        sidecar_path(&self.measurement).display()
+                    ),
+                ));
+            }
+        }
+        if width_fits(DEFAULT_BANDS, s, extra) {
+            return Ok((
+                DEFAULT_BANDS,
+                format!(
+                    "the default: {det_cols} columns fit a {mask_cols}-column mask with \
+                     {DEFAULT_BANDS} bands at stride {s}"
+                ),
+            ));
+        }
+        let implied = extra as f64 / s + 1.0;
+        bail!(
+            "{meas}: cannot tell the band count: {det_cols} columns with a {mask_cols}-column \
+             mask leave {extra} extra columns; {DEFAULT_BANDS} bands at stride {s} would need \
+             {mask_cols} + {}·{s} = {} (± {}), and (L − 1)·{s} = {extra} means L = {implied:.2}. \
+             Pass --bands (and --stride) to say what the instrument is",
+            DEFAULT_BANDS - 1,
+            mask_cols as f64 + (DEFAULT_BANDS - 1) as f64 * s,
+            width_slack(DEFAULT_BANDS, s)
+        )
     }
 }
 
-/// L such that (L − 1)·stride best explains the extra detector columns.
-fn infer_bands(det_cols: usize, mask_cols: usize, stride: f64) -> anyhow::Result<usize> {
-    if det_cols < mask_cols {
-        bail!(
-            "the measurement ({det_cols} columns) is narrower than the mask ({mask_cols} columns)"
-        );
+/// How far a measurement's width may stray from the nominal
+/// mask + (L − 1)·stride: a drifted prism (a1 ≠ stride, rounding, the
+/// subpixel model's ceil) widens or narrows it by up to ~10 % of the spread.
+fn width_slack(bands: usize, stride: f64) -> usize {
+    ((0.1 * (bands - 1) as f64 * stride).ceil() as usize).max(2)
+}
+
+/// Whether `extra` detector columns beyond the mask fit `bands` at `stride`.
+fn width_fits(bands: usize, stride: f64, extra: usize) -> bool {
+    let nominal = (bands - 1) as f64 * stride;
+    (extra as f64 - nominal).abs() <= width_slack(bands, stride) as f64
+}
+
+/// The band count a simulation sidecar beside the measurement records, if
+/// there is one (any other JSON file there is not a sidecar and says nothing).
+fn sidecar_bands(measurement: &Path) -> Option<usize> {
+    let text = std::fs::read_to_string(sidecar_path(measurement)).ok()?;
+    let record: crate::sidecar::SimulationRecord = serde_json::from_str(&text).ok()?;
+    Some(record.instrument.bands).filter(|&b| b > 0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn widths_fit_their_band_count_within_a_drift() {
+        // 256-column mask, 28 bands at stride 2: 310 nominal; a1 2.04 rounded
+        // gives 311, subpixel 312.
+        for extra in [54, 55, 56, 52, 60] {
+            assert!(width_fits(28, 2.0, extra), "{extra}");
+        }
+        assert!(!width_fits(28, 2.0, 61));
+        assert!(!width_fits(28, 2.0, 11));
+        // the issue's 256×300 mask with a 311-column measurement: 11 extra
+        // columns fit neither 28 bands nor a whole band count at stride 2
+        assert!(!width_fits(DEFAULT_BANDS, 2.0, 11));
     }
-    if !(stride.is_finite() && stride > 0.0) {
-        bail!("--stride must be positive");
-    }
-    Ok(((det_cols - mask_cols) as f64 / stride).floor() as usize + 1)
 }

@@ -120,14 +120,14 @@ fn run_learned(args: &ReconstructArgs, reporter: &Reporter) -> anyhow::Result<()
             args.input.stride
         );
     }
-    let (measurement, mask, bands) = args.input.load()?;
+    let (measurement, mask, bands) = args.input.load(reporter)?;
     if !pnp && bands != MST_BANDS {
         bail!(
             "--method {} reconstructs {MST_BANDS} bands; the measurement and mask give {bands}",
             args.method
         );
     }
-    let (params, file_model) = args.model_parameters()?;
+    let (params, file_model) = args.model_parameters(&mask)?;
     let truth = args.load_truth()?;
 
     let t0 = Instant::now();

@@ -7,7 +7,7 @@ use std::time::Instant;
 use anyhow::{Context, bail};
 use cassi_core::color::pseudo_rgb;
 use cassi_core::metrics::{Metrics, evaluate};
-use cassi_core::optics::DispersionModel;
+use cassi_core::optics::{DispersionModel, validate_mismatch_for_mask};
 use cassi_core::recon::{METHOD_NAMES, Method, reconstruct};
 use cassi_core::solvers::{Control, IterationInfo};
 use cassi_core::{Instrument, Mismatch};
@@ -64,36 +64,92 @@ fn method_names() -> clap::builder::PossibleValuesParser {
     clap::builder::PossibleValuesParser::new(METHOD_NAMES.iter().chain(&NET_METHOD_NAMES))
 }
 
-/// The model parameters and dispersion model a calibration or sidecar file gives.
+/// The model parameters and dispersion model a calibration or sidecar file
+/// gives: a calibration's "parameters" (+ "model") or a sidecar's
+/// "simulation" → "mismatch" (+ "model"), each an object with exactly the
+/// named fields dx, dy, theta_deg, a1, alpha_deg (never read by position),
+/// every value a number in range.
 pub fn read_model_file(path: &Path) -> anyhow::Result<(Mismatch, Option<DispersionModel>)> {
     let text =
         std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
     let v: serde_json::Value = serde_json::from_str(&text)
         .with_context(|| format!("{}: not valid JSON", path.display()))?;
-    // a calibration has "parameters" (+ "model"); a simulation sidecar has "simulation"
-    let (params, model) = if let Some(p) = v.get("parameters") {
-        (p.clone(), v.get("model").cloned())
+    let (params, model, field) = if let Some(p) = v.get("parameters") {
+        (p, v.get("model"), "\"parameters\"")
     } else if let Some(sim) = v.get("simulation") {
-        (sim["mismatch"].clone(), sim.get("model").cloned())
+        (
+            sim.get("mismatch").unwrap_or(&serde_json::Value::Null),
+            sim.get("model"),
+            "\"simulation\".\"mismatch\"",
+        )
     } else {
         bail!(
             "{}: no \"parameters\" (calibration) or \"simulation\" (sidecar) object",
             path.display()
         );
     };
-    let m: Mismatch = serde_json::from_value(params).with_context(|| {
-        format!(
-            "{}: the parameters need dx, dy, theta_deg, a1, alpha_deg",
-            path.display()
-        )
-    })?;
+    let m = named_mismatch(params).with_context(|| format!("{}: {field}", path.display()))?;
     m.validate()
-        .with_context(|| format!("{}", path.display()))?;
+        .with_context(|| format!("{}: {field}", path.display()))?;
     let model = model
-        .map(serde_json::from_value)
+        .map(|m| serde_json::from_value(m.clone()))
         .transpose()
-        .with_context(|| format!("{}: model", path.display()))?;
+        .with_context(|| format!("{}: \"model\"", path.display()))?;
     Ok((m, model))
+}
+
+/// The mismatch from a JSON object with exactly the five named fields.
+fn named_mismatch(value: &serde_json::Value) -> anyhow::Result<Mismatch> {
+    const NAMES: [&str; 5] = ["dx", "dy", "theta_deg", "a1", "alpha_deg"];
+    let Some(object) = value.as_object() else {
+        bail!(
+            "must be an object with the named fields {} (got {})",
+            NAMES.join(", "),
+            json_kind(value)
+        );
+    };
+    let unknown: Vec<&str> = object
+        .keys()
+        .map(String::as_str)
+        .filter(|k| !NAMES.contains(k))
+        .collect();
+    if !unknown.is_empty() {
+        bail!(
+            "unknown field(s) {}; the parameters are {}",
+            unknown.join(", "),
+            NAMES.join(", ")
+        );
+    }
+    let mut values = [0.0; 5];
+    for (slot, name) in values.iter_mut().zip(NAMES) {
+        *slot = match object.get(name) {
+            Some(serde_json::Value::Number(n)) => n.as_f64().unwrap_or(f64::NAN),
+            Some(other) => bail!("{name} must be a number, got {}", json_kind(other)),
+            None => bail!(
+                "{name} is missing (the parameters are {})",
+                NAMES.join(", ")
+            ),
+        };
+    }
+    let [dx, dy, theta_deg, a1, alpha_deg] = values;
+    Ok(Mismatch {
+        dx,
+        dy,
+        theta_deg,
+        a1,
+        alpha_deg,
+    })
+}
+
+fn json_kind(value: &serde_json::Value) -> &'static str {
+    match value {
+        serde_json::Value::Null => "null",
+        serde_json::Value::Bool(_) => "a boolean",
+        serde_json::Value::Number(_) => "a number",
+        serde_json::Value::String(_) => "a string",
+        serde_json::Value::Array(_) => "an array",
+        serde_json::Value::Object(_) => "an object",
+    }
 }
 
 #[derive(Serialize)]
@@ -127,8 +183,8 @@ pub fn run(args: &ReconstructArgs, reporter: &Reporter) -> anyhow::Result<()> {
         );
     }
     check_output(&args.output)?;
-    let (measurement, mask, bands) = args.input.load()?;
-    let (params, file_model) = args.model_parameters()?;
+    let (measurement, mask, bands) = args.input.load(reporter)?;
+    let (params, file_model) = args.model_parameters(&mask)?;
     let model = args.model.or(file_model).unwrap_or_default();
     let instrument = Instrument::with_bands(bands, args.input.stride)?;
     let truth = args.load_truth()?;
@@ -196,9 +252,19 @@ pub fn run(args: &ReconstructArgs, reporter: &Reporter) -> anyhow::Result<()> {
 impl ReconstructArgs {
     /// The model's parameters (and the dispersion model a file names):
     /// `--calibration`'s, or the nominal instrument's.
-    pub(crate) fn model_parameters(&self) -> anyhow::Result<(Mismatch, Option<DispersionModel>)> {
+    /// `mask` is the nominal mask the parameters move: a shift beyond it is
+    /// refused, naming the file.
+    pub(crate) fn model_parameters(
+        &self,
+        mask: &cassi_core::Mask,
+    ) -> anyhow::Result<(Mismatch, Option<DispersionModel>)> {
         match &self.calibration {
-            Some(path) => read_model_file(path),
+            Some(path) => {
+                let (m, model) = read_model_file(path)?;
+                validate_mismatch_for_mask(&m, mask.rows(), mask.cols())
+                    .with_context(|| format!("{}", path.display()))?;
+                Ok((m, model))
+            }
             None => Ok((Mismatch::nominal(self.input.stride), None)),
         }
     }

@@ -3,7 +3,10 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
-use cassi_core::optics::{SimulationSpec, simulate};
+use cassi_core::limits::check_elements;
+use cassi_core::optics::{
+    MaskCode, SimulationSpec, mask_code, simulate, validate_mismatch_for_mask,
+};
 use cassi_core::{Cube, Instrument, Mask, Measurement};
 use clap::Args;
 
@@ -98,6 +101,7 @@ pub fn create_parent_dir(path: &Path) -> anyhow::Result<()> {
 pub fn run(args: &SimulateArgs, reporter: &Reporter) -> anyhow::Result<()> {
     check_output(&args.output)?;
     // Parameters first: a typo should not cost a scene load.
+    Instrument::with_bands(1, args.instrument.stride).context("--stride")?;
     let spec = SimulationSpec {
         mismatch: args.mismatch.mismatch(args.instrument.stride)?,
         model: args.mismatch.model,
@@ -105,7 +109,25 @@ pub fn run(args: &SimulateArgs, reporter: &Reporter) -> anyhow::Result<()> {
     };
     let (scene, scene_source) = reporter.stage("loading the scene", || load_scene(&args.scene))?;
     let (mask, mask_source) = load_mask(&args.mask, scene.rows(), scene.cols())?;
+    let mask_what = match &args.mask.mask {
+        Some(p) => format!("mask {}", p.display()),
+        None => "the random mask".to_string(),
+    };
+    if let MaskCode::Uniform(v) = mask_code(&mask, &mask_what)? {
+        reporter.warn(&format!(
+            "{mask_what}: every pixel transmits {v}: the measurement will hold no code"
+        ));
+    }
+    validate_mismatch_for_mask(&spec.mismatch, mask.rows(), mask.cols())
+        .context("mismatch parameters")?;
     let instrument = Instrument::with_bands(scene.bands(), args.instrument.stride)?;
+    // the detector: the mask's rows, its columns plus the dispersion's reach
+    let reach = (scene.bands() - 1) as f64 * spec.mismatch.a1;
+    check_elements(
+        "the measurement",
+        &[mask.rows(), mask.cols() + reach.ceil() as usize + 1],
+        &format!("{} bands at a1 {}", scene.bands(), spec.mismatch.a1),
+    )?;
     let inputs = SimulationInputs {
         scene,
         scene_source,

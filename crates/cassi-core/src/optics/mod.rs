@@ -2,12 +2,14 @@
 //! operator and its adjoint, detector noise, simulation.
 
 pub mod dispersion;
+pub mod input_checks;
 pub mod noise;
 pub mod operator;
 pub mod simulate;
 pub mod warp;
 
 pub use dispersion::{Dispersion, DispersionModel, Tap};
+pub use input_checks::{MaskCode, mask_code, validate_measurement, validate_mismatch_for_mask};
 pub use noise::NoiseModel;
 pub use operator::{CassiOperator, validate_mask};
 pub use simulate::{SimulationSpec, simulate, simulate_oversampled};
