@@ -2,6 +2,7 @@
 //! library, and writes files; no science happens here.
 
 mod commands;
+mod interrupt;
 mod report;
 mod sidecar;
 
@@ -47,6 +48,7 @@ enum Command {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    interrupt::install();
     let reporter = Reporter::new(cli.quiet, cli.json);
     let result = match &cli.command {
         Command::Simulate(args) => commands::simulate::run(args, &reporter),
@@ -58,6 +60,11 @@ fn main() -> ExitCode {
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
+        Err(e) if interrupt::is_interrupt(&e) => {
+            reporter.clear();
+            eprintln!("error: {}", interrupt::Interrupted);
+            ExitCode::from(interrupt::EXIT_CODE)
+        }
         Err(e) => {
             reporter.clear();
             eprintln!("error: {e:#}");
