@@ -33,12 +33,12 @@ mod open;
 mod output_set;
 mod png;
 
+pub use atomic::{remove_stale_temporaries, remove_temporaries_for_exit};
 pub use describe::{FileSummary, Stats, VariableSummary, describe};
 pub use error::{IoError, Result};
 pub use load::{
     Array, CubeLayout, load_array, load_cube, load_frame, save_array, save_cube, save_frame,
 };
-pub use atomic::{remove_stale_temporaries, remove_temporaries_for_exit};
 pub use open::FileFormat;
 pub use output_set::{CheckedSet, OutputSet, Staging, output_exists};
 pub use png::{write_band_pngs, write_frame_png16, write_rgb_png};

@@ -47,7 +47,7 @@
 //! A commit holds the process-wide list of temporaries, so an interrupt
 //! handler calling [`crate::remove_temporaries_for_exit`] waits for it.
 
-use std::path::{Path, PathBuf};
+use std::path::{Component, Path, PathBuf};
 use std::sync::Mutex;
 
 use crate::atomic;
@@ -128,11 +128,16 @@ fn resolve_depth(path: &Path, depth: usize) -> std::io::Result<PathBuf> {
         let target = std::fs::read_link(path)?;
         return resolve_depth(&parent.join(target), depth + 1);
     }
-    let Some(name) = path.file_name() else {
-        // "..", "/" or "." that do not canonicalise
-        return Err(std::io::Error::other("the path has no file name"));
-    };
-    Ok(resolve_depth(&parent, depth + 1)?.join(name))
+    match path.components().next_back() {
+        Some(Component::Normal(name)) => Ok(resolve_depth(&parent, depth + 1)?.join(name)),
+        // `dir/..`: the parent of dir once its links are followed
+        Some(Component::ParentDir) => {
+            let mut p = resolve_depth(&parent, depth + 1)?;
+            p.pop();
+            Ok(p)
+        }
+        _ => Err(std::io::Error::other("the path has no file name")),
+    }
 }
 
 /// The files one command reads and writes; see the module documentation.
@@ -180,10 +185,15 @@ impl OutputSet {
 
     /// Resolves every path and refuses collisions (an output that is an
     /// input, two outputs that are one file, an input inside an output
-    /// folder, an output that is a folder); then creates the outputs'
-    /// folders and removes stale temporaries there. Call it before any work.
+    /// folder, an output that is a folder), and removes stale temporaries
+    /// from the existing output folders. Call it before any work; it creates
+    /// nothing (the folders are made by [`CheckedSet::begin`]).
     pub fn check(&self) -> Result<CheckedSet> {
-        let inputs: Vec<Resolved> = self.inputs.iter().map(Resolved::new).collect::<Result<_>>()?;
+        let inputs: Vec<Resolved> = self
+            .inputs
+            .iter()
+            .map(Resolved::new)
+            .collect::<Result<_>>()?;
         let outputs: Vec<Resolved> = self
             .outputs
             .iter()
@@ -216,7 +226,7 @@ impl OutputSet {
                     path: dir.given.clone(),
                     reason: format!(
                         "{} is written by this command and holds an input, {}; \
-                         choose another output folder",
+                         nothing was written, choose another output folder",
                         dir.role,
                         input.label()
                     ),
@@ -229,14 +239,14 @@ impl OutputSet {
             .chain(dirs.iter().map(|d| d.path.clone()))
             .collect();
         folders.dedup();
-        for dir in &folders {
-            std::fs::create_dir_all(dir).map_err(|e| IoError::InvalidArgument {
-                path: dir.clone(),
-                reason: format!("cannot create the output folder: {e}"),
-            })?;
+        for dir in folders.iter().filter(|d| d.is_dir()) {
             atomic::sweep_once(dir);
         }
-        Ok(CheckedSet { outputs, dirs })
+        Ok(CheckedSet {
+            outputs,
+            dirs,
+            folders,
+        })
     }
 }
 
@@ -263,6 +273,8 @@ fn collision(out: &Resolved, other: &Resolved, what: &str) -> IoError {
 pub struct CheckedSet {
     outputs: Vec<Resolved>,
     dirs: Vec<Resolved>,
+    /// The folders the outputs go into.
+    folders: Vec<PathBuf>,
 }
 
 /// The set being staged (at most one per process).
@@ -283,13 +295,24 @@ fn lock_active() -> std::sync::MutexGuard<'static, Option<Active>> {
 }
 
 impl CheckedSet {
-    /// Starts staging: until the returned [`Staging`] is committed or
-    /// dropped, writes to the declared outputs go to temporaries.
+    /// Creates the output folders and starts staging: until the returned
+    /// [`Staging`] is committed or dropped, writes to the declared outputs
+    /// go to temporaries.
     pub fn begin(&self) -> Result<Staging> {
+        for dir in &self.folders {
+            std::fs::create_dir_all(dir).map_err(|e| IoError::InvalidArgument {
+                path: dir.clone(),
+                reason: format!("cannot create the output folder: {e}"),
+            })?;
+            atomic::sweep_once(dir);
+        }
         let mut active = lock_active();
         if active.is_some() {
             return Err(IoError::InvalidArgument {
-                path: self.outputs.first().map_or_else(PathBuf::new, |o| o.given.clone()),
+                path: self
+                    .outputs
+                    .first()
+                    .map_or_else(PathBuf::new, |o| o.given.clone()),
                 reason: "another output set is already being written".into(),
             });
         }
@@ -518,7 +541,8 @@ mod tests {
         #[cfg(unix)]
         std::os::unix::fs::symlink("m.npy", dir.join("soft.npy")).unwrap();
         let dotted = dir.join("sub").join("..").join("m.npy");
-        let mut cases = vec![input.clone(), dir.join("hard.npy"), dotted];
+        let missing = dir.join("nosuch").join("..").join("m.npy");
+        let mut cases = vec![input.clone(), dir.join("hard.npy"), dotted, missing];
         #[cfg(unix)]
         cases.push(dir.join("soft.npy"));
         for out in cases {
@@ -537,12 +561,19 @@ mod tests {
         // an input inside an output folder
         let mut set = OutputSet::new();
         set.input("--mask", &input).output_dir("--out", &dir);
-        assert!(set.check().unwrap_err().to_string().contains("holds an input"));
-        // fine: a new file beside the input, in a folder made by check
+        assert!(
+            set.check()
+                .unwrap_err()
+                .to_string()
+                .contains("holds an input")
+        );
+        // fine: a new file beside the input, in a folder made by begin
         let mut set = OutputSet::new();
         set.input("--mask", &input)
             .output("-o", dir.join("new/deeper/out.npy"));
-        set.check().unwrap();
+        let checked = set.check().unwrap();
+        assert!(!dir.join("new").exists());
+        drop(checked.begin().unwrap());
         assert!(dir.join("new/deeper").is_dir());
         std::fs::remove_dir_all(&dir).unwrap();
     }
@@ -594,7 +625,13 @@ mod tests {
         crate::write_atomic(&c, b"new c").unwrap();
         std::fs::create_dir(&c).unwrap();
         std::fs::write(c.join("x"), b"in the way").unwrap();
-        assert!(staging.commit().unwrap_err().to_string().contains("nothing was replaced"));
+        assert!(
+            staging
+                .commit()
+                .unwrap_err()
+                .to_string()
+                .contains("nothing was replaced")
+        );
         assert_eq!(std::fs::read(&a).unwrap(), b"old a");
         assert!(hidden(&dir).is_empty(), "{:?}", hidden(&dir));
         std::fs::remove_dir_all(&c).unwrap();

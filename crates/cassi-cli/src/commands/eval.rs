@@ -163,7 +163,12 @@ fn check_files(args: &EvalArgs) -> anyhow::Result<CheckedSet> {
         }
     }
     let out = &args.out;
-    for file in ["summary.json", "outcomes.csv", "parameters.csv", "report.md"] {
+    for file in [
+        "summary.json",
+        "outcomes.csv",
+        "parameters.csv",
+        "report.md",
+    ] {
         set.output(format!("--out's {file}"), out.join(file));
     }
     set.output_dir("--out's scenes/", out.join("scenes"))

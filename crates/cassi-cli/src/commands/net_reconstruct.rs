@@ -19,7 +19,11 @@ use crate::report::Reporter;
 pub const NET_METHOD_NAMES: [&str; 4] = LEARNED_METHOD_NAMES;
 
 /// `checked`: the outputs, checked against the inputs before any work.
-pub fn run(args: &ReconstructArgs, reporter: &Reporter, checked: &CheckedSet) -> anyhow::Result<()> {
+pub fn run(
+    args: &ReconstructArgs,
+    reporter: &Reporter,
+    checked: &CheckedSet,
+) -> anyhow::Result<()> {
     if args.method != "pnp-hsicnn" {
         // Solver flags mean nothing to a network: refuse them rather than
         // ignore them.

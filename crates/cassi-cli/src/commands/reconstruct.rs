@@ -218,8 +218,14 @@ impl ReconstructArgs {
             }
         }
         set.output("-o", &self.output)
-            .output("the preview (-o with .png)", self.output.with_extension("png"))
-            .output("the report (-o with .json)", self.output.with_extension("json"));
+            .output(
+                "the preview (-o with .png)",
+                self.output.with_extension("png"),
+            )
+            .output(
+                "the report (-o with .json)",
+                self.output.with_extension("json"),
+            );
         Ok(set.check()?)
     }
 
@@ -275,7 +281,12 @@ impl Outputs<'_> {
         mut summary: String,
         metrics: Option<&Metrics>,
     ) -> anyhow::Result<()> {
-        let bad = self.cube.as_slice().iter().filter(|v| !v.is_finite()).count();
+        let bad = self
+            .cube
+            .as_slice()
+            .iter()
+            .filter(|v| !v.is_finite())
+            .count();
         if bad > 0 {
             bail!(
                 "the reconstruction has {bad} non-finite values (NaN or infinite): nothing was \
@@ -283,8 +294,12 @@ impl Outputs<'_> {
                 self.path.display()
             );
         }
-        let rgb = pseudo_rgb(self.cube, self.wavelengths_nm)
-            .with_context(|| format!("the preview of {}; nothing was written", self.path.display()))?;
+        let rgb = pseudo_rgb(self.cube, self.wavelengths_nm).with_context(|| {
+            format!(
+                "the preview of {}; nothing was written",
+                self.path.display()
+            )
+        })?;
         let text = serde_json::to_string_pretty(report)? + "\n";
         reporter.stage("writing the cube and preview", || {
             let staging = checked.begin()?;

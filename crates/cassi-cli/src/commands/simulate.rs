@@ -3,9 +3,9 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
-use cassi_io::OutputSet;
 use cassi_core::optics::{SimulationSpec, simulate};
 use cassi_core::{Cube, Instrument, Mask, Measurement};
+use cassi_io::OutputSet;
 use clap::Args;
 
 use super::inputs::{
