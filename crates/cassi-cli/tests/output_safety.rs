@@ -140,7 +140,7 @@ fn an_output_that_is_an_input_is_refused_before_any_work() {
     let (m, mask) = (s(&m), s(&mask));
     let j = |name: &str| dir.join(name).to_str().unwrap().to_string();
     // a hard link and a symbolic link of the inputs
-    std::fs::hard_link(&m[..], j("hard.npy")).unwrap();
+    std::fs::hard_link(m, j("hard.npy")).unwrap();
     std::os::unix::fs::symlink("mask.npy", j("soft.npy")).unwrap();
     std::os::unix::fs::symlink(&dir, j("dirlink")).unwrap();
     std::fs::create_dir(j("sub")).unwrap();
@@ -166,7 +166,7 @@ fn an_output_that_is_an_input_is_refused_before_any_work() {
     .unwrap();
     cassi_io::save_cube(&scene, &cube, "scene").unwrap();
 
-    let rec = |o: &str| vec!["reconstruct", m, "--mask", mask, "-o", o].join("\u{0}");
+    let rec = |o: &str| ["reconstruct", m, "--mask", mask, "-o", o].join("\u{0}");
     let cases: Vec<(String, Vec<&str>)> = vec![
         // reconstruct: the measurement, the mask, links to them
         (rec(m), vec!["(-o)", "(the measurement)"]),
