@@ -2,6 +2,7 @@
 //! library, and writes files; no science happens here.
 
 mod commands;
+mod interrupt;
 mod report;
 mod sidecar;
 
@@ -54,6 +55,7 @@ enum Command {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     cassi_core::limits::set_max_elements(cli.max_elements);
+    interrupt::install();
     let reporter = Reporter::new(cli.quiet, cli.json);
     let result = match &cli.command {
         Command::Simulate(args) => commands::simulate::run(args, &reporter),
@@ -65,6 +67,11 @@ fn main() -> ExitCode {
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
+        Err(e) if interrupt::is_interrupt(&e) => {
+            reporter.clear();
+            eprintln!("error: {}", interrupt::Interrupted);
+            ExitCode::from(interrupt::EXIT_CODE)
+        }
         Err(e) => {
             reporter.clear();
             eprintln!("error: {e:#}");

@@ -58,3 +58,16 @@ pub struct SimulationRecord {
 pub fn sidecar_path(measurement: &Path) -> PathBuf {
     measurement.with_extension("json")
 }
+
+/// The simulation sidecar beside `measurement`, if there is one: a JSON file
+/// of that name holding a simulation record. Commands that read the
+/// measurement must not write over it (it describes the measurement).
+pub fn existing_sidecar(measurement: &Path) -> Option<PathBuf> {
+    let path = sidecar_path(measurement);
+    if path == measurement {
+        return None;
+    }
+    let text = std::fs::read_to_string(&path).ok()?;
+    let v: serde_json::Value = serde_json::from_str(&text).ok()?;
+    (v.get("simulation").is_some() && v.get("measurement").is_some()).then_some(path)
+}

@@ -3,52 +3,17 @@
 //! kind of bad input.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 
 use cassi_core::optics::{DispersionModel, NoiseModel, SimulationSpec, simulate};
 use cassi_core::synth::{SceneSpec, random_binary_mask, synthetic_scene};
 use cassi_core::{Cube, Mismatch};
+use common::{assert_fails, cassi, s};
 
-fn cassi(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_cassi"))
-        .args(args)
-        .output()
-        .expect("the cassi binary runs")
-}
+mod common;
 
 /// A fresh, empty folder for one test.
 fn scratch(name: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
-        .join("cli-tests")
-        .join(name);
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
-
-/// Runs a command that must fail: exit code 1, stderr containing every
-/// `needle`, and `output` not created.
-fn assert_fails(args: &[&str], needles: &[&str], output: &Path) {
-    let out = cassi(args);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(
-        out.status.code(),
-        Some(1),
-        "args {args:?}\nstderr: {stderr}"
-    );
-    assert!(!stderr.contains("panicked"), "{stderr}");
-    for n in needles {
-        assert!(stderr.contains(n), "expected '{n}' in: {stderr}");
-    }
-    assert!(
-        !output.exists(),
-        "{} was written despite the error",
-        output.display()
-    );
+    common::scratch("cli-tests", name)
 }
 
 #[test]
@@ -368,7 +333,7 @@ fn absurd_parameters_are_refused() {
     ];
     let cases: [(&[&str], &[&str]); 6] = [
         (&["--theta", "46"], &["theta_deg", "45"]),
-        (&["--a1", "0"], &["a1", "positive"]),
+        (&["--a1", "0"], &["a1", "between 0.001 and 1000"]),
         (&["--a1", "-2"], &["a1"]),
         (&["--bands", "0"], &["bands"]),
         (&["--alpha", "90"], &["alpha_deg"]),
@@ -561,7 +526,15 @@ fn eval_writes_the_study_and_resumes_without_rerunning() {
     other.extend(["--dx", "0.5"]);
     let third = cassi(&other);
     assert!(third.status.success());
-    assert!(!String::from_utf8_lossy(&third.stdout).contains("earlier run"));
+    let third_out = String::from_utf8_lossy(&third.stdout);
+    assert!(
+        !third_out.contains("result from an earlier run"),
+        "{third_out}"
+    );
+    assert!(
+        third_out.contains("recomputed: the settings differ"),
+        "{third_out}"
+    );
     assert_fails(
         &["eval", "--scenes", "/nonexistent/scenes", "--mask", "m.npy"],
         &["/nonexistent/scenes"],

@@ -88,7 +88,8 @@ pub fn write_all(
         study.preset.name(),
     )?;
     if let (Some(first), Some(method)) = (results.first(), study.methods.first())
-        && out.join("figures/qualitative.png").is_file()
+        // written before, or earlier in the same output set
+        && cassi_io::output_exists(out.join("figures/qualitative.png"))
     {
         figures.push(Figure {
             caption: format!(

@@ -1,87 +1,328 @@
 //! Atomic file writes: write a hidden temporary file in the destination's
 //! directory, flush it to disk, then rename it over the destination. A crash
-//! or Ctrl-C leaves either the old file or the complete new one (plus, at
-//! worst, a stray `.NAME.tmp…` file), never a half-written output.
+//! or Ctrl-C leaves either the old file or the complete new one, never a
+//! half-written output.
+//!
+//! # Temporaries
+//!
+//! A temporary for `dir/NAME` is `dir/.NAME.cassi-tmp<PID>-<N>`: the writing
+//! process's id and a per-process counter. Every temporary this process
+//! creates is registered in a process-wide list until it is renamed into
+//! place or removed, so an interrupt handler can remove them all
+//! ([`remove_temporaries_for_exit`]).
+//!
+//! A process killed outright (SIGKILL, power loss) cannot clean up. Its
+//! temporaries are *stale*: the first write of a later cassi process into the
+//! same directory removes every regular file there whose name has the form
+//! `.NAME.cassi-tmp<PID>-<N>` (or `.NAME.tmp<PID>-<N>`, the form written by
+//! earlier cassi versions) when no process with that PID is alive. A live
+//! process's temporaries are never touched; should the PID have been reused
+//! by an unrelated live process, the stale file stays until that process is
+//! gone.
+//!
+//! When a write replaces an existing file, the new file gets the old one's
+//! permission bits. A destination that is a symbolic link is followed: the
+//! file it points to is replaced and the link stays.
 
+use std::collections::HashSet;
+use std::ffi::OsStr;
 use std::fs::{File, OpenOptions};
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Mutex, MutexGuard};
 
 use crate::error::{IoError, Result};
 
 static COUNTER: AtomicU64 = AtomicU64::new(0);
 
-/// Removes the temporary file unless the write completed.
-struct TempGuard {
-    path: PathBuf,
-    armed: bool,
+/// Every temporary file this process has created and not yet renamed or removed.
+static TEMPS: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+/// Directories already swept for stale temporaries by this process.
+static SWEPT: Mutex<Option<HashSet<PathBuf>>> = Mutex::new(None);
+
+/// The marker between the destination's name and the PID.
+const MARKER: &str = ".cassi-tmp";
+/// The marker of earlier cassi versions (`.NAME.tmp<PID>-<N>`).
+const LEGACY_MARKER: &str = ".tmp";
+
+pub(crate) fn lock_temps() -> MutexGuard<'static, Vec<PathBuf>> {
+    TEMPS.lock().unwrap_or_else(|e| e.into_inner())
 }
 
-impl Drop for TempGuard {
-    fn drop(&mut self) {
-        if self.armed {
-            let _ = std::fs::remove_file(&self.path);
+/// A fresh temporary name for `file_name`: `.NAME.cassi-tmp<PID>-<N>`.
+pub(crate) fn temp_name(file_name: &OsStr) -> String {
+    let n = COUNTER.fetch_add(1, Ordering::Relaxed);
+    format!(
+        ".{}{MARKER}{}-{n}",
+        file_name.to_string_lossy(),
+        std::process::id()
+    )
+}
+
+/// The PID in a temporary's name, if `name` is one (current or legacy form).
+pub(crate) fn temp_pid(name: &str) -> Option<u32> {
+    let rest = name.strip_prefix('.')?;
+    for marker in [MARKER, LEGACY_MARKER] {
+        if let Some(at) = rest.rfind(marker) {
+            if at == 0 {
+                continue;
+            }
+            let tail = &rest[at + marker.len()..];
+            let (pid, n) = tail.split_once('-')?;
+            let digits = |s: &str| !s.is_empty() && s.bytes().all(|b| b.is_ascii_digit());
+            if digits(pid) && digits(n) {
+                return pid.parse().ok();
+            }
+        }
+    }
+    None
+}
+
+/// Whether a process with this id exists (conservatively true when unknown).
+fn process_alive(pid: u32) -> bool {
+    #[cfg(unix)]
+    {
+        let Ok(pid) = i32::try_from(pid) else {
+            return false;
+        };
+        if pid <= 0 {
+            return true;
+        }
+        // SAFETY: kill with signal 0 only checks that the process exists.
+        let r = unsafe { libc::kill(pid, 0) };
+        r == 0 || std::io::Error::last_os_error().raw_os_error() != Some(libc::ESRCH)
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = pid;
+        true
+    }
+}
+
+/// Removes the stale temporaries in `dir` (see the module documentation for
+/// the rule); returns the paths removed.
+pub fn remove_stale_temporaries(dir: &Path) -> Vec<PathBuf> {
+    let me = std::process::id();
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return Vec::new();
+    };
+    let mut removed = Vec::new();
+    for entry in entries.flatten() {
+        let name = entry.file_name();
+        let Some(pid) = name.to_str().and_then(temp_pid) else {
+            continue;
+        };
+        let is_file = entry.file_type().is_ok_and(|t| t.is_file());
+        if pid == me || !is_file || process_alive(pid) {
+            continue;
+        }
+        let path = entry.path();
+        if std::fs::remove_file(&path).is_ok() {
+            removed.push(path);
+        }
+    }
+    removed
+}
+
+/// Sweeps `dir` for stale temporaries, once per process.
+pub(crate) fn sweep_once(dir: &Path) {
+    let key = std::fs::canonicalize(dir).unwrap_or_else(|_| dir.to_path_buf());
+    {
+        let mut swept = SWEPT.lock().unwrap_or_else(|e| e.into_inner());
+        if !swept.get_or_insert_with(HashSet::new).insert(key) {
+            return;
+        }
+    }
+    remove_stale_temporaries(dir);
+}
+
+/// Removes every temporary this process still has and keeps the list locked
+/// for good, so that no new temporary is made and no output set is committed
+/// after it. For an interrupt handler about to exit the process: call it,
+/// then exit. It waits for a commit in progress to finish.
+pub fn remove_temporaries_for_exit() {
+    let mut temps = lock_temps();
+    for path in temps.drain(..) {
+        let _ = std::fs::remove_file(&path);
+    }
+    std::mem::forget(temps);
+}
+
+/// Creates a new, registered temporary in `dir` for `file_name`.
+fn new_temp(dir: &Path, file_name: &OsStr) -> std::io::Result<(File, PathBuf)> {
+    loop {
+        let tmp = dir.join(temp_name(file_name));
+        // registered before it exists, under the lock: an exit handler that
+        // holds the lock sees every file made
+        let mut temps = lock_temps();
+        match OpenOptions::new().write(true).create_new(true).open(&tmp) {
+            Ok(f) => {
+                temps.push(tmp.clone());
+                return Ok((f, tmp));
+            }
+            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => continue,
+            Err(e) => return Err(e),
         }
     }
 }
 
-/// Writes the file at `path` atomically; `fill` writes the content.
+/// Takes `path` off the list of temporaries (it was renamed into place).
+pub(crate) fn unregister(temps: &mut Vec<PathBuf>, path: &Path) {
+    if let Some(i) = temps.iter().rposition(|p| p == path) {
+        temps.swap_remove(i);
+    }
+}
+
+/// Removes the temporary file and takes it off the list.
+pub(crate) fn discard(path: &Path) {
+    let mut temps = lock_temps();
+    let _ = std::fs::remove_file(path);
+    unregister(&mut temps, path);
+}
+
+/// Gives `tmp` the permission bits of `dest` when `dest` exists.
+fn keep_permissions(dest: &Path, tmp: &Path) -> std::io::Result<()> {
+    match std::fs::metadata(dest) {
+        Ok(meta) => std::fs::set_permissions(tmp, meta.permissions()),
+        Err(_) => Ok(()),
+    }
+}
+
+/// Writes the file at `path` atomically; `fill` writes the content. While an
+/// output set is being staged (see [`crate::OutputSet`]), the finished
+/// temporary is handed to the set instead of being renamed.
 pub(crate) fn write_with(
     path: &Path,
     fill: impl FnOnce(&mut BufWriter<&File>) -> std::io::Result<()>,
 ) -> Result<()> {
-    let file_name = path.file_name().ok_or_else(|| IoError::InvalidArgument {
-        path: path.to_path_buf(),
-        reason: "the output path has no file name".into(),
-    })?;
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
-    if path.is_dir() {
+    if path.file_name().is_none() {
+        return Err(IoError::InvalidArgument {
+            path: path.to_path_buf(),
+            reason: "the output path has no file name".into(),
+        });
+    }
+    // the file a symbolic link points to is the one replaced
+    let target = crate::output_set::resolve(path).map_err(|e| IoError::write(path, e))?;
+    if target.is_dir() {
         return Err(IoError::InvalidArgument {
             path: path.to_path_buf(),
             reason: "the output path is a directory".into(),
         });
     }
-    let (file, tmp) = loop {
-        let n = COUNTER.fetch_add(1, Ordering::Relaxed);
-        let tmp = dir.join(format!(
-            ".{}.tmp{}-{}",
-            file_name.to_string_lossy(),
-            std::process::id(),
-            n
-        ));
-        match OpenOptions::new().write(true).create_new(true).open(&tmp) {
-            Ok(f) => break (f, tmp),
-            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => continue,
-            Err(e) => return Err(IoError::write(path, e)),
-        }
+    let staged = crate::output_set::claim(path, &target)?;
+    let file_name = target.file_name().expect("resolved paths end in a name");
+    let dir = match target.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => PathBuf::from("."),
     };
-    let mut guard = TempGuard {
-        path: tmp.clone(),
-        armed: true,
-    };
+    sweep_once(&dir);
+    let (file, tmp) = new_temp(&dir, file_name).map_err(|e| IoError::write(path, e))?;
     let result = (|| {
         let mut w = BufWriter::new(&file);
         fill(&mut w)?;
         w.flush()?;
         drop(w);
         file.sync_all()?;
-        std::fs::rename(&tmp, path)
+        keep_permissions(&target, &tmp)
     })();
     drop(file);
-    match result {
+    if let Err(e) = result {
+        discard(&tmp);
+        return Err(IoError::write(path, e));
+    }
+    if staged {
+        return crate::output_set::record(path, target, tmp);
+    }
+    let mut temps = lock_temps();
+    match std::fs::rename(&tmp, &target) {
         Ok(()) => {
-            guard.armed = false;
+            unregister(&mut temps, &tmp);
             Ok(())
         }
-        Err(e) => Err(IoError::write(path, e)),
+        Err(e) => {
+            let _ = std::fs::remove_file(&tmp);
+            unregister(&mut temps, &tmp);
+            Err(IoError::write(path, e))
+        }
     }
 }
 
 /// Writes `bytes` to `path` atomically.
 pub(crate) fn write_bytes(path: &Path, bytes: &[u8]) -> Result<()> {
     write_with(path, |w| w.write_all(bytes))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn temporary_names_are_recognised() {
+        let name = temp_name(OsStr::new("cube.npy"));
+        assert!(name.starts_with(".cube.npy.cassi-tmp"));
+        assert_eq!(temp_pid(&name), Some(std::process::id()));
+        assert_eq!(temp_pid(".cube.npy.tmp123-4"), Some(123));
+        assert_eq!(temp_pid(".a.tmp.b.cassi-tmp77-0"), Some(77));
+        for not in [
+            "cube.npy.cassi-tmp1-2",
+            ".cube.npy",
+            ".cube.npy.tmp12",
+            ".cube.npy.tmp-3",
+            ".cube.npy.tmp1-x",
+            "..tmp1-2x",
+        ] {
+            assert_eq!(temp_pid(not), None, "{not}");
+        }
+    }
+
+    #[test]
+    fn stale_temporaries_of_dead_processes_go_live_ones_stay() {
+        let dir = std::env::temp_dir().join(format!("cassi-io-stale-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let dead = dir.join(".x.npy.cassi-tmp2000000000-0");
+        let legacy = dir.join(".x.npy.tmp2000000001-5");
+        let live = dir.join(format!(".x.npy.cassi-tmp{}-9", std::process::id()));
+        let other = dir.join(".x.npy.cassi-tmp1-0"); // init: alive
+        let user = dir.join("x.npy.tmp2000000000-0"); // not hidden: not ours
+        for p in [&dead, &legacy, &live, &other, &user] {
+            std::fs::write(p, b"x").unwrap();
+        }
+        let mut removed = remove_stale_temporaries(&dir);
+        removed.sort();
+        let mut want = vec![dead.clone(), legacy.clone()];
+        want.sort();
+        assert_eq!(removed, want);
+        assert!(live.exists() && other.exists() && user.exists());
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn replacing_keeps_permissions_and_follows_links() {
+        use std::os::unix::fs::PermissionsExt;
+        let dir = std::env::temp_dir().join(format!("cassi-io-perm-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let file = dir.join("a.json");
+        std::fs::write(&file, b"old").unwrap();
+        std::fs::set_permissions(&file, std::fs::Permissions::from_mode(0o640)).unwrap();
+        write_bytes(&file, b"new").unwrap();
+        assert_eq!(std::fs::read(&file).unwrap(), b"new");
+        let mode = std::fs::metadata(&file).unwrap().permissions().mode() & 0o777;
+        assert_eq!(mode, 0o640);
+        let link = dir.join("link.json");
+        std::os::unix::fs::symlink("a.json", &link).unwrap();
+        write_bytes(&link, b"through the link").unwrap();
+        assert!(
+            std::fs::symlink_metadata(&link)
+                .unwrap()
+                .file_type()
+                .is_symlink()
+        );
+        assert_eq!(std::fs::read(&file).unwrap(), b"through the link");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 }

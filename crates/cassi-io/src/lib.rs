@@ -8,6 +8,8 @@
 //! * [`describe`] lists what a file holds (`cassi info`).
 //! * [`write_frame_png16`], [`write_band_pngs`], [`write_rgb_png`] write PNGs;
 //!   [`write_atomic`] writes any bytes atomically.
+//! * [`OutputSet`] checks a command's outputs against its inputs before any
+//!   work and commits them together (all or none).
 //!
 //! Conventions: MATLAB data are column-major and v7.3 stores them in HDF5 with
 //! the axes reversed; every reader here returns the shape the file's own tool
@@ -28,14 +30,17 @@ mod mat5;
 mod mat73;
 mod npy;
 mod open;
+mod output_set;
 mod png;
 
+pub use atomic::{remove_stale_temporaries, remove_temporaries_for_exit};
 pub use describe::{FileSummary, Stats, VariableSummary, describe};
 pub use error::{IoError, Result};
 pub use load::{
     Array, CubeLayout, load_array, load_cube, load_frame, save_array, save_cube, save_frame,
 };
 pub use open::FileFormat;
+pub use output_set::{CheckedSet, OutputSet, Staging, output_exists};
 pub use png::{write_band_pngs, write_frame_png16, write_rgb_png};
 
 /// Checks that `path` has an extension cassi can write (.npy, .npz, .mat),

@@ -6,9 +6,13 @@ use cassi_core::calib::{CalibrationProblem, Preset, StageReport, calibrate};
 use cassi_core::optics::{DispersionModel, MaskCode, mask_code, warp_mask};
 use clap::Args;
 
+use cassi_io::OutputSet;
+
 use super::inputs::MeasurementArgs;
-use super::simulate::{check_output, create_parent_dir};
+use super::simulate::check_output;
+use crate::interrupt;
 use crate::report::Reporter;
+use crate::sidecar::existing_sidecar;
 
 #[derive(Args)]
 pub struct CalibrateArgs {
@@ -30,9 +34,20 @@ pub struct CalibrateArgs {
 }
 
 pub fn run(args: &CalibrateArgs, reporter: &Reporter) -> anyhow::Result<()> {
+    // every file read and written, compared before any work
+    check_output_json(&args.output)?;
+    let mut set = OutputSet::new();
+    set.input("the measurement", &args.input.measurement)
+        .input("--mask", &args.input.mask);
+    if let Some(sidecar) = existing_sidecar(&args.input.measurement) {
+        set.input("the measurement's simulation sidecar", sidecar);
+    }
+    set.output("-o", &args.output);
     if let Some(p) = &args.write_mask {
         check_output(p)?;
+        set.output("--write-mask", p);
     }
+    let checked = set.check()?;
     let (measurement, mask, bands) = args.input.load(reporter)?;
     if let MaskCode::Uniform(v) = mask_code(&mask, "mask")? {
         anyhow::bail!(
@@ -48,6 +63,8 @@ pub fn run(args: &CalibrateArgs, reporter: &Reporter) -> anyhow::Result<()> {
         model: args.model,
     };
     let mut on_stage = |s: &StageReport| {
+        // between stages nothing is half-written: a signal ends the run here
+        interrupt::stop_point();
         let p = s.parameters;
         reporter.say(&format!(
             "  {:<20} dx {:+.3}  dy {:+.3}  θ {:+.3}°  a1 {:.4}  α {:+.2}°  score {:.4e}  ({} evals, {:.2} s)",
@@ -61,12 +78,15 @@ pub fn run(args: &CalibrateArgs, reporter: &Reporter) -> anyhow::Result<()> {
             &mut on_stage,
         )?)
     })?;
+    interrupt::check()?;
     let text = serde_json::to_string_pretty(&cal)? + "\n";
-    check_output_json(&args.output)?;
+    let staging = checked.begin()?;
     cassi_io::write_atomic(&args.output, text.as_bytes())?;
     if let Some(p) = &args.write_mask {
         cassi_io::save_frame(p, &warp_mask(&mask, &cal.parameters.pose()), "mask")?;
     }
+    interrupt::check()?;
+    staging.commit()?;
     let p = cal.parameters;
     reporter.say(&format!(
         "calibrated: dx {:+.3} px  dy {:+.3} px  θ {:+.3}°  a1 {:.4}  α {:+.2}°\n\
@@ -93,5 +113,5 @@ fn check_output_json(path: &std::path::Path) -> anyhow::Result<()> {
             path.display()
         );
     }
-    create_parent_dir(path)
+    Ok(())
 }

@@ -13,9 +13,11 @@ use cassi_eval::protocol::{Prepared, Scenario, Study, ideal_measurements, run_pr
 use cassi_eval::report::{Setup, Sweeps, write_all};
 use cassi_eval::study_figures::write_qualitative;
 use cassi_eval::summary::summarize;
+use cassi_io::OutputSet;
 use clap::Args;
 
 use super::simulate::{SimulationInputs, simulate_and_write};
+use crate::interrupt;
 use crate::report::Reporter;
 use crate::sidecar::Source;
 
@@ -36,8 +38,10 @@ const SIZE: usize = 256;
 const MASK_SEED: u64 = 1;
 
 pub fn run(args: &DemoArgs, reporter: &Reporter) -> anyhow::Result<()> {
-    std::fs::create_dir_all(&args.out)
-        .map_err(|e| anyhow::anyhow!("cannot create {}: {e}", args.out.display()))?;
+    // every file goes into --out, and all of them are replaced together at
+    // the end (or none, when anything fails or a signal comes)
+    let checked = OutputSet::new().output_dir("--out", &args.out).check()?;
+    let staging = checked.begin()?;
     let instrument = Instrument::default();
     let scene = reporter.stage("generating the synthetic scene", || {
         Ok(synthetic_scene(&SceneSpec {
@@ -112,7 +116,7 @@ pub fn run(args: &DemoArgs, reporter: &Reporter) -> anyhow::Result<()> {
         Ok(calibrate_default(
             &problem,
             &DefaultPreset::default(),
-            &mut |_| {},
+            &mut |_| interrupt::stop_point(),
         )?)
     })?;
     let text = serde_json::to_string_pretty(&calibration)? + "\n";
@@ -150,7 +154,7 @@ pub fn run(args: &DemoArgs, reporter: &Reporter) -> anyhow::Result<()> {
             &prepared,
             std::time::Instant::now(),
             true,
-            &mut |_| {},
+            &mut |_| interrupt::stop_point(),
         )
     })?;
     // the scene's time includes the calibration made above
@@ -182,6 +186,8 @@ pub fn run(args: &DemoArgs, reporter: &Reporter) -> anyhow::Result<()> {
             &Sweeps::default(),
         )
     })?;
+    interrupt::check()?;
+    staging.commit()?;
     let psnr = |s| {
         result
             .outcome(method.name(), s)

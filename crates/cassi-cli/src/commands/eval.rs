@@ -21,9 +21,11 @@ use cassi_eval::sweep::{ablation, scaled_mismatch, sensitivity};
 use cassi_eval::weights::{
     LEARNED_METHOD_NAMES, NETS_BUILT, is_learned, parse_weight_flags, resolve_weights,
 };
+use cassi_io::{CheckedSet, OutputSet};
 use clap::Args;
 
 use super::inputs::{MismatchArgs, NoiseArgs};
+use crate::interrupt;
 use crate::report::Reporter;
 
 #[derive(Args)]
@@ -197,8 +199,54 @@ fn check_mask(
     Ok(())
 }
 
+/// The files the study reads and writes, checked before any work: the
+/// report files in --out, and its folders written scene by scene (scenes/,
+/// figures/, sensitivity/), which must hold no input.
+fn check_files(args: &EvalArgs) -> anyhow::Result<CheckedSet> {
+    let mut set = OutputSet::new();
+    if let Some(dir) = &args.scenes {
+        // a folder that cannot be listed is reported where the scenes load
+        for scene in scenes_in(dir).unwrap_or_default() {
+            if let SceneSource::File { path } = scene {
+                set.input("a scene of --scenes", path);
+            }
+        }
+    }
+    if let Some(p) = &args.mask {
+        set.input("--mask", p);
+    }
+    for flag in &args.weights {
+        if let Some((_, file)) = flag.split_once('=') {
+            set.input("--weights", file.trim());
+        }
+    }
+    if let Some(dir) = &args.weights_dir
+        && let Ok(entries) = std::fs::read_dir(dir)
+    {
+        for path in entries.flatten().map(|e| e.path()).filter(|p| p.is_file()) {
+            set.input("a file of --weights-dir", path);
+        }
+    }
+    let out = &args.out;
+    for file in [
+        "summary.json",
+        "outcomes.csv",
+        "parameters.csv",
+        "report.md",
+    ] {
+        set.output(format!("--out's {file}"), out.join(file));
+    }
+    set.output_dir("--out's scenes/", out.join("scenes"))
+        .output_dir("--out's figures/", out.join("figures"));
+    if !args.sensitivity.is_empty() {
+        set.output_dir("--out's sensitivity/", out.join("sensitivity"));
+    }
+    Ok(set.check()?)
+}
+
 pub fn run(args: &EvalArgs, reporter: &Reporter) -> anyhow::Result<()> {
     check_flags(args)?;
+    let checked = check_files(args)?;
     let methods = study_methods(args)?;
     // the paper's mismatch, single values overridden by the flags
     let m = &args.mismatch;
@@ -276,6 +324,9 @@ pub fn run(args: &EvalArgs, reporter: &Reporter) -> anyhow::Result<()> {
         args.resume,
         true,
         &mut |e| match e {
+            // between steps every finished scene is on disk: a signal ends
+            // the run here (rerun with --resume to go on)
+            _ if interrupt::cancelled() => interrupt::stop_point(),
             Event::SceneStart { index, .. } => done = index as u64 * steps_per_scene,
             Event::Step { .. } => {
                 done += 1;
@@ -335,6 +386,7 @@ pub fn run(args: &EvalArgs, reporter: &Reporter) -> anyhow::Result<()> {
                 &args.out,
                 args.resume,
                 &mut |scale, e| {
+                    interrupt::stop_point();
                     if matches!(e, Event::SceneDone { .. } | Event::Skipped { .. }) {
                         done += 1;
                         bar.set(done);
@@ -366,6 +418,7 @@ pub fn run(args: &EvalArgs, reporter: &Reporter) -> anyhow::Result<()> {
             &scenes,
             &mask,
             &mut |_| {
+                interrupt::stop_point();
                 bar.set(done);
                 done += 1;
             },
@@ -375,6 +428,9 @@ pub fn run(args: &EvalArgs, reporter: &Reporter) -> anyhow::Result<()> {
         Some(d) => format!("`{}`", d.display()),
         None => format!("embedded synthetic {0}×{0}×28, seeds 0…", args.size),
     };
+    // the summary, tables, report and figures: all replaced, or none
+    interrupt::check()?;
+    let staging = checked.begin()?;
     write_all(
         &args.out,
         &Setup {
@@ -386,6 +442,8 @@ pub fn run(args: &EvalArgs, reporter: &Reporter) -> anyhow::Result<()> {
         &summary,
         &sweeps,
     )?;
+    interrupt::check()?;
+    staging.commit()?;
     let mut text = String::from("\n");
     text += &cassi_eval::tables::main_table(&summary);
     text += &format!(

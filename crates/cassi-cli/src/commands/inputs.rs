@@ -333,16 +333,16 @@ impl MeasurementArgs {
             }
             return Ok((bands, "from --bands".into()));
         }
-        if let Some(bands) = sidecar_bands(&self.measurement) {
-            if width_fits(bands, s, extra) {
-                return Ok((
-                    bands,
-                    format!(
-                        "from the simulation sidecar {}",
-                        sidecar_path(&self.measurement).display()
-                    ),
-                ));
-            }
+        if let Some(bands) = sidecar_bands(&self.measurement)
+            && width_fits(bands, s, extra)
+        {
+            return Ok((
+                bands,
+                format!(
+                    "from the simulation sidecar {}",
+                    sidecar_path(&self.measurement).display()
+                ),
+            ));
         }
         if width_fits(DEFAULT_BANDS, s, extra) {
             return Ok((

@@ -10,13 +10,20 @@
 use anyhow::bail;
 use cassi_eval::weights::{LEARNED_METHOD_NAMES, official_weights};
 
+use cassi_io::CheckedSet;
+
 use super::reconstruct::ReconstructArgs;
 use crate::report::Reporter;
 
 /// The learned methods; listed in `--help` whether or not they are built in.
 pub const NET_METHOD_NAMES: [&str; 4] = LEARNED_METHOD_NAMES;
 
-pub fn run(args: &ReconstructArgs, reporter: &Reporter) -> anyhow::Result<()> {
+/// `checked`: the outputs, checked against the inputs before any work.
+pub fn run(
+    args: &ReconstructArgs,
+    reporter: &Reporter,
+    checked: &CheckedSet,
+) -> anyhow::Result<()> {
     if args.method != "pnp-hsicnn" {
         // Solver flags mean nothing to a network: refuse them rather than
         // ignore them.
@@ -42,11 +49,15 @@ pub fn run(args: &ReconstructArgs, reporter: &Reporter) -> anyhow::Result<()> {
             official_weights(&args.method)
         );
     }
-    run_learned(args, reporter)
+    run_learned(args, reporter, checked)
 }
 
 #[cfg(not(feature = "nets"))]
-fn run_learned(args: &ReconstructArgs, _reporter: &Reporter) -> anyhow::Result<()> {
+fn run_learned(
+    args: &ReconstructArgs,
+    _reporter: &Reporter,
+    _checked: &CheckedSet,
+) -> anyhow::Result<()> {
     bail!(
         "--method {}: this cassi was built without the deep networks; \
          rebuild it with `cargo build --release -p cassi-cli --features nets`",
@@ -55,18 +66,22 @@ fn run_learned(args: &ReconstructArgs, _reporter: &Reporter) -> anyhow::Result<(
 }
 
 #[cfg(feature = "nets")]
-fn run_learned(args: &ReconstructArgs, reporter: &Reporter) -> anyhow::Result<()> {
+fn run_learned(
+    args: &ReconstructArgs,
+    reporter: &Reporter,
+    checked: &CheckedSet,
+) -> anyhow::Result<()> {
     use std::path::PathBuf;
     use std::time::Instant;
 
     use cassi_core::metrics::Metrics;
-    use cassi_core::solvers::{Control, IterationInfo};
+    use cassi_core::solvers::IterationInfo;
     use cassi_core::{Cube, Instrument, MaskPose, Mismatch};
     use cassi_nets::{MST_BANDS, PnpHsicnn, PnpHsicnnParams, Reconstructor, Stage, TRAINED_STEP};
     use serde::Serialize;
 
     use super::reconstruct::{Outputs, score_against_truth};
-    use super::simulate::check_output;
+    use crate::interrupt;
 
     /// What each learned method reports besides the common fields.
     #[derive(Serialize)]
@@ -110,7 +125,6 @@ fn run_learned(args: &ReconstructArgs, reporter: &Reporter) -> anyhow::Result<()
         metric_definitions: Option<&'static str>,
     }
 
-    check_output(&args.output)?;
     let weights = args.weights.clone().unwrap_or_default();
     let pnp = args.method == "pnp-hsicnn";
     if !pnp && args.input.stride != TRAINED_STEP as f64 {
@@ -140,7 +154,7 @@ fn run_learned(args: &ReconstructArgs, reporter: &Reporter) -> anyhow::Result<()
         let progress = reporter.progress("pnp-hsicnn ", settings.gap.iterations as u64);
         let mut observer = |info: &IterationInfo| {
             progress.set(info.iteration as u64);
-            Control::Continue
+            interrupt::control()
         };
         let r = reporter.stage("reconstructing (pnp-hsicnn)", || {
             Ok(pnp.reconstruct(&measurement, &mask, bands, &params, model, &mut observer)?)
@@ -184,6 +198,7 @@ fn run_learned(args: &ReconstructArgs, reporter: &Reporter) -> anyhow::Result<()
         };
         (r.cube, details, r.width_fitted)
     };
+    interrupt::check()?;
     let seconds = t0.elapsed().as_secs_f64();
 
     let metrics = score_against_truth(truth.as_ref(), &cube)?;
@@ -213,5 +228,5 @@ fn run_learned(args: &ReconstructArgs, reporter: &Reporter) -> anyhow::Result<()
         wavelengths_nm: &instrument.wavelengths_nm,
         width_fitted,
     };
-    outputs.write(reporter, &report, summary, metrics.as_ref())
+    outputs.write(reporter, checked, &report, summary, metrics.as_ref())
 }

@@ -9,15 +9,18 @@ use cassi_core::color::pseudo_rgb;
 use cassi_core::metrics::{Metrics, evaluate};
 use cassi_core::optics::{DispersionModel, validate_mismatch_for_mask};
 use cassi_core::recon::{METHOD_NAMES, Method, reconstruct};
-use cassi_core::solvers::{Control, IterationInfo};
+use cassi_core::solvers::IterationInfo;
 use cassi_core::{Instrument, Mismatch};
+use cassi_io::{CheckedSet, OutputSet};
 use clap::Args;
 use serde::Serialize;
 
 use super::inputs::{LayoutArg, MeasurementArgs};
 use super::net_reconstruct::{self, NET_METHOD_NAMES};
 use super::simulate::check_output;
+use crate::interrupt;
 use crate::report::Reporter;
+use crate::sidecar::existing_sidecar;
 
 #[derive(Args)]
 pub struct ReconstructArgs {
@@ -172,8 +175,9 @@ struct ReconstructionReport {
 }
 
 pub fn run(args: &ReconstructArgs, reporter: &Reporter) -> anyhow::Result<()> {
+    let checked = args.check_files()?;
     if NET_METHOD_NAMES.contains(&args.method.as_str()) {
-        return net_reconstruct::run(args, reporter);
+        return net_reconstruct::run(args, reporter, &checked);
     }
     if args.weights.is_some() {
         bail!(
@@ -182,7 +186,6 @@ pub fn run(args: &ReconstructArgs, reporter: &Reporter) -> anyhow::Result<()> {
             args.method
         );
     }
-    check_output(&args.output)?;
     let (measurement, mask, bands) = args.input.load(reporter)?;
     let (params, file_model) = args.model_parameters(&mask)?;
     let model = args.model.or(file_model).unwrap_or_default();
@@ -197,7 +200,7 @@ pub fn run(args: &ReconstructArgs, reporter: &Reporter) -> anyhow::Result<()> {
     let progress = reporter.progress(&format!("{} ", method.name()), max_iter as u64);
     let mut observer = |info: &IterationInfo| {
         progress.set(info.iteration as u64);
-        Control::Continue
+        interrupt::control()
     };
     let t0 = Instant::now();
     let recon = reporter.stage(&format!("reconstructing ({})", method.name()), || {
@@ -212,6 +215,7 @@ pub fn run(args: &ReconstructArgs, reporter: &Reporter) -> anyhow::Result<()> {
         )?)
     })?;
     drop(progress);
+    interrupt::check()?;
     let seconds = t0.elapsed().as_secs_f64();
 
     let metrics = score_against_truth(truth.as_ref(), &recon.cube)?;
@@ -246,10 +250,41 @@ pub fn run(args: &ReconstructArgs, reporter: &Reporter) -> anyhow::Result<()> {
         wavelengths_nm: &instrument.wavelengths_nm,
         width_fitted: recon.width_fitted,
     };
-    outputs.write(reporter, &report, summary, metrics.as_ref())
+    outputs.write(reporter, &checked, &report, summary, metrics.as_ref())
 }
 
 impl ReconstructArgs {
+    /// Checks every output (the cube, its .png and .json) against every
+    /// input before any work; see [`cassi_io::OutputSet`].
+    pub(crate) fn check_files(&self) -> anyhow::Result<CheckedSet> {
+        check_output(&self.output)?;
+        let mut set = OutputSet::new();
+        set.input("the measurement", &self.input.measurement)
+            .input("--mask", &self.input.mask);
+        if let Some(sidecar) = existing_sidecar(&self.input.measurement) {
+            set.input("the measurement's simulation sidecar", sidecar);
+        }
+        for (flag, path) in [
+            ("--calibration", &self.calibration),
+            ("--truth", &self.truth),
+            ("--weights", &self.weights),
+        ] {
+            if let Some(p) = path {
+                set.input(flag, p);
+            }
+        }
+        set.output("-o", &self.output)
+            .output(
+                "the preview (-o with .png)",
+                self.output.with_extension("png"),
+            )
+            .output(
+                "the report (-o with .json)",
+                self.output.with_extension("json"),
+            );
+        Ok(set.check()?)
+    }
+
     /// The model's parameters (and the dispersion model a file names):
     /// `--calibration`'s, or the nominal instrument's.
     /// `mask` is the nominal mask the parameters move: a shift beyond it is
@@ -301,21 +336,46 @@ pub(crate) struct Outputs<'a> {
 }
 
 impl Outputs<'_> {
+    /// Writes the three files as one set ([`ReconstructArgs::check_files`]):
+    /// all of them, or — when anything fails, the cube is not finite, or a
+    /// signal came — none, the previous ones left as they were.
     pub(crate) fn write(
         &self,
         reporter: &Reporter,
+        checked: &CheckedSet,
         report: &impl Serialize,
         mut summary: String,
         metrics: Option<&Metrics>,
     ) -> anyhow::Result<()> {
-        reporter.stage("writing the cube and preview", || {
-            cassi_io::save_cube(self.path, self.cube, "cube")?;
-            let rgb = pseudo_rgb(self.cube, self.wavelengths_nm)?;
-            cassi_io::write_rgb_png(self.path.with_extension("png"), &rgb)?;
-            Ok(())
+        let bad = self
+            .cube
+            .as_slice()
+            .iter()
+            .filter(|v| !v.is_finite())
+            .count();
+        if bad > 0 {
+            bail!(
+                "the reconstruction has {bad} non-finite values (NaN or infinite): nothing was \
+                 written to {} (try fewer iterations or another --weight)",
+                self.path.display()
+            );
+        }
+        let rgb = pseudo_rgb(self.cube, self.wavelengths_nm).with_context(|| {
+            format!(
+                "the preview of {}; nothing was written",
+                self.path.display()
+            )
         })?;
         let text = serde_json::to_string_pretty(report)? + "\n";
-        cassi_io::write_atomic(self.path.with_extension("json"), text.as_bytes())?;
+        reporter.stage("writing the cube and preview", || {
+            let staging = checked.begin()?;
+            cassi_io::save_cube(self.path, self.cube, "cube")?;
+            cassi_io::write_rgb_png(self.path.with_extension("png"), &rgb)?;
+            cassi_io::write_atomic(self.path.with_extension("json"), text.as_bytes())?;
+            interrupt::check()?;
+            staging.commit()?;
+            Ok(())
+        })?;
         if let Some((got, want)) = self.width_fitted {
             reporter.say(&format!(
                 "note: the measurement has {got} columns, the model {want}: fitted on the right"

@@ -8,11 +8,13 @@ use cassi_core::optics::{
     MaskCode, SimulationSpec, mask_code, simulate, validate_mismatch_for_mask,
 };
 use cassi_core::{Cube, Instrument, Mask, Measurement};
+use cassi_io::OutputSet;
 use clap::Args;
 
 use super::inputs::{
     InstrumentArgs, MaskArgs, MismatchArgs, NoiseArgs, SceneArgs, load_mask, load_scene,
 };
+use crate::interrupt;
 use crate::report::Reporter;
 use crate::sidecar::{MeasurementInfo, SimulationRecord, Source, sidecar_path};
 
@@ -46,20 +48,20 @@ pub struct SimulationInputs {
     pub spec: SimulationSpec,
 }
 
-/// Simulates, writes the measurement, its sidecar and (optionally) a PNG preview.
+/// Simulates and writes the measurement, its sidecar and (optionally) a PNG
+/// preview. The files go through the caller's output set: call it between
+/// [`cassi_io::CheckedSet::begin`] and the commit, with the paths declared
+/// by [`declare_outputs`].
 pub fn simulate_and_write(
     inputs: &SimulationInputs,
     output: &Path,
     preview: bool,
     reporter: &Reporter,
 ) -> anyhow::Result<(Measurement, SimulationRecord)> {
-    check_output(output)?;
     let measurement = reporter.stage("simulating the measurement", || {
         Ok(simulate(&inputs.scene, &inputs.mask, &inputs.spec)?)
     })?;
-    reporter.stage("writing the measurement", || {
-        Ok(cassi_io::save_frame(output, &measurement, "measurement")?)
-    })?;
+    interrupt::check()?;
     let (min, max) = measurement.min_max();
     let record = SimulationRecord {
         cassi_version: env!("CARGO_PKG_VERSION").to_string(),
@@ -75,31 +77,43 @@ pub fn simulate_and_write(
         },
     };
     let text = serde_json::to_string_pretty(&record).context("serialising the sidecar")? + "\n";
-    cassi_io::write_atomic(sidecar_path(output), text.as_bytes())?;
-    if preview {
-        cassi_io::write_frame_png16(output.with_extension("png"), &measurement, None)?;
-    }
+    reporter.stage("writing the measurement", || {
+        cassi_io::save_frame(output, &measurement, "measurement")?;
+        cassi_io::write_atomic(sidecar_path(output), text.as_bytes())?;
+        if preview {
+            cassi_io::write_frame_png16(output.with_extension("png"), &measurement, None)?;
+        }
+        Ok(())
+    })?;
     Ok((measurement, record))
 }
 
-/// Refuses an output name cassi cannot write, before any work, and creates
-/// its folder.
-pub fn check_output(output: &Path) -> anyhow::Result<()> {
-    cassi_io::check_output_format(output)?;
-    create_parent_dir(output)
+/// The files [`simulate_and_write`] writes for `-o output`.
+pub fn declare_outputs(set: &mut OutputSet, output: &Path, preview: bool) {
+    set.output("-o", output)
+        .output("the sidecar (-o with .json)", sidecar_path(output));
+    if preview {
+        set.output("the preview (-o with .png)", output.with_extension("png"));
+    }
 }
 
-/// Creates the folder an output file goes into.
-pub fn create_parent_dir(path: &Path) -> anyhow::Result<()> {
-    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir)
-            .with_context(|| format!("cannot create the folder {}", dir.display()))?;
-    }
-    Ok(())
+/// Refuses an output name cassi cannot write (by its extension).
+pub fn check_output(output: &Path) -> anyhow::Result<()> {
+    Ok(cassi_io::check_output_format(output)?)
 }
 
 pub fn run(args: &SimulateArgs, reporter: &Reporter) -> anyhow::Result<()> {
     check_output(&args.output)?;
+    // every file read and written, compared before any work
+    let mut set = OutputSet::new();
+    if let Some(p) = &args.scene.scene {
+        set.input("--scene", p);
+    }
+    if let Some(p) = &args.mask.mask {
+        set.input("--mask", p);
+    }
+    declare_outputs(&mut set, &args.output, args.preview);
+    let checked = set.check()?;
     // Parameters first: a typo should not cost a scene load.
     Instrument::with_bands(1, args.instrument.stride).context("--stride")?;
     let spec = SimulationSpec {
@@ -136,7 +150,10 @@ pub fn run(args: &SimulateArgs, reporter: &Reporter) -> anyhow::Result<()> {
         instrument,
         spec,
     };
+    let staging = checked.begin()?;
     let (measurement, record) = simulate_and_write(&inputs, &args.output, args.preview, reporter)?;
+    interrupt::check()?;
+    staging.commit()?;
     reporter.say(&format!(
         "wrote {} ({}×{}) and {}",
         args.output.display(),

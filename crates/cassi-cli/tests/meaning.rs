@@ -1,0 +1,372 @@
+//! Meaningless inputs and absurd parameters (issue #12, items 4–7): refused
+//! before any work with a message that names the file or flag and the
+//! arithmetic, or accepted with a stated warning where they are legitimate;
+//! and `eval --resume` that cannot mix studies.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+
+use cassi_core::Frame;
+use common::{assert_fails, cassi, cassi_env, ok, s, scratch};
+
+fn dir(name: &str) -> PathBuf {
+    scratch("meaning", name)
+}
+
+fn save(path: &Path, rows: usize, cols: usize, f: impl Fn(usize, usize) -> f32) {
+    let data = (0..rows * cols).map(|i| f(i / cols, i % cols)).collect();
+    cassi_io::save_frame(path, &Frame::from_vec(rows, cols, data).unwrap(), "x").unwrap();
+}
+
+/// A 32×32 4-band simulation (with its sidecar) and its random mask.
+fn simulated(d: &Path) -> (PathBuf, PathBuf) {
+    let (meas, mask) = (d.join("m.npy"), d.join("mask.npy"));
+    ok(&cassi(&[
+        "simulate",
+        "--synthetic",
+        "--size",
+        "32",
+        "--bands",
+        "4",
+        "--random-mask",
+        "-o",
+        s(&meas),
+        "-q",
+    ]));
+    // the mask the simulation used, as a file
+    let m = cassi_core::synth::random_binary_mask(32, 32, 0.5, 1).unwrap();
+    cassi_io::save_frame(&mask, &m, "mask").unwrap();
+    (meas, mask)
+}
+
+#[test]
+fn measurements_without_light_and_masks_without_code_are_refused() {
+    let d = dir("light");
+    let (_, mask) = simulated(&d);
+    let out = d.join("c.json");
+    // 32 rows, 32 + 27·2 columns: fits the default 28 bands
+    let zero = d.join("zero.npy");
+    save(&zero, 32, 86, |_, _| 0.0);
+    assert_fails(
+        &["calibrate", s(&zero), "--mask", s(&mask), "-o", s(&out)],
+        &["zero.npy", "no light", "every value is 0"],
+        &out,
+    );
+    let negative = d.join("negative.npy");
+    save(&negative, 32, 86, |r, c| -1.0 - (r + c) as f32);
+    assert_fails(
+        &["calibrate", s(&negative), "--mask", s(&mask), "-o", s(&out)],
+        &["negative.npy", "≤ 0"],
+        &out,
+    );
+    let signed = d.join("signed.npy");
+    save(
+        &signed,
+        32,
+        86,
+        |r, c| if (r + c) % 2 == 0 { 1.0 } else { -1.0 },
+    );
+    assert_fails(
+        &[
+            "reconstruct",
+            s(&signed),
+            "--mask",
+            s(&mask),
+            "-o",
+            s(&d.join("r.npy")),
+        ],
+        &["signed.npy", "down to -1"],
+        &d.join("r.npy"),
+    );
+    let light = d.join("light.npy");
+    save(&light, 32, 86, |r, c| ((r * 7 + c * 3) % 5) as f32);
+    let closed = d.join("closed.npy");
+    save(&closed, 32, 32, |_, _| 0.0);
+    assert_fails(
+        &["calibrate", s(&light), "--mask", s(&closed), "-o", s(&out)],
+        &["closed.npy", "every pixel is closed"],
+        &out,
+    );
+    assert_fails(
+        &[
+            "simulate",
+            "--synthetic",
+            "--size",
+            "32",
+            "--mask",
+            s(&closed),
+            "-o",
+            s(&d.join("s.npy")),
+        ],
+        &["closed.npy", "every pixel is closed"],
+        &d.join("s.npy"),
+    );
+    // an all-open mask codes nothing: calibration refuses it, reconstruction
+    // warns and goes on
+    let open = d.join("open.npy");
+    save(&open, 32, 32, |_, _| 1.0);
+    assert_fails(
+        &["calibrate", s(&light), "--mask", s(&open), "-o", s(&out)],
+        &["open.npy", "uncoded"],
+        &out,
+    );
+    let r = cassi(&[
+        "reconstruct",
+        s(&light),
+        "--mask",
+        s(&open),
+        "--iterations",
+        "2",
+        "-o",
+        s(&d.join("r.npy")),
+    ]);
+    ok(&r);
+    let stderr = String::from_utf8_lossy(&r.stderr);
+    assert!(
+        stderr.contains("warning: mask") && stderr.contains("nothing is coded"),
+        "{stderr}"
+    );
+}
+
+#[test]
+fn band_counts_are_never_guessed() {
+    let d = dir("bands");
+    let (meas, mask) = simulated(&d);
+    let out = d.join("r.npy");
+    // the sidecar says 4 bands
+    let r = cassi(&[
+        "reconstruct",
+        s(&meas),
+        "--mask",
+        s(&mask),
+        "--iterations",
+        "2",
+        "-o",
+        s(&out),
+    ]);
+    ok(&r);
+    let said = String::from_utf8_lossy(&r.stdout);
+    assert!(
+        said.contains("bands: 4 (from the simulation sidecar"),
+        "{said}"
+    );
+    // the issue's case: a 300-column mask and a 311-column measurement is no
+    // band count at stride 2 (it was silently 6 bands)
+    let wide_mask = d.join("mask300.npy");
+    save(&wide_mask, 32, 300, |r, c| ((r * 5 + c * 3) % 2) as f32);
+    let m311 = d.join("m311.npy");
+    save(&m311, 32, 311, |r, c| ((r + c) % 7) as f32);
+    let c = d.join("c.json");
+    assert_fails(
+        &["calibrate", s(&m311), "--mask", s(&wide_mask), "-o", s(&c)],
+        &[
+            "m311.npy",
+            "311 columns",
+            "300-column mask",
+            "11 extra columns",
+            "--bands",
+        ],
+        &c,
+    );
+    // --bands that do not fit the width: the arithmetic is shown
+    assert_fails(
+        &[
+            "calibrate",
+            s(&m311),
+            "--mask",
+            s(&wide_mask),
+            "--bands",
+            "28",
+            "-o",
+            s(&c),
+        ],
+        &["311 columns do not fit --bands 28", "354"],
+        &c,
+    );
+    // a tiny stride turns the extra columns into thousands of bands: refused
+    for stride in ["0.01", "0.001"] {
+        assert_fails(
+            &[
+                "calibrate",
+                s(&m311),
+                "--mask",
+                s(&wide_mask),
+                "--stride",
+                stride,
+                "-o",
+                s(&c),
+            ],
+            &["stride"],
+            &c,
+        );
+    }
+}
+
+#[test]
+fn absurd_sizes_are_refused_before_allocating() {
+    let d = dir("sizes");
+    let out = d.join("s.npy");
+    let synthetic = ["simulate", "--synthetic", "--random-mask", "-o", s(&out)];
+    for (extra, needles) in [
+        (
+            &["--size", "20000"][..],
+            &["too large", "--size 20000", "budget"][..],
+        ),
+        (
+            &["--bands", "100000"],
+            &["too large", "--bands 100000", "budget"],
+        ),
+        (
+            &["--stride", "0.001"],
+            &["stride", "between 0.001 and 1000"],
+        ),
+        (
+            &["--size", "32", "--dx", "1e9"],
+            &["dx = 1e9", "mask width (32 px)"],
+        ),
+    ] {
+        let mut args = synthetic.to_vec();
+        args.extend_from_slice(extra);
+        assert_fails(&args, needles, &out);
+    }
+    // the budget is configurable: a 64×64×28 scene is 114,688 elements
+    let mut args = synthetic.to_vec();
+    args.extend(["--size", "64"]);
+    let small = cassi_env(&args, &[("CASSI_MAX_ELEMENTS", "100000")]);
+    assert_eq!(small.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&small.stderr).contains("budget of 100000"));
+    assert!(!out.exists());
+    ok(&cassi_env(&args, &[("CASSI_MAX_ELEMENTS", "200000")]));
+}
+
+#[test]
+fn parameter_files_are_read_by_name_and_range() {
+    let d = dir("params");
+    let (meas, mask) = simulated(&d);
+    let out = d.join("r.npy");
+    let named = |fields: &str| format!("{{\"parameters\": {{{fields}}}}}");
+    for (name, text, needles) in [
+        (
+            "positional.json",
+            "{\"parameters\": [1, 2, 3, 4, 5]}".to_string(),
+            &["positional.json", "named fields", "an array"][..],
+        ),
+        (
+            "huge.json",
+            named("\"dx\": 1e308, \"dy\": 0, \"theta_deg\": 0, \"a1\": 2, \"alpha_deg\": 0"),
+            &["huge.json", "dx = 1e308", "mask width"],
+        ),
+        (
+            "tiny.json",
+            named("\"dx\": 0, \"dy\": 0, \"theta_deg\": 0, \"a1\": 1e-300, \"alpha_deg\": 0"),
+            &["tiny.json", "a1 = 1e-300"],
+        ),
+        (
+            "extra.json",
+            named("\"dx\": 0, \"dy\": 0, \"theta_deg\": 0, \"a1\": 2, \"alpha_deg\": 0, \"dz\": 1"),
+            &["extra.json", "unknown field(s) dz"],
+        ),
+        (
+            "text.json",
+            named("\"dx\": \"1\", \"dy\": 0, \"theta_deg\": 0, \"a1\": 2, \"alpha_deg\": 0"),
+            &["text.json", "dx must be a number"],
+        ),
+        (
+            "missing.json",
+            named("\"dx\": 0, \"dy\": 0, \"theta_deg\": 0, \"alpha_deg\": 0"),
+            &["missing.json", "a1 is missing"],
+        ),
+    ] {
+        let file = d.join(name);
+        std::fs::write(&file, text).unwrap();
+        assert_fails(
+            &[
+                "reconstruct",
+                s(&meas),
+                "--mask",
+                s(&mask),
+                "--calibration",
+                s(&file),
+                "-o",
+                s(&out),
+            ],
+            needles,
+            &out,
+        );
+    }
+}
+
+#[test]
+fn eval_flags_that_could_only_fail_later_are_refused_first() {
+    let d = dir("eval-flags");
+    let out = d.join("study");
+    for (extra, needles) in [
+        (&["--count", "0"][..], &["--count 0"][..]),
+        (&["--size", "8"], &["--size 8", "11×11"]),
+        (&["--limit", "0"], &["--limit 0"]),
+        (&["--sensitivity=nan"], &["--sensitivity NaN"]),
+        (
+            &["--size", "16", "--sensitivity", "1,40"],
+            &["--sensitivity 40", "mask width"],
+        ),
+    ] {
+        let mut args = vec!["eval", "--synthetic", "-o", s(&out)];
+        args.extend_from_slice(extra);
+        assert_fails(&args, needles, &out);
+    }
+}
+
+#[test]
+fn eval_resume_recomputes_a_scene_whose_mask_changed() {
+    let d = dir("resume-mask");
+    let out = d.join("study");
+    let (a, b) = (d.join("a.npy"), d.join("b.npy"));
+    cassi_io::save_frame(
+        &a,
+        &cassi_core::synth::random_binary_mask(32, 32, 0.5, 1).unwrap(),
+        "m",
+    )
+    .unwrap();
+    cassi_io::save_frame(
+        &b,
+        &cassi_core::synth::random_binary_mask(32, 32, 0.5, 2).unwrap(),
+        "m",
+    )
+    .unwrap();
+    let run = |mask: &Path, resume: bool| {
+        let mut args = vec![
+            "eval",
+            "--synthetic",
+            "--size",
+            "32",
+            "--iterations",
+            "3",
+            "--mask",
+            s(mask),
+            "-o",
+            s(&out),
+        ];
+        if resume {
+            args.push("--resume");
+        }
+        let r = cassi(&args);
+        ok(&r);
+        (
+            String::from_utf8_lossy(&r.stdout).into_owned(),
+            std::fs::read_to_string(out.join("scenes/synthetic_0.json")).unwrap(),
+        )
+    };
+    let (_, first) = run(&a, false);
+    let (said, same) = run(&a, true);
+    assert!(said.contains("result from an earlier run"), "{said}");
+    assert_eq!(first, same);
+    // another mask under the same name: recomputed, and said so
+    let (said, other) = run(&b, true);
+    assert!(
+        said.contains("recomputed: the mask's data differ"),
+        "{said}"
+    );
+    assert!(!said.contains("result from an earlier run"), "{said}");
+    assert_ne!(first, other);
+}
