@@ -24,6 +24,10 @@ pub(crate) struct VarInfo {
     /// Whether the file allocates no storage for the values (an HDF5 dataset
     /// never written: reading it would only repeat its fill value).
     pub unstored: bool,
+    /// The most bytes of values the file can yield for it (the bytes present,
+    /// or what its compressed bytes can inflate to), when known: a shape
+    /// declaring more is refused before anything is allocated.
+    pub max_bytes: Option<u64>,
 }
 
 /// Byte order of multi-byte numbers in a file.

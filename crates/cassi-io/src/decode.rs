@@ -276,6 +276,13 @@ impl Sink for StatsSink {
     }
 }
 
+/// The most bytes `compressed` bytes of a deflate (zlib) stream can inflate
+/// to: deflate cannot do better than about 1032:1, so anything more is a lie
+/// that need not be inflated to be caught.
+pub(crate) fn inflate_bound(compressed: u64) -> u64 {
+    compressed.saturating_mul(1040).saturating_add(1024)
+}
+
 /// Bytes per piece handed to a sink from a stream (a multiple of every element size).
 const PIECE: usize = 1 << 16;
 

@@ -19,7 +19,7 @@ use std::io::Read;
 use std::path::Path;
 
 use crate::array::{Endian, VarInfo, element_count};
-use crate::decode::{Elem, Sink, pump};
+use crate::decode::{Elem, Sink, inflate_bound, pump};
 use crate::error::{IoError, Result};
 
 const FORMAT: &str = "MATLAB v5 MAT-file";
@@ -233,7 +233,7 @@ fn matrix_head(r: &mut Reader<'_>) -> std::result::Result<MatrixHead, Stop> {
     })
 }
 
-fn head_info(h: &MatrixHead, _e: Endian) -> VarInfo {
+fn head_info(h: &MatrixHead) -> VarInfo {
     let base = class_name(h.class, h.logical);
     let numeric = is_numeric_class(h.class) && !h.complex;
     let (dtype, note) = if is_numeric_class(h.class) && h.complex {
@@ -263,6 +263,7 @@ fn head_info(h: &MatrixHead, _e: Endian) -> VarInfo {
         elem: None,
         fortran: true,
         unstored: false,
+        max_bytes: None,
     }
 }
 
@@ -407,7 +408,7 @@ impl Mat5 {
                         e,
                     };
                     let head = matrix_head(&mut sub).map_err(|s| s.into_error(path, &what))?;
-                    let mut info = head_info(&head, e);
+                    let mut info = head_info(&head);
                     let mut loc = Loc::None;
                     // Check the data against the dimensions now (without
                     // decoding them), so damage surfaces early.
@@ -419,6 +420,7 @@ impl Mat5 {
                             s.into_error(path, &format!("variable '{}'", head.name))
                         })?;
                         info.elem = Some(el);
+                        info.max_bytes = Some(len as u64);
                         loc = Loc::Plain { start, len };
                     }
                     vars.push((info, loc));
@@ -443,7 +445,7 @@ impl Mat5 {
                     let announced = sub.u32_at(4).unwrap_or(0) as u64;
                     sub.pos = 8;
                     let head = matrix_head(&mut sub).map_err(|s| s.into_error(path, &what))?;
-                    let mut info = head_info(&head, e);
+                    let mut info = head_info(&head);
                     let mut loc = Loc::None;
                     if info.numeric {
                         let what = format!("variable '{}'", head.name);
@@ -462,6 +464,7 @@ impl Mat5 {
                             ));
                         }
                         info.elem = Some(el);
+                        info.max_bytes = Some(inflate_bound(tag.len as u64).min(len as u64));
                         loc = Loc::Compressed {
                             z: (tag.start, tag.start + tag.len),
                             offset: start as u64,

@@ -187,12 +187,14 @@ fn dataset_info(ds: &Dataset) -> VarInfo {
         elem: if numeric && !empty { elem } else { None },
         fortran: true,
         unstored: false,
+        max_bytes: None,
     }
 }
 
 /// What the dataset's layout message says about its storage: whether any
-/// is allocated, and the element count of one chunk (for a chunked one).
-fn storage_of(file: &Hdf5File, ds: &Dataset) -> (bool, Option<usize>) {
+/// is allocated, the element count of one chunk (for a chunked one), and
+/// the bytes stored (for a compact or contiguous one, clamped to the file).
+fn storage_of(file: &Hdf5File, ds: &Dataset, file_len: u64) -> (bool, Option<usize>, Option<u64>) {
     let sb = file.superblock();
     let Ok(header) = ObjectHeader::parse_at_storage_with_limit(
         file.storage(),
@@ -202,15 +204,18 @@ fn storage_of(file: &Hdf5File, ds: &Dataset) -> (bool, Option<usize>) {
         1 << 20,
     ) else {
         // hdf5-reader parsed it once already; a failure here shows on read.
-        return (true, None);
+        return (true, None, None);
     };
     let undefined = |a: u64| Cursor::is_undefined_offset(a, sb.offset_size);
     for m in &header.messages {
         if let HdfMessage::DataLayout(l) = m {
             return match &l.layout {
-                DataLayout::Compact { .. } => (true, None),
+                DataLayout::Compact { data } => (true, None, Some(data.len() as u64)),
                 DataLayout::Contiguous { address, size } => {
-                    (!undefined(*address) && *size > 0, None)
+                    let stored = !undefined(*address) && *size > 0;
+                    let start = sb.base_address.saturating_add(*address);
+                    let present = file_len.saturating_sub(start).min(*size);
+                    (stored, None, stored.then_some(present))
                 }
                 DataLayout::Chunked { address, dims, .. } => {
                     let chunk = dims
@@ -218,12 +223,12 @@ fn storage_of(file: &Hdf5File, ds: &Dataset) -> (bool, Option<usize>) {
                         .take(ds.ndim())
                         .try_fold(1usize, |n, &d| n.checked_mul(d as usize))
                         .unwrap_or(usize::MAX);
-                    (!undefined(*address), Some(chunk))
+                    (!undefined(*address), Some(chunk), None)
                 }
             };
         }
     }
-    (true, None)
+    (true, None, None)
 }
 
 /// An opened v7.3 file.
@@ -242,7 +247,9 @@ impl Mat73 {
             // and no chunk cache holds copies of what we already decoded.
             let options = OpenOptions::default()
                 .with_chunk_cache_bytes(0)
-                .with_max_read_bytes(64 << 20);
+                .with_max_read_bytes(64 << 20)
+                .with_max_object_header_bytes(4 << 20);
+            let file_len = bytes.len() as u64;
             let file =
                 Hdf5File::from_vec_with_options(bytes, options).map_err(|e| h5err(path, e))?;
             let root = file.root_group().map_err(|e| h5err(path, e))?;
@@ -254,8 +261,9 @@ impl Mat73 {
                 if info.name.starts_with('#') {
                     continue;
                 }
-                let (stored, chunk) = storage_of(&file, ds);
+                let (stored, chunk, present) = storage_of(&file, ds, file_len);
                 info.unstored = !stored;
+                info.max_bytes = present;
                 sets.push(Some((ds.clone(), chunk)));
                 vars.push(info);
             }

@@ -11,7 +11,7 @@ use std::io::{Read, Seek, Write};
 use std::path::Path;
 
 use crate::array::{Endian, VarInfo, element_count};
-use crate::decode::{Elem, Sink, pump};
+use crate::decode::{Elem, Sink, inflate_bound, pump};
 use crate::error::{IoError, Result};
 
 const MAGIC: &[u8; 6] = b"\x93NUMPY";
@@ -252,6 +252,7 @@ fn header_info(name: &str, h: &NpyHeader) -> VarInfo {
         elem,
         fortran: h.fortran,
         unstored: false,
+        max_bytes: None,
     }
 }
 
@@ -269,7 +270,8 @@ impl Npy {
             .file_stem()
             .map(|s| s.to_string_lossy().into_owned())
             .unwrap_or_else(|| "array".into());
-        let info = header_info(&stem, &header);
+        let mut info = header_info(&stem, &header);
+        info.max_bytes = Some(bytes.len().saturating_sub(header.data_offset) as u64);
         // Check the data length against the header now, so a truncated file
         // fails even on `describe`, before anything is decoded.
         let have = bytes.len().saturating_sub(header.data_offset);
@@ -460,13 +462,27 @@ impl Npz {
         let mut members = Vec::new();
         let mut vars = Vec::new();
         for index in 0..zip.len() {
-            let (file_name, size) = {
+            let (file_name, size, stored) = {
                 let m = zip.by_index(index).map_err(|e| zip_err(path, e))?;
                 if m.is_dir() {
                     continue;
                 }
-                (m.name().to_string(), m.size())
+                let stored = match m.compression() {
+                    zip::CompressionMethod::Stored => m.compressed_size(),
+                    _ => inflate_bound(m.compressed_size()),
+                };
+                (m.name().to_string(), m.size(), stored)
             };
+            if size > stored {
+                return Err(IoError::Corrupt {
+                    path: path.to_path_buf(),
+                    format: "NumPy .npz file",
+                    detail: format!(
+                        "member '{file_name}' declares {size} bytes, more than its stored \
+                         bytes can hold (at most {stored})"
+                    ),
+                });
+            }
             let name = file_name
                 .strip_suffix(".npy")
                 .unwrap_or(&file_name)
@@ -475,7 +491,8 @@ impl Npz {
             let prefix = read_member_prefix(path, &mut zip, index, &file_name, 65_536 + 12)?;
             let what = format!("member '{name}': ");
             let header = parse_header(path, &what, &prefix)?;
-            let info = header_info(&name, &header);
+            let mut info = header_info(&name, &header);
+            info.max_bytes = Some(size.saturating_sub(header.data_offset as u64));
             let need = data_bytes(&header);
             let total = need.and_then(|n| n.checked_add(header.data_offset));
             if info.numeric && total.is_none_or(|t| size < t as u64) {

@@ -159,6 +159,15 @@ impl Opened {
         }
     }
 
+    fn format_name(&self) -> &'static str {
+        match self {
+            Opened::Mat5(_) => "MATLAB v5 MAT-file",
+            Opened::Mat73(_) => "MATLAB v7.3 MAT-file (HDF5)",
+            Opened::Npy(_) => "NumPy .npy file",
+            Opened::Npz(_) => "NumPy .npz file",
+        }
+    }
+
     pub(crate) fn format(&self) -> FileFormat {
         match self {
             Opened::Mat5(_) => FileFormat::MatV5,
@@ -194,17 +203,37 @@ impl Opened {
     pub(crate) fn check_size(&self, path: &Path, info: &VarInfo) -> Result<usize> {
         let count = element_count(&info.shape);
         if info.unstored && count.is_none_or(|n| n > UNSTORED_MAX) {
-            return Err(IoError::Corrupt {
+            return Err(IoError::core(
+                path,
+                cassi_core::CassiError::TooLarge {
+                    what: format!(
+                        "variable '{}' ({} {})",
+                        esc(&info.name),
+                        shape_str(&info.shape),
+                        esc(&info.dtype)
+                    ),
+                    detail: format!(
+                        "it declares {} elements but stores none (the dataset was never \
+                         written, only its fill value exists); refusing to materialise more \
+                         than {UNSTORED_MAX} fill values",
+                        count.map_or("more than 2^64".to_string(), |n| n.to_string()),
+                    ),
+                },
+            ));
+        }
+        if let (Some(n), Some(el), Some(max)) = (count, info.elem, info.max_bytes)
+            && (n as u64).saturating_mul(el.size as u64) > max
+        {
+            return Err(IoError::Truncated {
                 path: path.to_path_buf(),
-                format: "MATLAB v7.3 MAT-file (HDF5)",
+                format: self.format_name(),
                 detail: format!(
-                    "variable '{}' ({} {}) declares {} elements but stores none (the dataset \
-                     was never written, only its fill value exists); refusing to \
-                     materialise more than {UNSTORED_MAX} fill values",
+                    "variable '{}' ({} {}) declares {n} elements ({} bytes) but the file holds \
+                     at most {max} bytes for it",
                     info.name,
                     shape_str(&info.shape),
                     info.dtype,
-                    count.map_or("more than 2^64".to_string(), |n| n.to_string()),
+                    (n as u64).saturating_mul(el.size as u64)
                 ),
             });
         }
