@@ -82,7 +82,8 @@ struct TempDir(PathBuf);
 
 impl TempDir {
     fn new(test: &str) -> Self {
-        let p = std::env::temp_dir().join(format!("cassi-nets-hostile-{}-{test}", std::process::id()));
+        let p =
+            std::env::temp_dir().join(format!("cassi-nets-hostile-{}-{test}", std::process::id()));
         let _ = std::fs::remove_dir_all(&p);
         std::fs::create_dir_all(&p).unwrap();
         Self(p)
@@ -148,7 +149,9 @@ fn pth_bytes(tensors: &[Spec]) -> Vec<u8> {
     z.write_all(&p).unwrap();
     for (i, (_, _, _, numel)) in tensors.iter().enumerate() {
         z.start_file(format!("a/data/{i}"), opts).unwrap();
-        let vals: Vec<u8> = (0..*numel).flat_map(|k| (k as f32 * 0.5).to_le_bytes()).collect();
+        let vals: Vec<u8> = (0..*numel)
+            .flat_map(|k| (k as f32 * 0.5).to_le_bytes())
+            .collect();
         z.write_all(&vals).unwrap();
     }
     z.finish().unwrap().into_inner()
@@ -182,7 +185,10 @@ fn tiny_pth_with_a_strided_2_pow_30_view_is_refused_before_materialising() {
     let size = std::fs::metadata(&p).unwrap().len();
     let (r, peak) = peak_during(|| TensorMap::load(&p));
     let msg = r.unwrap_err().to_string();
-    eprintln!("strided.pth ({size} bytes): peak {:.3} MiB; {msg}", peak as f64 / MIB as f64);
+    eprintln!(
+        "strided.pth ({size} bytes): peak {:.3} MiB; {msg}",
+        peak as f64 / MIB as f64
+    );
     assert!(size < 1024, "{size}");
     assert!(peak <= LIMIT, "{peak}");
     for n in [
@@ -222,7 +228,10 @@ fn strict_load_checks_names_and_shapes_before_decoding_values() {
         HsiSdecnn::from_tensors(m)
     });
     let msg = r.err().unwrap().to_string();
-    eprintln!("big.pth strict load: peak {:.1} MiB", peak as f64 / MIB as f64);
+    eprintln!(
+        "big.pth strict load: peak {:.1} MiB",
+        peak as f64 / MIB as f64
+    );
     // What remains is the network itself built on zero-filled stand-ins
     // (~35 MiB); decoding either tensor would cost 128 MiB.
     assert!(peak <= LIMIT, "{peak}");
@@ -231,6 +240,23 @@ fn strict_load_checks_names_and_shapes_before_decoding_values() {
         msg.contains("wrong shape: model.0.weight: got [4096, 8192], wanted [128, 29, 3, 3]"),
         "{msg}"
     );
+}
+
+#[test]
+fn tensor_names_from_files_are_escaped_in_errors() {
+    let dir = TempDir::new("escape");
+    let p = dir.file("names.safetensors");
+    std::fs::write(&p, safetensors_bytes(&[("\u{1b}[2Jw\u{7}", vec![2])])).unwrap();
+    let msg = HsiSdecnn::load(&p).err().unwrap().to_string();
+    assert!(msg.contains("unexpected: \\u{1b}[2Jw\\u{7} [2]"), "{msg}");
+    assert!(!msg.contains('\u{1b}') && !msg.contains('\u{7}'), "{msg:?}");
+    let q = dir.file("bad.safetensors");
+    let mut bytes = safetensors_bytes(&[("\u{1b}]0;x\u{7}", vec![2])]);
+    bytes.truncate(bytes.len() - 1);
+    std::fs::write(&q, &bytes).unwrap();
+    let msg = TensorMap::load(&q).err().unwrap().to_string();
+    assert!(msg.contains("\\u{1b}]0;x"), "{msg}");
+    assert!(!msg.contains('\u{1b}'), "{msg:?}");
 }
 
 // ---- property test over mutated checkpoints ----
@@ -289,9 +315,8 @@ fn apply(bytes: &mut Vec<u8>, m: &Mutation) {
             let w = if wide { 8 } else { 4 };
             let at = i % n.saturating_sub(w).max(1);
             let src = v.to_le_bytes();
-            for k in 0..w.min(n - at) {
-                bytes[at + k] = src[k];
-            }
+            let k = w.min(n - at);
+            bytes[at..at + k].copy_from_slice(&src[..k]);
         }
         Mutation::Digits(i, v) => {
             let digits: Vec<usize> = (0..n).filter(|&k| bytes[k].is_ascii_digit()).collect();
@@ -307,7 +332,7 @@ fn apply(bytes: &mut Vec<u8>, m: &Mutation) {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 400, failure_persistence: None, ..ProptestConfig::default() })]
+    #![proptest_config(ProptestConfig { cases: 2000, failure_persistence: None, ..ProptestConfig::default() })]
 
     #[test]
     fn mutated_checkpoints_never_panic_and_allocate_boundedly(

@@ -25,6 +25,25 @@ const LEGACY_TORCH_MAGIC: &[u8] = &[
     0x80, 0x02, 0x8a, 0x0a, 0x6c, 0xfc, 0x9c, 0x46, 0xf9, 0x20, 0x6a, 0xa8,
 ];
 
+/// `s` with control and text-direction characters written as `\u{1b}`:
+/// tensor names come from the file, and error messages quote them, so raw
+/// they could drive the user's terminal.
+pub(crate) fn esc(s: &str) -> String {
+    let bad = |c: char| {
+        c.is_control()
+            || matches!(c, '\u{061c}' | '\u{200b}'..='\u{200f}' | '\u{2028}'..='\u{202e}' | '\u{2066}'..='\u{2069}' | '\u{feff}')
+    };
+    let mut out = String::with_capacity(s.len());
+    for c in s.chars() {
+        if bad(c) {
+            out.extend(c.escape_unicode());
+        } else {
+            out.push(c);
+        }
+    }
+    out
+}
+
 /// One tensor of a checkpoint, converted to f32, with its stored type.
 #[derive(Debug, Clone, PartialEq)]
 pub struct StoredTensor {
@@ -168,7 +187,7 @@ impl TensorMap {
         };
         let tensors = parsed.map_err(|msg| NetError::Checkpoint {
             path: path.to_path_buf(),
-            msg,
+            msg: esc(&msg),
         })?;
         Ok(Self::from_entries(path.to_path_buf(), tensors))
     }
@@ -242,9 +261,14 @@ impl TensorMap {
         let mut problems = Vec::new();
         for (name, t) in &over.tensors {
             match self.tensors.get(name) {
-                None => problems.push(format!("  unexpected: {name} {}", shape_str(&t.shape))),
+                None => problems.push(format!(
+                    "  unexpected: {} {}",
+                    esc(name),
+                    shape_str(&t.shape)
+                )),
                 Some(base) if base.shape != t.shape => problems.push(format!(
-                    "  wrong shape: {name}: got {}, wanted {}",
+                    "  wrong shape: {}: got {}, wanted {}",
+                    esc(name),
                     shape_str(&t.shape),
                     shape_str(&base.shape)
                 )),

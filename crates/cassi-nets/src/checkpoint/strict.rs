@@ -2,7 +2,7 @@
 //! takes each parameter by name and shape while it is built; at the end,
 //! one error lists every missing, unexpected and mis-shaped tensor.
 
-use super::TensorMap;
+use super::{TensorMap, esc};
 use crate::error::{NetError, Result, shape_str};
 use crate::tensor::Tensor;
 
@@ -70,7 +70,7 @@ impl WeightLoader {
         let unexpected: Vec<String> = self
             .map
             .headers()
-            .map(|(n, t)| format!("  unexpected: {n} {}", shape_str(&t.shape)))
+            .map(|(n, t)| format!("  unexpected: {} {}", esc(n), shape_str(&t.shape)))
             .collect();
         let mut report = Vec::new();
         for (title, list) in [
