@@ -2,12 +2,10 @@
 //! a shape as the file shows it, an element type, and (for numeric ones) the
 //! values in row-major (C) order.
 
-use std::path::Path;
-
-use crate::error::{IoError, Result};
+use crate::escape::esc;
 
 /// What a reader knows about one variable before decoding its values.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Default)]
 pub(crate) struct VarInfo {
     pub name: String,
     /// The shape as the file's own tool shows it (MATLAB `size`, NumPy `shape`).
@@ -19,6 +17,17 @@ pub(crate) struct VarInfo {
     pub numeric: bool,
     /// For a non-numeric variable: why it cannot be read (shown in errors).
     pub note: String,
+    /// How the values are stored, for a numeric variable.
+    pub elem: Option<crate::decode::Elem>,
+    /// Whether the values are stored column-major (MATLAB, NumPy `fortran_order`).
+    pub fortran: bool,
+    /// Whether the file allocates no storage for the values (an HDF5 dataset
+    /// never written: reading it would only repeat its fill value).
+    pub unstored: bool,
+    /// The most bytes of values the file can yield for it (the bytes present,
+    /// or what its compressed bytes can inflate to), when known: a shape
+    /// declaring more is refused before anything is allocated.
+    pub max_bytes: Option<u64>,
 }
 
 /// Byte order of multi-byte numbers in a file.
@@ -49,9 +58,14 @@ pub(crate) fn list_vars(vars: &[VarInfo]) -> String {
     vars.iter()
         .map(|v| {
             if v.shape.is_empty() && !v.numeric {
-                format!("'{}' {}", v.name, v.dtype)
+                format!("'{}' {}", esc(&v.name), esc(&v.dtype))
             } else {
-                format!("'{}' {} {}", v.name, shape_str(&v.shape), v.dtype)
+                format!(
+                    "'{}' {} {}",
+                    esc(&v.name),
+                    shape_str(&v.shape),
+                    esc(&v.dtype)
+                )
             }
         })
         .collect::<Vec<_>>()
@@ -127,91 +141,6 @@ pub(crate) fn index_str(shape: &[usize], mut i: usize) -> String {
             .collect::<Vec<_>>()
             .join(", ")
     )
-}
-
-/// Errors if any value is NaN/±Inf or does not fit in f32; converts to f32.
-pub(crate) fn to_f32_checked(
-    path: &Path,
-    name: &str,
-    shape: &[usize],
-    data: &[f64],
-) -> Result<Vec<f32>> {
-    let mut out = Vec::with_capacity(data.len());
-    for (i, &v) in data.iter().enumerate() {
-        if !v.is_finite() {
-            return Err(IoError::NonFinite {
-                path: path.to_path_buf(),
-                name: name.to_string(),
-                value: v,
-                index: index_str(shape, i),
-            });
-        }
-        let f = v as f32;
-        if !f.is_finite() {
-            return Err(IoError::OutOfRange {
-                path: path.to_path_buf(),
-                name: name.to_string(),
-                value: v,
-                index: index_str(shape, i),
-            });
-        }
-        out.push(f);
-    }
-    Ok(out)
-}
-
-/// Decodes `bytes` as consecutive numbers of one fixed-size type into f64.
-/// `kind` is 'f' (IEEE float), 'i' (signed), 'u' (unsigned) or 'b' (bool);
-/// `size` its width in bytes. Returns `None` for an unsupported combination.
-/// A trailing partial element is ignored (callers check lengths first).
-pub(crate) fn decode_numbers(bytes: &[u8], kind: char, size: usize, e: Endian) -> Option<Vec<f64>> {
-    fn arr<const N: usize>(c: &[u8], e: Endian) -> [u8; N] {
-        let mut a = [0u8; N];
-        a.copy_from_slice(c);
-        if e == Endian::Big {
-            a.reverse();
-        }
-        a
-    }
-    let v: Vec<f64> = match (kind, size) {
-        ('f', 4) => bytes
-            .chunks_exact(4)
-            .map(|c| f32::from_le_bytes(arr::<4>(c, e)) as f64)
-            .collect(),
-        ('f', 8) => bytes
-            .chunks_exact(8)
-            .map(|c| f64::from_le_bytes(arr::<8>(c, e)))
-            .collect(),
-        ('i', 1) => bytes.iter().map(|&b| b as i8 as f64).collect(),
-        ('u', 1) => bytes.iter().map(|&b| b as f64).collect(),
-        ('b', 1) => bytes.iter().map(|&b| (b != 0) as u8 as f64).collect(),
-        ('i', 2) => bytes
-            .chunks_exact(2)
-            .map(|c| i16::from_le_bytes(arr::<2>(c, e)) as f64)
-            .collect(),
-        ('u', 2) => bytes
-            .chunks_exact(2)
-            .map(|c| u16::from_le_bytes(arr::<2>(c, e)) as f64)
-            .collect(),
-        ('i', 4) => bytes
-            .chunks_exact(4)
-            .map(|c| i32::from_le_bytes(arr::<4>(c, e)) as f64)
-            .collect(),
-        ('u', 4) => bytes
-            .chunks_exact(4)
-            .map(|c| u32::from_le_bytes(arr::<4>(c, e)) as f64)
-            .collect(),
-        ('i', 8) => bytes
-            .chunks_exact(8)
-            .map(|c| i64::from_le_bytes(arr::<8>(c, e)) as f64)
-            .collect(),
-        ('u', 8) => bytes
-            .chunks_exact(8)
-            .map(|c| u64::from_le_bytes(arr::<8>(c, e)) as f64)
-            .collect(),
-        _ => return None,
-    };
-    Some(v)
 }
 
 #[cfg(test)]

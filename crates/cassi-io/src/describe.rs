@@ -7,6 +7,7 @@ use serde::Serialize;
 
 use crate::array::shape_str;
 use crate::error::Result;
+use crate::escape::esc;
 use crate::open::{FileFormat, Opened};
 
 /// Statistics of a numeric variable. `min`, `max` and `mean` are over the
@@ -21,31 +22,6 @@ pub struct Stats {
     pub non_finite: usize,
 }
 
-impl Stats {
-    pub(crate) fn of(values: &[f64]) -> Self {
-        let mut min = f64::INFINITY;
-        let mut max = f64::NEG_INFINITY;
-        let mut sum = 0.0;
-        let mut finite = 0usize;
-        for &v in values {
-            if v.is_finite() {
-                min = min.min(v);
-                max = max.max(v);
-                sum += v;
-                finite += 1;
-            }
-        }
-        let some = |x: f64| (finite > 0).then_some(x);
-        Stats {
-            count: values.len(),
-            min: some(min),
-            max: some(max),
-            mean: some(sum / finite.max(1) as f64),
-            non_finite: values.len() - finite,
-        }
-    }
-}
-
 /// One variable of a file.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct VariableSummary {
@@ -56,8 +32,11 @@ pub struct VariableSummary {
     pub dtype: String,
     /// Whether cassi can load it as numbers.
     pub numeric: bool,
-    /// Present for numeric variables.
+    /// Present for numeric variables whose values were read (see [`describe`]).
     pub stats: Option<Stats>,
+    /// Why the statistics of a numeric variable were not computed.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub stats_skipped: Option<String>,
     /// Why a variable is not loadable, if it is not.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub note: Option<String>,
@@ -72,20 +51,26 @@ pub struct FileSummary {
 }
 
 /// Lists the variables of a `.mat` (v5 or v7.3), `.npy` or `.npz` file with
-/// shape, element type and, for numeric ones, min/max/mean and the count of
-/// non-finite values. Reads every numeric variable in full.
+/// shape and element type, from the headers. Statistics (min/max/mean and the
+/// count of non-finite values) are computed, streaming, only for numeric
+/// variables of at most 2^22 elements that are within the element budget and
+/// whose bytes are present; for the others `stats_skipped` says why.
 pub fn describe(path: impl AsRef<Path>) -> Result<FileSummary> {
     let path = path.as_ref();
     let mut file = Opened::open(path)?;
     let vars = file.vars();
     let mut out = Vec::with_capacity(vars.len());
     for (i, v) in vars.into_iter().enumerate() {
-        let stats = if v.numeric {
-            Some(Stats::of(&file.read(path, i)?))
+        let (stats, stats_skipped) = if v.numeric {
+            match file.stats(path, i, &v)? {
+                Ok(s) => (Some(s), None),
+                Err(why) => (None, Some(why)),
+            }
         } else {
-            None
+            (None, None)
         };
         out.push(VariableSummary {
+            stats_skipped,
             note: (!v.note.is_empty()).then(|| v.note.clone()),
             name: v.name,
             shape: v.shape,
@@ -125,7 +110,7 @@ impl fmt::Display for FileSummary {
         writeln!(
             f,
             "{}: {}, {} variable{}",
-            self.path,
+            esc(&self.path),
             self.format,
             n,
             if n == 1 { "" } else { "s" }
@@ -142,21 +127,27 @@ impl fmt::Display for FileSummary {
                 } else {
                     shape_str(&v.shape)
                 };
+                let (name, dtype) = (esc(&v.name).into_owned(), esc(&v.dtype).into_owned());
                 match &v.stats {
                     Some(s) => [
-                        v.name.clone(),
+                        name,
                         shape,
-                        v.dtype.clone(),
+                        dtype,
                         num(s.min),
                         num(s.max),
                         num(s.mean),
                         s.non_finite.to_string(),
                     ],
                     None => [
-                        v.name.clone(),
+                        name,
                         shape,
-                        v.dtype.clone(),
-                        format!("({})", v.note.as_deref().unwrap_or("not numeric")),
+                        dtype,
+                        match (&v.stats_skipped, &v.note) {
+                            (Some(why), _) => format!("(stats skipped: {})", esc(why)),
+                            (None, note) => {
+                                format!("({})", esc(note.as_deref().unwrap_or("not numeric")))
+                            }
+                        },
                         String::new(),
                         String::new(),
                         String::new(),

@@ -6,6 +6,8 @@ use std::path::{Path, PathBuf};
 use cassi_core::CassiError;
 use thiserror::Error;
 
+use crate::escape::esc;
+
 /// Everything that can go wrong reading, describing or writing a file.
 ///
 /// Each variant carries the path, and its `Display` text names it first, so a
@@ -31,7 +33,7 @@ pub enum IoError {
     },
 
     /// The file ends before the data its headers announce.
-    #[error("{}: truncated {format}: {detail}", .path.display())]
+    #[error("{}: truncated {format}: {}", .path.display(), esc(.detail))]
     Truncated {
         path: PathBuf,
         format: &'static str,
@@ -39,7 +41,7 @@ pub enum IoError {
     },
 
     /// The file is not valid in its format; `detail` holds the parser's message.
-    #[error("{}: not a valid {format}: {detail}", .path.display())]
+    #[error("{}: not a valid {format}: {}", .path.display(), esc(.detail))]
     Corrupt {
         path: PathBuf,
         format: &'static str,
@@ -47,11 +49,11 @@ pub enum IoError {
     },
 
     /// The extension (or content) matches no supported format.
-    #[error("{}: unknown file format: {detail}", .path.display())]
+    #[error("{}: unknown file format: {}", .path.display(), esc(.detail))]
     UnknownFormat { path: PathBuf, detail: String },
 
     /// No variable of that name; `present` lists what the file holds, with shapes.
-    #[error("{}: no variable named '{name}'; the file holds: {present}", .path.display())]
+    #[error("{}: no variable named '{}'; the file holds: {}", .path.display(), esc(.name), esc(.present))]
     VariableNotFound {
         path: PathBuf,
         name: String,
@@ -59,7 +61,7 @@ pub enum IoError {
     },
 
     /// No name was given and the file does not hold exactly one numeric variable.
-    #[error("{}: {reason}; choose one by name. The file holds: {present}", .path.display())]
+    #[error("{}: {}; choose one by name. The file holds: {}", .path.display(), esc(.reason), esc(.present))]
     AmbiguousVariable {
         path: PathBuf,
         reason: String,
@@ -67,7 +69,7 @@ pub enum IoError {
     },
 
     /// The variable exists but its element type cannot be read as numbers.
-    #[error("{}: variable '{name}' has unsupported element type {dtype}{}", .path.display(), hint_suffix(.hint))]
+    #[error("{}: variable '{}' has unsupported element type {}{}", .path.display(), esc(.name), esc(.dtype), esc(&hint_suffix(.hint)))]
     UnsupportedType {
         path: PathBuf,
         name: String,
@@ -76,7 +78,7 @@ pub enum IoError {
     },
 
     /// The variable has the wrong number of dimensions or sizes.
-    #[error("{}: variable '{name}' has shape {got}, expected {expected}", .path.display())]
+    #[error("{}: variable '{}' has shape {got}, expected {expected}", .path.display(), esc(.name))]
     Shape {
         path: PathBuf,
         name: String,
@@ -86,9 +88,9 @@ pub enum IoError {
 
     /// The band axis of a 3-D array cannot be told from its shape.
     #[error(
-        "{}: cannot tell which axis of variable '{name}' (shape {shape}) holds the bands; \
+        "{}: cannot tell which axis of variable '{}' (shape {shape}) holds the bands; \
          give the layout explicitly: --layout brc for (bands, rows, cols), \
-         --layout rcb for (rows, cols, bands)", .path.display()
+         --layout rcb for (rows, cols, bands)", .path.display(), esc(.name)
     )]
     AmbiguousLayout {
         path: PathBuf,
@@ -98,7 +100,7 @@ pub enum IoError {
 
     /// NaN or ±Inf in data that must be finite. `index` is 0-based, in the
     /// variable's own axis order as the file shows it.
-    #[error("{}: variable '{name}' contains a non-finite value ({value}) at index {index}", .path.display())]
+    #[error("{}: variable '{}' contains a non-finite value ({value}) at index {index}", .path.display(), esc(.name))]
     NonFinite {
         path: PathBuf,
         name: String,
@@ -107,7 +109,7 @@ pub enum IoError {
     },
 
     /// A finite value too large for f32 (the element type of every cassi array).
-    #[error("{}: variable '{name}' holds {value} at index {index}, outside the range of f32", .path.display())]
+    #[error("{}: variable '{}' holds {value} at index {index}, outside the range of f32", .path.display(), esc(.name))]
     OutOfRange {
         path: PathBuf,
         name: String,
@@ -117,11 +119,11 @@ pub enum IoError {
 
     /// A caller-supplied argument that cannot be used (e.g. an invalid
     /// MATLAB variable name, an empty image).
-    #[error("{}: {reason}", .path.display())]
+    #[error("{}: {}", .path.display(), esc(.reason))]
     InvalidArgument { path: PathBuf, reason: String },
 
     /// An error of the science layer while building a core type from file data.
-    #[error("{}: {cause}", .path.display())]
+    #[error("{}: {}", .path.display(), esc(&.cause.to_string()))]
     Core { path: PathBuf, cause: CassiError },
 }
 

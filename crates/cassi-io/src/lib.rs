@@ -23,8 +23,10 @@
 
 mod array;
 mod atomic;
+mod decode;
 mod describe;
 mod error;
+mod escape;
 mod load;
 mod mat5;
 mod mat73;
@@ -36,6 +38,7 @@ mod png;
 pub use atomic::{remove_stale_temporaries, remove_temporaries_for_exit};
 pub use describe::{FileSummary, Stats, VariableSummary, describe};
 pub use error::{IoError, Result};
+pub use escape::esc;
 pub use load::{
     Array, CubeLayout, load_array, load_cube, load_frame, save_array, save_cube, save_frame,
 };

@@ -4,7 +4,7 @@ use std::path::Path;
 
 use cassi_core::{Cube, Frame};
 
-use crate::array::{shape_str, to_f32_checked};
+use crate::array::shape_str;
 use crate::atomic;
 use crate::error::{IoError, Result};
 use crate::open::{Ext, FileFormat, Opened, extension};
@@ -35,8 +35,7 @@ pub struct Array {
 fn read_array(path: &Path, var: Option<&str>) -> Result<(Array, FileFormat)> {
     let mut file = Opened::open(path)?;
     let (i, info) = file.select(path, var)?;
-    let values = file.read(path, i)?;
-    let data = to_f32_checked(path, &info.name, &info.shape, &values)?;
+    let data = file.read_f32(path, i, &info)?;
     Ok((
         Array {
             name: info.name,

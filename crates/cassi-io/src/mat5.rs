@@ -18,7 +18,8 @@
 use std::io::Read;
 use std::path::Path;
 
-use crate::array::{Endian, VarInfo, col_major_to_row_major, decode_numbers, element_count};
+use crate::array::{Endian, VarInfo, element_count};
+use crate::decode::{Elem, Sink, inflate_bound, pump};
 use crate::error::{IoError, Result};
 
 const FORMAT: &str = "MATLAB v5 MAT-file";
@@ -30,7 +31,7 @@ const MI_MATRIX: u32 = 14;
 const MI_COMPRESSED: u32 = 15;
 
 /// Bytes of a decompressed element read to learn its name, class and dims.
-const HEADER_PEEK: u64 = 4096;
+const HEADER_PEEK: u64 = 65_536;
 
 fn corrupt(path: &Path, detail: impl Into<String>) -> IoError {
     IoError::Corrupt {
@@ -259,21 +260,33 @@ fn head_info(h: &MatrixHead) -> VarInfo {
         dtype,
         numeric,
         note,
+        elem: None,
+        fortran: true,
+        unstored: false,
+        max_bytes: None,
     }
 }
 
-/// Where a top-level variable's matrix payload lives.
+/// Where a top-level numeric variable's data live.
 enum Loc {
-    /// Payload (after the miMATRIX tag) at this byte range of the file.
-    Plain(usize, usize),
-    /// The zlib stream at this byte range decompresses to a full element.
-    Compressed(usize, usize),
+    /// Not numeric: nothing to read.
+    None,
+    /// Uncompressed data: this byte range of the file.
+    Plain { start: usize, len: usize },
+    /// Inside the zlib stream at `z` (a byte range of the file): `len` bytes
+    /// from offset `offset` of the inflated element, which announces
+    /// `announced` bytes after its 8-byte tag.
+    Compressed {
+        z: (usize, usize),
+        offset: u64,
+        len: u64,
+        announced: u64,
+    },
 }
 
 /// An opened MAT v5 file: the raw bytes and the list of its variables.
 pub(crate) struct Mat5 {
     bytes: Vec<u8>,
-    e: Endian,
     vars: Vec<(VarInfo, Loc)>,
 }
 
@@ -287,20 +300,73 @@ pub(crate) fn header_endian(bytes: &[u8]) -> Option<Endian> {
     }
 }
 
+fn zlib_error(path: &Path, what: &str, e: std::io::Error) -> IoError {
+    // A stream cut short reads as an early EOF; anything else is damage.
+    if e.kind() == std::io::ErrorKind::UnexpectedEof {
+        truncated(path, format!("{what}: compressed data end early ({e})"))
+    } else {
+        corrupt(path, format!("{what}: zlib error: {e}"))
+    }
+}
+
+/// Inflates at most `limit` bytes of `zdata` (a hard cap: a zlib bomb costs
+/// no more than that).
 fn decompress(path: &Path, zdata: &[u8], limit: u64, what: &str) -> Result<Vec<u8>> {
     let mut out = Vec::new();
-    let res = flate2::read::ZlibDecoder::new(zdata)
+    flate2::read::ZlibDecoder::new(zdata)
         .take(limit)
-        .read_to_end(&mut out);
-    match res {
-        Ok(_) => Ok(out),
-        // A stream cut short reads as an early EOF; anything else is damage.
-        Err(e) if e.kind() == std::io::ErrorKind::UnexpectedEof => Err(truncated(
-            path,
-            format!("{what}: compressed data end early ({e})"),
-        )),
-        Err(e) => Err(corrupt(path, format!("{what}: zlib error: {e}"))),
+        .read_to_end(&mut out)
+        .map_err(|e| zlib_error(path, what, e))?;
+    Ok(out)
+}
+
+/// The element type of numeric data stored with MAT data type `mi`.
+fn mi_elem(mi: u32, e: Endian) -> Option<Elem> {
+    let (kind, size) = match mi {
+        1 => ('i', 1),
+        2 => ('u', 1),
+        3 => ('i', 2),
+        4 => ('u', 2),
+        5 => ('i', 4),
+        6 => ('u', 4),
+        7 => ('f', 4),
+        9 => ('f', 8),
+        12 => ('i', 8),
+        13 => ('u', 8),
+        _ => return None,
+    };
+    Elem::new(kind, size, e)
+}
+
+/// Reads the tag of a numeric matrix's real part at `r.pos` (the bytes of
+/// its data need not be present) and checks it against the dimensions:
+/// returns the element type, where the data start and their byte length.
+fn data_tag(r: &Reader<'_>, h: &MatrixHead) -> std::result::Result<(Elem, usize, usize), Stop> {
+    let count = element_count(&h.dims)
+        .ok_or_else(|| Stop::Bad(format!("dimensions {:?} overflow", h.dims)))?;
+    let first = r
+        .u32_at(r.pos)
+        .ok_or_else(|| Stop::Short(format!("the data tag at byte {} is cut off", r.pos)))?;
+    let (dtype, start, len) = if first >> 16 != 0 {
+        (first & 0xFFFF, r.pos + 4, (first >> 16) as usize)
+    } else {
+        let len = r
+            .u32_at(r.pos + 4)
+            .ok_or_else(|| Stop::Short(format!("the data tag at byte {} is cut off", r.pos)))?;
+        (first, r.pos + 8, len as usize)
+    };
+    let el = mi_elem(dtype, r.e).ok_or_else(|| {
+        Stop::Bad(format!(
+            "numeric data stored with data type {dtype}, which is not a number type"
+        ))
+    })?;
+    if Some(len) != count.checked_mul(el.size) {
+        return Err(Stop::Bad(format!(
+            "holds {len} bytes of {}-byte numbers, but its dimensions {:?} need {count} numbers",
+            el.size, h.dims
+        )));
     }
+    Ok((el, start, len))
 }
 
 impl Mat5 {
@@ -342,14 +408,22 @@ impl Mat5 {
                         e,
                     };
                     let head = matrix_head(&mut sub).map_err(|s| s.into_error(path, &what))?;
-                    let info = head_info(&head);
-                    // Validate the data now so truncation and damage surface early.
+                    let mut info = head_info(&head);
+                    let mut loc = Loc::None;
+                    // Check the data against the dimensions now (without
+                    // decoding them), so damage surfaces early.
                     if info.numeric {
-                        numeric_part(&mut sub, &head).map_err(|s| {
+                        let (el, start, len) = data_tag(&sub, &head).map_err(|s| {
                             s.into_error(path, &format!("variable '{}'", head.name))
                         })?;
+                        sub.tag(true).map_err(|s| {
+                            s.into_error(path, &format!("variable '{}'", head.name))
+                        })?;
+                        info.elem = Some(el);
+                        info.max_bytes = Some(len as u64);
+                        loc = Loc::Plain { start, len };
                     }
-                    vars.push((info, Loc::Plain(tag.start, tag.start + tag.len)));
+                    vars.push((info, loc));
                 }
                 MI_COMPRESSED => {
                     let z = &bytes[tag.start..tag.start + tag.len];
@@ -368,12 +442,37 @@ impl Mat5 {
                             format!("{what}: compressed element holds type {inner}, not miMATRIX"),
                         ));
                     }
+                    let announced = sub.u32_at(4).unwrap_or(0) as u64;
                     sub.pos = 8;
                     let head = matrix_head(&mut sub).map_err(|s| s.into_error(path, &what))?;
-                    vars.push((
-                        head_info(&head),
-                        Loc::Compressed(tag.start, tag.start + tag.len),
-                    ));
+                    let mut info = head_info(&head);
+                    let mut loc = Loc::None;
+                    if info.numeric {
+                        let what = format!("variable '{}'", head.name);
+                        let (el, start, len) =
+                            data_tag(&sub, &head).map_err(|s| s.into_error(path, &what))?;
+                        let end = (start as u64).saturating_add(len as u64);
+                        if end > 8 + announced {
+                            return Err(corrupt(
+                                path,
+                                format!(
+                                    "{what}: compressed element announces {announced} bytes, \
+                                     but its data need {} (shape {:?})",
+                                    end - 8,
+                                    head.dims
+                                ),
+                            ));
+                        }
+                        info.elem = Some(el);
+                        info.max_bytes = Some(inflate_bound(tag.len as u64).min(len as u64));
+                        loc = Loc::Compressed {
+                            z: (tag.start, tag.start + tag.len),
+                            offset: start as u64,
+                            len: len as u64,
+                            announced,
+                        };
+                    }
+                    vars.push((info, loc));
                 }
                 other => {
                     return Err(corrupt(
@@ -385,85 +484,55 @@ impl Mat5 {
                 }
             }
         }
-        Ok(Mat5 { bytes, e, vars })
+        Ok(Mat5 { bytes, vars })
     }
 
     pub(crate) fn vars(&self) -> Vec<VarInfo> {
         self.vars.iter().map(|(v, _)| v.clone()).collect()
     }
 
-    /// Decodes variable `i` into f64 values in row-major order of its shape.
-    pub(crate) fn read(&self, path: &Path, i: usize) -> Result<Vec<f64>> {
+    /// Hands variable `i`'s stored bytes (column-major) to `sink`. A
+    /// compressed element is inflated only up to the end of its data.
+    pub(crate) fn stream(&self, path: &Path, i: usize, sink: &mut dyn Sink) -> Result<()> {
         let Some((info, loc)) = self.vars.get(i) else {
             return Err(corrupt(path, format!("no variable #{i}")));
         };
         let what = format!("variable '{}'", info.name);
-        let holder;
-        let (buf, start) = match *loc {
-            Loc::Plain(s, e) => (&self.bytes[..e], s),
-            Loc::Compressed(s, e) => {
-                let z = &self.bytes[s..e];
-                let head = decompress(path, z, 8, &what)?;
-                let r = Reader {
-                    buf: &head,
-                    pos: 0,
-                    e: self.e,
+        match *loc {
+            Loc::None => Err(corrupt(path, format!("{what} holds no numeric data"))),
+            Loc::Plain { start, len } => {
+                // In bounds: checked at parse.
+                sink.take(&self.bytes[start..start + len]);
+                Ok(())
+            }
+            Loc::Compressed {
+                z: (zs, ze),
+                offset,
+                len,
+                announced,
+            } => {
+                let mut dec = flate2::read::ZlibDecoder::new(&self.bytes[zs..ze]);
+                let skipped = std::io::copy(&mut (&mut dec).take(offset), &mut std::io::sink())
+                    .map_err(|e| zlib_error(path, &what, e))?;
+                let el = info.elem.map_or(1, |e| e.size);
+                let got = if skipped == offset {
+                    pump(&mut dec, len, el, sink).map_err(|e| zlib_error(path, &what, e))?
+                } else {
+                    0
                 };
-                let n = r.u32_at(4).unwrap_or(0) as u64;
-                holder = decompress(path, z, 8 + n, &what)?;
-                if (holder.len() as u64) < 8 + n {
+                if got < len {
                     return Err(truncated(
                         path,
                         format!(
-                            "{what}: compressed element announces {n} bytes but decompresses to {}",
-                            holder.len().saturating_sub(8)
+                            "{what}: compressed element announces {announced} bytes but decompresses to {}",
+                            (skipped + got).saturating_sub(8)
                         ),
                     ));
                 }
-                (&holder[..], 8)
+                Ok(())
             }
-        };
-        let mut r = Reader {
-            buf,
-            pos: start,
-            e: self.e,
-        };
-        let head = matrix_head(&mut r).map_err(|s| s.into_error(path, &what))?;
-        let data = numeric_part(&mut r, &head).map_err(|s| s.into_error(path, &what))?;
-        Ok(col_major_to_row_major(&data, &head.dims))
-    }
-}
-
-/// Reads and decodes the real part of a numeric matrix (column-major).
-fn numeric_part(r: &mut Reader<'_>, h: &MatrixHead) -> std::result::Result<Vec<f64>, Stop> {
-    let count = element_count(&h.dims)
-        .ok_or_else(|| Stop::Bad(format!("dimensions {:?} overflow", h.dims)))?;
-    let t = r.tag(true)?;
-    let (kind, size) = match t.dtype {
-        1 => ('i', 1),
-        2 => ('u', 1),
-        3 => ('i', 2),
-        4 => ('u', 2),
-        5 => ('i', 4),
-        6 => ('u', 4),
-        7 => ('f', 4),
-        9 => ('f', 8),
-        12 => ('i', 8),
-        13 => ('u', 8),
-        other => {
-            return Err(Stop::Bad(format!(
-                "numeric data stored with data type {other}, which is not a number type"
-            )));
         }
-    };
-    if t.len != count.saturating_mul(size) {
-        return Err(Stop::Bad(format!(
-            "holds {} bytes of {}-byte numbers, but its dimensions {:?} need {count} numbers",
-            t.len, size, h.dims
-        )));
     }
-    decode_numbers(r.data(&t), kind, size, r.e)
-        .ok_or_else(|| Stop::Bad(format!("cannot decode data type {}", t.dtype)))
 }
 
 /// Whether `name` is a valid MATLAB variable name (letter, then letters,

@@ -11,9 +11,14 @@
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::path::Path;
 
-use hdf5_reader::{Dataset, Datatype, Hdf5File};
+use hdf5_reader::io::Cursor;
+use hdf5_reader::messages::HdfMessage;
+use hdf5_reader::messages::layout::DataLayout;
+use hdf5_reader::object_header::ObjectHeader;
+use hdf5_reader::{ByteOrder, Dataset, Datatype, Hdf5File, OpenOptions};
 
-use crate::array::{VarInfo, col_major_to_row_major};
+use crate::array::{Endian, VarInfo};
+use crate::decode::{Elem, Sink};
 use crate::error::{IoError, Result};
 
 const FORMAT: &str = "MATLAB v7.3 MAT-file (HDF5)";
@@ -100,6 +105,29 @@ fn attr_nonzero(ds: &Dataset, name: &str) -> bool {
         .is_some_and(|v| v != 0.0)
 }
 
+/// The element type of a numeric HDF5 datatype.
+fn h5_elem(dt: &Datatype) -> Option<Elem> {
+    let e = |o: &ByteOrder| match o {
+        ByteOrder::BigEndian => Endian::Big,
+        _ => Endian::Little,
+    };
+    match dt {
+        Datatype::FloatingPoint { size, byte_order } => {
+            Elem::new('f', *size as usize, e(byte_order))
+        }
+        Datatype::FixedPoint {
+            size,
+            signed,
+            byte_order,
+        } => Elem::new(
+            if *signed { 'i' } else { 'u' },
+            *size as usize,
+            e(byte_order),
+        ),
+        _ => None,
+    }
+}
+
 fn dataset_info(ds: &Dataset) -> VarInfo {
     let name = ds.name().trim_start_matches('/').to_string();
     let name = name.rsplit('/').next().unwrap_or(&name).to_string();
@@ -108,17 +136,22 @@ fn dataset_info(ds: &Dataset) -> VarInfo {
     let mut shape: Vec<usize> = ds.shape().iter().rev().map(|&d| d as usize).collect();
     let empty = attr_nonzero(ds, "MATLAB_empty");
     if empty {
-        // MATLAB stores an empty array as a dataset holding its size.
-        shape = ds
-            .read_array::<u64>()
-            .map(|a| a.iter().map(|&d| d as usize).collect())
-            .unwrap_or_else(|_| vec![0, 0]);
+        // MATLAB stores an empty array as a dataset holding its size (a
+        // handful of numbers; a larger one is not an empty array's).
+        shape = if ds.num_elements().is_ok_and(|n| n <= 32) {
+            ds.read_array::<u64>()
+                .map(|a| a.iter().map(|&d| d as usize).collect())
+                .unwrap_or_else(|_| vec![0, 0])
+        } else {
+            vec![0, 0]
+        };
     }
-    let is_number = matches!(
-        dt,
-        Datatype::FloatingPoint { .. } | Datatype::FixedPoint { .. }
-    );
+    let elem = h5_elem(dt);
+    let is_number = elem.is_some();
+    let half = matches!(dt, Datatype::FloatingPoint { size: 2, .. });
     let (dtype, numeric, note) = match class.as_deref() {
+        // MATLAB has no half type: report what the file stores.
+        _ if half => ("float16".to_string(), true, String::new()),
         Some(c) if NUMERIC_CLASSES.contains(&c) && is_number => {
             (c.to_string(), true, String::new())
         }
@@ -151,32 +184,87 @@ fn dataset_info(ds: &Dataset) -> VarInfo {
         dtype,
         numeric,
         note,
+        elem: if numeric && !empty { elem } else { None },
+        fortran: true,
+        unstored: false,
+        max_bytes: None,
     }
+}
+
+/// What the dataset's layout message says about its storage: whether any
+/// is allocated, the element count of one chunk (for a chunked one), and
+/// the bytes stored (for a compact or contiguous one, clamped to the file).
+fn storage_of(file: &Hdf5File, ds: &Dataset, file_len: u64) -> (bool, Option<usize>, Option<u64>) {
+    let sb = file.superblock();
+    let Ok(header) = ObjectHeader::parse_at_storage_with_limit(
+        file.storage(),
+        ds.address(),
+        sb.offset_size,
+        sb.length_size,
+        1 << 20,
+    ) else {
+        // hdf5-reader parsed it once already; a failure here shows on read.
+        return (true, None, None);
+    };
+    let undefined = |a: u64| Cursor::is_undefined_offset(a, sb.offset_size);
+    for m in &header.messages {
+        if let HdfMessage::DataLayout(l) = m {
+            return match &l.layout {
+                DataLayout::Compact { data } => (true, None, Some(data.len() as u64)),
+                DataLayout::Contiguous { address, size } => {
+                    let stored = !undefined(*address) && *size > 0;
+                    let start = sb.base_address.saturating_add(*address);
+                    let present = file_len.saturating_sub(start).min(*size);
+                    (stored, None, stored.then_some(present))
+                }
+                DataLayout::Chunked { address, dims, .. } => {
+                    let chunk = dims
+                        .iter()
+                        .take(ds.ndim())
+                        .try_fold(1usize, |n, &d| n.checked_mul(d as usize))
+                        .unwrap_or(usize::MAX);
+                    (!undefined(*address), Some(chunk), None)
+                }
+            };
+        }
+    }
+    (true, None, None)
 }
 
 /// An opened v7.3 file.
 pub(crate) struct Mat73 {
     vars: Vec<VarInfo>,
-    /// Per variable: its HDF5 dataset and whether it is a MATLAB empty, or
-    /// None for a group.
-    datasets: Vec<Option<(Dataset, bool)>>,
+    /// Per variable: its HDF5 dataset and the element count of one chunk,
+    /// or None for a group.
+    datasets: Vec<Option<(Dataset, Option<usize>)>>,
 }
 
 impl Mat73 {
     pub(crate) fn parse(path: &Path, bytes: Vec<u8>) -> Result<Self> {
         guarded(path, || {
-            let file = Hdf5File::from_vec(bytes).map_err(|e| h5err(path, e))?;
+            // Our reads go into buffers we size (after the budget check);
+            // the library's own allocations for one read call stay small,
+            // and no chunk cache holds copies of what we already decoded.
+            let options = OpenOptions::default()
+                .with_chunk_cache_bytes(0)
+                .with_max_read_bytes(64 << 20)
+                .with_max_object_header_bytes(4 << 20);
+            let file_len = bytes.len() as u64;
+            let file =
+                Hdf5File::from_vec_with_options(bytes, options).map_err(|e| h5err(path, e))?;
             let root = file.root_group().map_err(|e| h5err(path, e))?;
             let (groups, datasets) = root.members().map_err(|e| h5err(path, e))?;
             let mut vars = Vec::new();
             let mut sets = Vec::new();
             for ds in &datasets {
-                let info = dataset_info(ds);
+                let mut info = dataset_info(ds);
                 if info.name.starts_with('#') {
                     continue;
                 }
-                let empty = attr_nonzero(ds, "MATLAB_empty");
-                sets.push(Some((ds.clone(), empty)));
+                let (stored, chunk, present) = storage_of(&file, ds, file_len);
+                info.unstored = !stored;
+                info.max_bytes = present;
+                sets.push(Some((ds.clone(), chunk)));
                 vars.push(info);
             }
             for g in &groups {
@@ -191,10 +279,9 @@ impl Mat73 {
                     .unwrap_or_else(|| "group".to_string());
                 vars.push(VarInfo {
                     name,
-                    shape: Vec::new(),
                     note: format!("a MATLAB {class} is not a numeric array"),
                     dtype: class,
-                    numeric: false,
+                    ..VarInfo::default()
                 });
                 sets.push(None);
             }
@@ -209,75 +296,46 @@ impl Mat73 {
         self.vars.clone()
     }
 
-    /// Decodes variable `i` into f64 values in row-major order of its MATLAB size.
-    pub(crate) fn read(&self, path: &Path, i: usize) -> Result<Vec<f64>> {
-        let (Some(info), Some(Some((ds, empty)))) = (self.vars.get(i), self.datasets.get(i)) else {
+    /// Hands variable `i`'s values (MATLAB column-major order, the file's
+    /// byte order) to `sink`. The caller has checked the element count
+    /// against the budget.
+    pub(crate) fn stream(&self, path: &Path, i: usize, sink: &mut dyn Sink) -> Result<()> {
+        let (Some(info), Some(Some((ds, chunk)))) = (self.vars.get(i), self.datasets.get(i)) else {
             return Err(corrupt(path, format!("variable #{i} is not a dataset")));
         };
-        if *empty {
-            return Ok(Vec::new());
-        }
+        let Some(el) = info.elem else {
+            // A MATLAB empty array: its size is its content.
+            return Ok(());
+        };
         guarded(path, || {
-            let e = |err| h5err(path, err);
-            // HDF5 C order of the reversed dims = MATLAB column-major order.
-            let colmajor: Vec<f64> = match ds.dtype() {
-                Datatype::FloatingPoint { size: 8, .. } => {
-                    ds.read_array::<f64>().map_err(e)?.iter().copied().collect()
-                }
-                Datatype::FloatingPoint { size: 4, .. } => ds
-                    .read_array::<f32>()
-                    .map_err(e)?
-                    .iter()
-                    .map(|&v| v as f64)
-                    .collect(),
-                Datatype::FixedPoint { size, signed, .. } => match (size, signed) {
-                    (1, false) => conv(ds.read_array::<u8>().map_err(e)?.iter()),
-                    (1, true) => conv(ds.read_array::<i8>().map_err(e)?.iter()),
-                    (2, false) => conv(ds.read_array::<u16>().map_err(e)?.iter()),
-                    (2, true) => conv(ds.read_array::<i16>().map_err(e)?.iter()),
-                    (4, false) => conv(ds.read_array::<u32>().map_err(e)?.iter()),
-                    (4, true) => conv(ds.read_array::<i32>().map_err(e)?.iter()),
-                    (8, false) => ds
-                        .read_array::<u64>()
-                        .map_err(e)?
-                        .iter()
-                        .map(|&v| v as f64)
-                        .collect(),
-                    (8, true) => ds
-                        .read_array::<i64>()
-                        .map_err(e)?
-                        .iter()
-                        .map(|&v| v as f64)
-                        .collect(),
-                    _ => return Err(unsupported(path, info)),
-                },
-                _ => return Err(unsupported(path, info)),
-            };
-            if Some(colmajor.len()) != crate::array::element_count(&info.shape) {
+            let declared = ds.num_elements().map_err(|e| h5err(path, e))?;
+            if Some(declared as usize) != crate::array::element_count(&info.shape) {
                 return Err(corrupt(
                     path,
                     format!(
-                        "variable '{}' holds {} values for size {:?}",
-                        info.name,
-                        colmajor.len(),
-                        info.shape
+                        "variable '{}' holds {declared} values for size {:?}",
+                        info.name, info.shape
                     ),
                 ));
             }
-            Ok(col_major_to_row_major(&colmajor, &info.shape))
+            let n = declared as usize;
+            if let Some(c) = *chunk
+                && c > n.max(1 << 20)
+            {
+                return Err(corrupt(
+                    path,
+                    format!(
+                        "variable '{}' ({} elements) is stored in chunks of {c} elements, \
+                         larger than the dataset itself",
+                        info.name, n
+                    ),
+                ));
+            }
+            let mut raw = vec![0u8; n.saturating_mul(el.size)];
+            ds.read_raw_bytes_into(&mut raw)
+                .map_err(|e| h5err(path, e))?;
+            sink.take(&raw);
+            Ok(())
         })
-    }
-}
-
-fn conv<'a, T: Copy + Into<f64> + 'a>(it: impl Iterator<Item = &'a T>) -> Vec<f64> {
-    it.map(|&v| v.into()).collect()
-}
-
-fn unsupported(path: &Path, info: &VarInfo) -> IoError {
-    IoError::UnsupportedType {
-        path: path.to_path_buf(),
-        name: info.name.clone(),
-        dtype: info.dtype.clone(),
-        hint: String::new(),
     }
 }

@@ -10,7 +10,8 @@ use std::fs::File;
 use std::io::{Read, Seek, Write};
 use std::path::Path;
 
-use crate::array::{Endian, VarInfo, col_major_to_row_major, decode_numbers, element_count};
+use crate::array::{Endian, VarInfo, element_count};
+use crate::decode::{Elem, Sink, inflate_bound, pump};
 use crate::error::{IoError, Result};
 
 const MAGIC: &[u8; 6] = b"\x93NUMPY";
@@ -41,7 +42,7 @@ fn parse_descr(descr: &str) -> Option<(char, usize, Endian)> {
         Endian::Little
     };
     match (kind, size) {
-        ('f', 4 | 8) | ('i' | 'u', 1 | 2 | 4 | 8) | ('b', 1) => Some((kind, size, e)),
+        ('f', 2 | 4 | 8) | ('i' | 'u', 1 | 2 | 4 | 8) | ('b', 1) => Some((kind, size, e)),
         _ => None,
     }
 }
@@ -227,75 +228,31 @@ pub(crate) fn parse_header(path: &Path, what: &str, bytes: &[u8]) -> Result<NpyH
     })
 }
 
-/// Decodes the data of a parsed `.npy` into f64 values in C order.
-/// `bytes` is the whole `.npy` (header included).
-pub(crate) fn decode_data(
-    path: &Path,
-    name: &str,
-    h: &NpyHeader,
-    bytes: &[u8],
-) -> Result<Vec<f64>> {
-    let Some((kind, size, e)) = parse_descr(&h.descr) else {
-        return Err(IoError::UnsupportedType {
-            path: path.to_path_buf(),
-            name: name.to_string(),
-            dtype: dtype_name(&h.descr),
-            hint: "supported: float32/64, (u)int8/16/32/64, bool".into(),
-        });
-    };
-    let count = element_count(&h.shape).ok_or_else(|| IoError::Corrupt {
-        path: path.to_path_buf(),
-        format: "NumPy .npy file",
-        detail: format!("shape {:?} overflows", h.shape),
-    })?;
-    let need = count.saturating_mul(size);
-    let data = bytes.get(h.data_offset..).unwrap_or(&[]);
-    if data.len() < need {
-        return Err(IoError::Truncated {
-            path: path.to_path_buf(),
-            format: "NumPy .npy file",
-            detail: format!(
-                "array '{name}' of shape {:?} needs {need} bytes of data but only {} are present",
-                h.shape,
-                data.len()
-            ),
-        });
-    }
-    if data.len() > need {
-        return Err(IoError::Corrupt {
-            path: path.to_path_buf(),
-            format: "NumPy .npy file",
-            detail: format!(
-                "array '{name}' has {} extra bytes after its data",
-                data.len() - need
-            ),
-        });
-    }
-    let values = decode_numbers(data, kind, size, e).ok_or_else(|| IoError::UnsupportedType {
-        path: path.to_path_buf(),
-        name: name.to_string(),
-        dtype: dtype_name(&h.descr),
-        hint: String::new(),
-    })?;
-    Ok(if h.fortran {
-        col_major_to_row_major(&values, &h.shape)
-    } else {
-        values
-    })
+const SUPPORTED: &str = "supported: float16/32/64, (u)int8/16/32/64, bool";
+
+/// Bytes of data the header announces: element count × element size, or
+/// `None` if the element type is unsupported or the product overflows.
+fn data_bytes(h: &NpyHeader) -> Option<usize> {
+    let (_, size, _) = parse_descr(&h.descr)?;
+    element_count(&h.shape)?.checked_mul(size)
 }
 
 fn header_info(name: &str, h: &NpyHeader) -> VarInfo {
-    let supported = parse_descr(&h.descr).is_some();
+    let elem = parse_descr(&h.descr).and_then(|(k, s, e)| Elem::new(k, s, e));
     VarInfo {
         name: name.to_string(),
         shape: h.shape.clone(),
         dtype: dtype_name(&h.descr),
-        numeric: supported,
-        note: if supported {
+        numeric: elem.is_some(),
+        note: if elem.is_some() {
             String::new()
         } else {
-            "supported: float32/64, (u)int8/16/32/64, bool".into()
+            SUPPORTED.into()
         },
+        elem,
+        fortran: h.fortran,
+        unstored: false,
+        max_bytes: None,
     }
 }
 
@@ -313,13 +270,12 @@ impl Npy {
             .file_stem()
             .map(|s| s.to_string_lossy().into_owned())
             .unwrap_or_else(|| "array".into());
-        let info = header_info(&stem, &header);
-        // Check the data length now, so a truncated file fails even on `describe`.
-        let need = element_count(&header.shape)
-            .zip(parse_descr(&header.descr))
-            .and_then(|(n, (_, s, _))| n.checked_mul(s));
-        if let Some(need) = need {
-            let have = bytes.len().saturating_sub(header.data_offset);
+        let mut info = header_info(&stem, &header);
+        info.max_bytes = Some(bytes.len().saturating_sub(header.data_offset) as u64);
+        // Check the data length against the header now, so a truncated file
+        // fails even on `describe`, before anything is decoded.
+        let have = bytes.len().saturating_sub(header.data_offset);
+        if let Some(need) = data_bytes(&header) {
             if have < need {
                 return Err(IoError::Truncated {
                     path: path.to_path_buf(),
@@ -330,6 +286,15 @@ impl Npy {
                     ),
                 });
             }
+        } else if info.numeric {
+            return Err(IoError::Truncated {
+                path: path.to_path_buf(),
+                format: "NumPy .npy file",
+                detail: format!(
+                    "shape {:?} of {} needs more than 2^64 bytes of data but only {have} are present",
+                    header.shape, info.dtype
+                ),
+            });
         }
         Ok(Npy {
             bytes,
@@ -340,20 +305,53 @@ impl Npy {
     pub(crate) fn vars(&self) -> Vec<VarInfo> {
         vec![self.info.clone()]
     }
-    pub(crate) fn read(&self, path: &Path) -> Result<Vec<f64>> {
-        decode_data(path, &self.info.name, &self.header, &self.bytes)
+    pub(crate) fn stream(&self, path: &Path, sink: &mut dyn Sink) -> Result<()> {
+        let need = data_bytes(&self.header).unwrap_or(0);
+        let data = self.bytes.get(self.header.data_offset..).unwrap_or(&[]);
+        if data.len() > need {
+            return Err(IoError::Corrupt {
+                path: path.to_path_buf(),
+                format: "NumPy .npy file",
+                detail: format!(
+                    "array '{}' has {} extra bytes after its data",
+                    self.info.name,
+                    data.len() - need
+                ),
+            });
+        }
+        // The length was checked at parse: `data` holds exactly `need` bytes.
+        sink.take(&data[..need.min(data.len())]);
+        Ok(())
     }
+}
+
+/// One array of an `.npz`: where it is and what its header says.
+struct Member {
+    index: usize,
+    /// The member's name in the archive (`x.npy`).
+    file_name: String,
+    data_offset: usize,
+    /// Bytes of data the header announces.
+    need: usize,
+    /// Uncompressed size the archive declares.
+    size: u64,
 }
 
 /// An opened `.npz` archive.
 pub(crate) struct Npz {
     zip: zip::ZipArchive<File>,
-    /// Per variable: archive member index.
-    members: Vec<usize>,
+    members: Vec<Member>,
     vars: Vec<VarInfo>,
 }
 
 fn zip_err(path: &Path, e: zip::result::ZipError) -> IoError {
+    if let Some(d) = diagnose_truncation(path) {
+        return IoError::Truncated {
+            path: path.to_path_buf(),
+            format: "NumPy .npz file",
+            detail: d,
+        };
+    }
     IoError::Corrupt {
         path: path.to_path_buf(),
         format: "NumPy .npz file",
@@ -361,10 +359,74 @@ fn zip_err(path: &Path, e: zip::result::ZipError) -> IoError {
     }
 }
 
+/// Walks the local file headers of a zip from its start to tell which
+/// member a short file cuts off (the central directory at its end is gone,
+/// so the zip reader itself can only say that the archive is invalid).
+/// `None` when the file does not look like a cut zip.
+fn diagnose_truncation(path: &Path) -> Option<String> {
+    let mut f = File::open(path).ok()?;
+    let len = f.metadata().ok()?.len();
+    let mut pos = 0u64;
+    let mut last: Option<String> = None;
+    for _ in 0..100_000 {
+        let mut h = [0u8; 30];
+        f.seek(std::io::SeekFrom::Start(pos)).ok()?;
+        let n = read_full(&mut f, &mut h);
+        if n < 4 || h[..4] != *b"PK\x03\x04" {
+            // The central directory (or garbage) begins here.
+            return match (&last, n) {
+                (Some(m), 0) => Some(format!(
+                    "the file ends after member '{m}' (byte {len}) without the zip central directory"
+                )),
+                _ => None,
+            };
+        }
+        let u16_at = |i: usize| u16::from_le_bytes([h[i], h[i + 1]]) as u64;
+        let u32_at = |i: usize| u32::from_le_bytes([h[i], h[i + 1], h[i + 2], h[i + 3]]) as u64;
+        if n < 30 {
+            return Some(format!(
+                "the file ends at byte {len}, inside the header of a member after {}",
+                last.map_or("the start".to_string(), |m| format!("'{m}'"))
+            ));
+        }
+        let (flags, csize, nlen, xlen) = (u16_at(6), u32_at(18), u16_at(26), u16_at(28));
+        let mut name = vec![0u8; nlen as usize];
+        let got = read_full(&mut f, &mut name);
+        let name = String::from_utf8_lossy(&name[..got]).into_owned();
+        let data_start = pos + 30 + nlen + xlen;
+        if flags & 8 != 0 {
+            // Sizes follow the data: the walk cannot go on.
+            return (data_start > len).then(|| format!("member '{name}' is cut off in its header"));
+        }
+        let data_end = data_start + csize;
+        if data_end > len {
+            return Some(format!(
+                "member '{name}' is truncated: its {csize} stored bytes start at byte {data_start}, \
+                 but the file ends at byte {len}"
+            ));
+        }
+        last = Some(name);
+        pos = data_end;
+    }
+    None
+}
+
+fn read_full(f: &mut File, buf: &mut [u8]) -> usize {
+    let mut n = 0;
+    while n < buf.len() {
+        match f.read(&mut buf[n..]) {
+            Ok(0) | Err(_) => break,
+            Ok(k) => n += k,
+        }
+    }
+    n
+}
+
 fn read_member_prefix(
     path: &Path,
     zip: &mut zip::ZipArchive<File>,
     idx: usize,
+    name: &str,
     limit: u64,
 ) -> Result<Vec<u8>> {
     let member = zip.by_index(idx).map_err(|e| zip_err(path, e))?;
@@ -372,12 +434,25 @@ fn read_member_prefix(
     member
         .take(limit)
         .read_to_end(&mut buf)
-        .map_err(|e| IoError::Corrupt {
+        .map_err(|e| member_io_err(path, name, e))?;
+    Ok(buf)
+}
+
+/// An error reading a member's bytes: a short or damaged member, named.
+fn member_io_err(path: &Path, name: &str, e: std::io::Error) -> IoError {
+    if e.kind() == std::io::ErrorKind::UnexpectedEof {
+        IoError::Truncated {
             path: path.to_path_buf(),
             format: "NumPy .npz file",
-            detail: format!("member #{idx}: {e}"),
-        })?;
-    Ok(buf)
+            detail: format!("member '{name}' is truncated: {e}"),
+        }
+    } else {
+        IoError::Corrupt {
+            path: path.to_path_buf(),
+            format: "NumPy .npz file",
+            detail: format!("member '{name}' cannot be read: {e}"),
+        }
+    }
 }
 
 impl Npz {
@@ -386,36 +461,58 @@ impl Npz {
         let mut zip = zip::ZipArchive::new(file).map_err(|e| zip_err(path, e))?;
         let mut members = Vec::new();
         let mut vars = Vec::new();
-        for idx in 0..zip.len() {
-            let (name, size) = {
-                let m = zip.by_index(idx).map_err(|e| zip_err(path, e))?;
+        for index in 0..zip.len() {
+            let (file_name, size, stored) = {
+                let m = zip.by_index(index).map_err(|e| zip_err(path, e))?;
                 if m.is_dir() {
                     continue;
                 }
-                let n = m.name().to_string();
-                (n.strip_suffix(".npy").unwrap_or(&n).to_string(), m.size())
+                let stored = match m.compression() {
+                    zip::CompressionMethod::Stored => m.compressed_size(),
+                    _ => inflate_bound(m.compressed_size()),
+                };
+                (m.name().to_string(), m.size(), stored)
             };
+            if size > stored {
+                return Err(IoError::Corrupt {
+                    path: path.to_path_buf(),
+                    format: "NumPy .npz file",
+                    detail: format!(
+                        "member '{file_name}' declares {size} bytes, more than its stored \
+                         bytes can hold (at most {stored})"
+                    ),
+                });
+            }
+            let name = file_name
+                .strip_suffix(".npy")
+                .unwrap_or(&file_name)
+                .to_string();
             // The header is at most a few KiB; read enough to parse it.
-            let prefix = read_member_prefix(path, &mut zip, idx, 65_536 + 12)?;
+            let prefix = read_member_prefix(path, &mut zip, index, &file_name, 65_536 + 12)?;
             let what = format!("member '{name}': ");
             let header = parse_header(path, &what, &prefix)?;
-            let info = header_info(&name, &header);
-            let need = element_count(&header.shape)
-                .zip(parse_descr(&header.descr))
-                .and_then(|(n, (_, s, _))| n.checked_mul(s))
-                .and_then(|n| n.checked_add(header.data_offset));
-            if need.is_some_and(|need| (size as u128) < need as u128) {
-                let need = need.unwrap_or(0);
+            let mut info = header_info(&name, &header);
+            info.max_bytes = Some(size.saturating_sub(header.data_offset as u64));
+            let need = data_bytes(&header);
+            let total = need.and_then(|n| n.checked_add(header.data_offset));
+            if info.numeric && total.is_none_or(|t| size < t as u64) {
                 return Err(IoError::Truncated {
                     path: path.to_path_buf(),
                     format: "NumPy .npz file",
                     detail: format!(
-                        "member '{name}' of shape {:?} needs {need} bytes but holds {size}",
-                        header.shape
+                        "member '{name}' of shape {:?} needs {} bytes but holds {size}",
+                        header.shape,
+                        total.map_or("more than 2^64".to_string(), |t| t.to_string())
                     ),
                 });
             }
-            members.push(idx);
+            members.push(Member {
+                index,
+                file_name,
+                data_offset: header.data_offset,
+                need: need.unwrap_or(0),
+                size,
+            });
             vars.push(info);
         }
         Ok(Npz { zip, members, vars })
@@ -423,22 +520,62 @@ impl Npz {
     pub(crate) fn vars(&self) -> Vec<VarInfo> {
         self.vars.clone()
     }
-    pub(crate) fn read(&mut self, path: &Path, i: usize) -> Result<Vec<f64>> {
-        let (Some(&idx), Some(info)) = (self.members.get(i), self.vars.get(i)) else {
+    /// Inflates member `i`'s data into `sink`, never more than its header
+    /// announces (checked against the archive's declared size at open).
+    pub(crate) fn stream(&mut self, path: &Path, i: usize, sink: &mut dyn Sink) -> Result<()> {
+        let (Some(m), Some(info)) = (self.members.get(i), self.vars.get(i)) else {
             return Err(IoError::Corrupt {
                 path: path.to_path_buf(),
                 format: "NumPy .npz file",
                 detail: format!("no member #{i}"),
             });
         };
-        let name = info.name.clone();
-        // The member size was checked against the header at open; read at most it (+1
-        // to detect a lying size field).
-        let size = self.zip.by_index(idx).map_err(|e| zip_err(path, e))?.size();
-        let bytes = read_member_prefix(path, &mut self.zip, idx, size.saturating_add(1))?;
-        let what = format!("member '{name}': ");
-        let header = parse_header(path, &what, &bytes)?;
-        decode_data(path, &name, &header, &bytes)
+        let extra = m.size - (m.data_offset + m.need) as u64;
+        if extra > 0 {
+            return Err(IoError::Corrupt {
+                path: path.to_path_buf(),
+                format: "NumPy .npz file",
+                detail: format!(
+                    "array '{}' has {extra} extra bytes after its data",
+                    info.name
+                ),
+            });
+        }
+        let el = info.elem.map_or(1, |e| e.size);
+        let mut r = self.zip.by_index(m.index).map_err(|e| zip_err(path, e))?;
+        let io = |e| member_io_err(path, &m.file_name, e);
+        let skipped = std::io::copy(
+            &mut (&mut r).take(m.data_offset as u64),
+            &mut std::io::sink(),
+        )
+        .map_err(io)?;
+        let got = pump(&mut r, m.need as u64, el, sink).map_err(io)?;
+        if skipped < m.data_offset as u64 || got < m.need as u64 {
+            return Err(IoError::Truncated {
+                path: path.to_path_buf(),
+                format: "NumPy .npz file",
+                detail: format!(
+                    "member '{}' is truncated: it declares {} bytes but its data end after {}",
+                    m.file_name,
+                    m.size,
+                    skipped + got
+                ),
+            });
+        }
+        // Reading to the end lets the zip reader check the member's CRC.
+        let mut one = [0u8; 1];
+        match r.read(&mut one) {
+            Ok(0) => Ok(()),
+            Ok(_) => Err(IoError::Corrupt {
+                path: path.to_path_buf(),
+                format: "NumPy .npz file",
+                detail: format!(
+                    "member '{}' holds more bytes than it declares ({})",
+                    m.file_name, m.size
+                ),
+            }),
+            Err(e) => Err(io(e)),
+        }
     }
 }
 

@@ -4,11 +4,22 @@ use std::path::Path;
 
 use serde::Serialize;
 
-use crate::array::{VarInfo, list_vars};
+use cassi_core::limits;
+
+use crate::array::{VarInfo, element_count, list_vars, shape_str};
+use crate::decode::{F32Sink, Sink, StatsSink};
+use crate::describe::Stats;
 use crate::error::{IoError, Result};
+use crate::escape::esc;
 use crate::mat5::Mat5;
 use crate::mat73::Mat73;
 use crate::npy::{Npy, Npz};
+
+/// Largest variable `describe` reads for statistics.
+pub(crate) const STATS_MAX: usize = 1 << 22;
+
+/// Largest never-written HDF5 dataset (fill value only) that is materialised.
+pub(crate) const UNSTORED_MAX: usize = 1 << 20;
 
 /// The file formats cassi reads.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -148,6 +159,15 @@ impl Opened {
         }
     }
 
+    fn format_name(&self) -> &'static str {
+        match self {
+            Opened::Mat5(_) => "MATLAB v5 MAT-file",
+            Opened::Mat73(_) => "MATLAB v7.3 MAT-file (HDF5)",
+            Opened::Npy(_) => "NumPy .npy file",
+            Opened::Npz(_) => "NumPy .npz file",
+        }
+    }
+
     pub(crate) fn format(&self) -> FileFormat {
         match self {
             Opened::Mat5(_) => FileFormat::MatV5,
@@ -166,14 +186,121 @@ impl Opened {
         }
     }
 
-    /// Decodes variable `i` (an index into `vars()`) into C-order f64 values.
-    pub(crate) fn read(&mut self, path: &Path, i: usize) -> Result<Vec<f64>> {
+    /// Hands variable `i`'s stored bytes to `sink` (see each reader).
+    fn stream(&mut self, path: &Path, i: usize, sink: &mut dyn Sink) -> Result<()> {
         match self {
-            Opened::Mat5(m) => m.read(path, i),
-            Opened::Mat73(m) => m.read(path, i),
-            Opened::Npy(n) => n.read(path),
-            Opened::Npz(n) => n.read(path, i),
+            Opened::Mat5(m) => m.stream(path, i, sink),
+            Opened::Mat73(m) => m.stream(path, i, sink),
+            Opened::Npy(n) => n.stream(path, sink),
+            Opened::Npz(n) => n.stream(path, i, sink),
         }
+    }
+
+    /// Why variable `info` cannot be materialised as it is declared, before
+    /// anything is allocated for it: an HDF5 dataset that stores nothing but
+    /// declares many elements, or a shape over the element budget. Returns
+    /// the element count otherwise.
+    pub(crate) fn check_size(&self, path: &Path, info: &VarInfo) -> Result<usize> {
+        let count = element_count(&info.shape);
+        if info.unstored && count.is_none_or(|n| n > UNSTORED_MAX) {
+            return Err(IoError::core(
+                path,
+                cassi_core::CassiError::TooLarge {
+                    what: format!(
+                        "variable '{}' ({} {})",
+                        esc(&info.name),
+                        shape_str(&info.shape),
+                        esc(&info.dtype)
+                    ),
+                    detail: format!(
+                        "it declares {} elements but stores none (the dataset was never \
+                         written, only its fill value exists); refusing to materialise more \
+                         than {UNSTORED_MAX} fill values",
+                        count.map_or("more than 2^64".to_string(), |n| n.to_string()),
+                    ),
+                },
+            ));
+        }
+        if let (Some(n), Some(el), Some(max)) = (count, info.elem, info.max_bytes)
+            && (n as u64).saturating_mul(el.size as u64) > max
+        {
+            return Err(IoError::Truncated {
+                path: path.to_path_buf(),
+                format: self.format_name(),
+                detail: format!(
+                    "variable '{}' ({} {}) declares {n} elements ({} bytes) but the file holds \
+                     at most {max} bytes for it",
+                    info.name,
+                    shape_str(&info.shape),
+                    info.dtype,
+                    (n as u64).saturating_mul(el.size as u64)
+                ),
+            });
+        }
+        let what = format!(
+            "variable '{}' ({} {})",
+            esc(&info.name),
+            shape_str(&info.shape),
+            esc(&info.dtype)
+        );
+        limits::check_elements(&what, &info.shape, "as declared in the file")
+            .map_err(|e| IoError::core(path, e))
+    }
+
+    /// Decodes variable `i` into C-order f32, checked finite and in range,
+    /// after checking its declared size (see [`Opened::check_size`]).
+    pub(crate) fn read_f32(&mut self, path: &Path, i: usize, info: &VarInfo) -> Result<Vec<f32>> {
+        let Some(el) = info.elem else {
+            return Err(IoError::UnsupportedType {
+                path: path.to_path_buf(),
+                name: info.name.clone(),
+                dtype: info.dtype.clone(),
+                hint: info.note.clone(),
+            });
+        };
+        let count = self.check_size(path, info)?;
+        let mut sink = F32Sink::new(el, &info.shape, count, info.fortran);
+        self.stream(path, i, &mut sink)?;
+        sink.finish(path, &info.name)
+    }
+
+    /// Statistics of numeric variable `i`, or why they were skipped: only
+    /// variables of at most [`STATS_MAX`] elements, within the budget and
+    /// with their bytes present are read (streamed: nothing is allocated
+    /// per element).
+    pub(crate) fn stats(
+        &mut self,
+        path: &Path,
+        i: usize,
+        info: &VarInfo,
+    ) -> Result<std::result::Result<Stats, String>> {
+        let Some(el) = info.elem else {
+            // A MATLAB empty array: no values.
+            return Ok(Ok(Stats {
+                count: 0,
+                min: None,
+                max: None,
+                mean: None,
+                non_finite: 0,
+            }));
+        };
+        let count = match self.check_size(path, info) {
+            Ok(n) => n,
+            Err(e) => {
+                // The reason, without the file name (the summary names it).
+                let msg = e.to_string();
+                let prefix = format!("{}: ", path.display());
+                return Ok(Err(msg.strip_prefix(&prefix).unwrap_or(&msg).to_string()));
+            }
+        };
+        if count > STATS_MAX {
+            return Ok(Err(format!(
+                "{count} elements, more than the {STATS_MAX} read for statistics"
+            )));
+        }
+        let mut sink = StatsSink::new(el);
+        self.stream(path, i, &mut sink)?;
+        Ok(Ok(sink.finish()))
     }
 
     /// Picks the variable to load: by name, or the only numeric one.

@@ -16,6 +16,8 @@ pub(crate) struct TensorRef {
     /// `FloatStorage`, `HalfStorage`, `LongStorage`, …
     pub storage_type: String,
     pub storage_key: String,
+    /// Elements of the storage, as its persistent id declares them.
+    pub storage_numel: Option<usize>,
     pub storage_offset: usize,
     pub shape: Vec<usize>,
     pub stride: Vec<usize>,
@@ -38,6 +40,8 @@ pub(crate) enum Value {
     Storage {
         storage_type: String,
         key: String,
+        /// The element count the persistent id declares.
+        numel: Option<usize>,
     },
     Tensor(TensorRef),
     /// The result of calling or instantiating anything else, by class name.
@@ -160,7 +164,12 @@ fn call(module: &str, name: &str, args: Vec<Value>, pos: usize) -> Result<Value,
             let [storage, offset, shape, stride, ..] = args.as_slice() else {
                 return err(pos, format!("{name} called with {} arguments", args.len()));
             };
-            let Value::Storage { storage_type, key } = storage else {
+            let Value::Storage {
+                storage_type,
+                key,
+                numel,
+            } = storage
+            else {
                 return err(
                     pos,
                     format!("{name}: first argument {storage:?} is not a storage"),
@@ -169,6 +178,7 @@ fn call(module: &str, name: &str, args: Vec<Value>, pos: usize) -> Result<Value,
             Ok(Value::Tensor(TensorRef {
                 storage_type: storage_type.clone(),
                 storage_key: key.clone(),
+                storage_numel: *numel,
                 storage_offset: as_usize(offset, "storage offset", pos)?,
                 shape: as_usizes(shape, "tensor size", pos)?,
                 stride: as_usizes(stride, "tensor stride", pos)?,
@@ -396,7 +406,13 @@ pub(crate) fn unpickle(bytes: &[u8]) -> Result<Value, String> {
                     return err(pos, format!("persistent id {pid:?} is not a tuple"));
                 };
                 match t.as_slice() {
-                    [Value::Str(kind), Value::Global(_, ty), key, ..] if kind == "storage" => {
+                    [Value::Str(kind), Value::Global(_, ty), key, rest @ ..]
+                        if kind == "storage" =>
+                    {
+                        let numel = match rest.get(1) {
+                            Some(Value::Int(n)) if *n >= 0 => Some(*n as usize),
+                            _ => None,
+                        };
                         let key = match key {
                             Value::Str(s) => s.clone(),
                             Value::Int(i) => i.to_string(),
@@ -405,6 +421,7 @@ pub(crate) fn unpickle(bytes: &[u8]) -> Result<Value, String> {
                         stack.push(Value::Storage {
                             storage_type: ty.clone(),
                             key,
+                            numel,
                         });
                     }
                     _ => return err(pos, format!("unsupported persistent id {pid:?}")),
@@ -512,6 +529,7 @@ mod tests {
             Value::Tensor(TensorRef {
                 storage_type: "FloatStorage".into(),
                 storage_key: "0".into(),
+                storage_numel: Some(6),
                 storage_offset: 0,
                 shape: vec![2, 3],
                 stride: vec![3, 1],

@@ -3,17 +3,19 @@
 
 use std::collections::HashMap;
 use std::io::{Cursor, Read};
+use std::sync::Arc;
 
-use super::StoredTensor;
+use cassi_core::limits;
+
 use super::dtype::DType;
 use super::pickle::{TensorRef, Value, unpickle};
-use crate::tensor::Tensor;
+use super::{Entry, View};
 
 /// Keys under which training scripts commonly nest the state dict.
 const NESTED_STATE_DICT_KEYS: [&str; 4] = ["state_dict", "model_state_dict", "model", "net"];
 
-pub(crate) fn read(bytes: &[u8]) -> Result<Vec<(String, StoredTensor)>, String> {
-    let mut zip = zip::ZipArchive::new(Cursor::new(bytes))
+pub(crate) fn read(bytes: &Arc<Vec<u8>>) -> Result<Vec<(String, Entry)>, String> {
+    let mut zip = zip::ZipArchive::new(Cursor::new(bytes.as_slice()))
         .map_err(|e| format!("not a readable PyTorch zip checkpoint: {e}"))?;
     let pkl_name = zip
         .file_names()
@@ -21,9 +23,9 @@ pub(crate) fn read(bytes: &[u8]) -> Result<Vec<(String, StoredTensor)>, String> 
         .map(str::to_string)
         .ok_or("a zip archive without data.pkl: not a PyTorch checkpoint")?;
     let root = &pkl_name[..pkl_name.len() - "data.pkl".len()];
-    if let Ok(mut f) = zip.by_name(&format!("{root}byteorder")) {
+    if let Ok(f) = zip.by_name(&format!("{root}byteorder")) {
         let mut order = String::new();
-        f.read_to_string(&mut order).ok();
+        f.take(64).read_to_string(&mut order).ok();
         if order.trim() != "little" {
             return Err(format!(
                 "byte order {:?} is not supported (only little)",
@@ -33,33 +35,146 @@ pub(crate) fn read(bytes: &[u8]) -> Result<Vec<(String, StoredTensor)>, String> 
     }
     let pkl = read_entry(&mut zip, &pkl_name)?;
     let top = unpickle(&pkl)?;
+    drop(pkl);
     let entries = state_dict_entries(top)?;
 
-    let mut storages: HashMap<String, Vec<u8>> = HashMap::new();
+    // Every header is checked (budget, storage size, view extent) before any
+    // value is decoded; the values stay in the file's bytes until asked for.
+    let mut storages: HashMap<String, (usize, usize)> = HashMap::new();
     let mut out = Vec::with_capacity(entries.len());
     for (name, t) in entries {
-        if !storages.contains_key(&t.storage_key) {
-            let bytes = read_entry(&mut zip, &format!("{root}data/{}", t.storage_key))
+        let range = match storages.get(&t.storage_key) {
+            Some(r) => *r,
+            None => {
+                let r = stored_range(
+                    &mut zip,
+                    &format!("{root}data/{}", t.storage_key),
+                    bytes.len(),
+                )
                 .map_err(|e| format!("tensor {name}: {e}"))?;
-            storages.insert(t.storage_key.clone(), bytes);
-        }
-        let tensor =
-            gather(&t, &storages[&t.storage_key]).map_err(|e| format!("tensor {name}: {e}"))?;
-        out.push((name, tensor));
+                storages.insert(t.storage_key.clone(), r);
+                r
+            }
+        };
+        let entry = check_view(&name, &t, bytes, range)?;
+        out.push((name, entry));
     }
     Ok(out)
 }
 
-fn read_entry(zip: &mut zip::ZipArchive<Cursor<&[u8]>>, name: &str) -> Result<Vec<u8>, String> {
-    let archive_len = zip.clone().into_inner().into_inner().len() as u64;
-    let mut f = zip
+/// The byte range of a stored (uncompressed, as torch.save writes them)
+/// zip member, checked to lie within the file.
+fn stored_range(
+    zip: &mut zip::ZipArchive<Cursor<&[u8]>>,
+    name: &str,
+    file_len: usize,
+) -> Result<(usize, usize), String> {
+    let f = zip
         .by_name(name)
         .map_err(|e| format!("zip entry {name}: {e}"))?;
-    // The declared size can lie; the archive's own length bounds a stored entry.
-    let mut buf = Vec::with_capacity(f.size().min(archive_len) as usize);
-    f.read_to_end(&mut buf)
+    if f.compression() != zip::CompressionMethod::Stored {
+        return Err(format!(
+            "zip entry {name} is compressed ({}); torch.save stores tensor data uncompressed",
+            f.compression()
+        ));
+    }
+    let (start, size) = (f.data_start(), f.compressed_size());
+    if f.size() != size || start.saturating_add(size) > file_len as u64 {
+        return Err(format!(
+            "zip entry {name} declares {} bytes at byte {start}, but the file has {file_len} \
+             (truncated file?)",
+            f.size()
+        ));
+    }
+    Ok((start as usize, size as usize))
+}
+
+fn read_entry(zip: &mut zip::ZipArchive<Cursor<&[u8]>>, name: &str) -> Result<Vec<u8>, String> {
+    let archive_len = zip.clone().into_inner().into_inner().len() as u64;
+    let f = zip
+        .by_name(name)
+        .map_err(|e| format!("zip entry {name}: {e}"))?;
+    // The declared size can lie; the archive's own length bounds a stored
+    // entry, and the read is capped at it.
+    let cap = f.size().min(archive_len);
+    let mut buf = Vec::with_capacity(cap as usize);
+    f.take(cap)
+        .read_to_end(&mut buf)
         .map_err(|e| format!("zip entry {name} is unreadable (truncated file?): {e}"))?;
     Ok(buf)
+}
+
+/// Checks a tensor's header before anything is decoded: a storage type we
+/// read, an element count within the budget of [`cassi_core::limits`], a
+/// storage no larger than its zip member, and a view (offset + Σ (size − 1)
+/// · stride) that ends inside its storage.
+fn check_view(
+    name: &str,
+    t: &TensorRef,
+    bytes: &Arc<Vec<u8>>,
+    (start, len): (usize, usize),
+) -> Result<Entry, String> {
+    let fail = |e: String| format!("tensor {name}: {e}");
+    let dtype = DType::from_torch_storage(&t.storage_type)
+        .ok_or_else(|| fail(format!("unsupported storage type {}", t.storage_type)))?;
+    if t.shape.len() != t.stride.len() {
+        return Err(fail(format!(
+            "size {:?} and stride {:?} differ in length",
+            t.shape, t.stride
+        )));
+    }
+    let numel = limits::check_elements(
+        &format!("tensor {name} ({})", t.storage_type),
+        &t.shape,
+        &format!("declared in data.pkl with stride {:?}", t.stride),
+    )
+    .map_err(|e| e.to_string())?;
+    let es = dtype.size();
+    let mut storage_len = len / es;
+    if let Some(n) = t.storage_numel {
+        if n > storage_len {
+            return Err(fail(format!(
+                "storage {} declares {n} elements ({} bytes) but its zip member holds {len} bytes \
+                 (truncated file?)",
+                t.storage_key,
+                n.saturating_mul(es)
+            )));
+        }
+        storage_len = n;
+    }
+    if numel > 0 {
+        let last = t
+            .shape
+            .iter()
+            .zip(&t.stride)
+            .try_fold(t.storage_offset, |a, (s, st)| {
+                a.checked_add((s - 1).checked_mul(*st)?)
+            })
+            .ok_or_else(|| {
+                fail(format!(
+                    "shape {:?} with stride {:?} is too large",
+                    t.shape, t.stride
+                ))
+            })?;
+        if last >= storage_len {
+            return Err(fail(format!(
+                "view of shape {:?} (offset {}, stride {:?}) reaches element {last}, \
+                 but the storage holds {storage_len} (truncated file?)",
+                t.shape, t.storage_offset, t.stride
+            )));
+        }
+    }
+    Ok(Entry::lazy(
+        dtype,
+        t.shape.clone(),
+        View {
+            bytes: Arc::clone(bytes),
+            start,
+            len,
+            offset: t.storage_offset,
+            stride: t.stride.clone(),
+        },
+    ))
 }
 
 /// The (name, tensor) items of the pickled top-level object, which must be
@@ -119,72 +234,4 @@ fn describe(v: &Value) -> String {
         Value::Tensor(t) => format!("a tensor {:?}", t.shape),
         other => format!("{other:?}"),
     }
-}
-
-/// Largest tensor accepted (2^30 elements, 4 GiB of f32): a view can
-/// repeat storage elements (stride 0), so the file size alone does not bound it.
-const MAX_ELEMENTS: usize = 1 << 30;
-
-/// Copies a (possibly strided) tensor view out of its storage bytes.
-fn gather(t: &TensorRef, storage: &[u8]) -> Result<StoredTensor, String> {
-    let dtype = DType::from_torch_storage(&t.storage_type)
-        .ok_or_else(|| format!("unsupported storage type {}", t.storage_type))?;
-    if t.shape.len() != t.stride.len() {
-        return Err(format!(
-            "size {:?} and stride {:?} differ in length",
-            t.shape, t.stride
-        ));
-    }
-    let es = dtype.size();
-    let storage_len = storage.len() / es;
-    let too_big = || {
-        format!(
-            "shape {:?} with stride {:?} is too large",
-            t.shape, t.stride
-        )
-    };
-    let numel = t
-        .shape
-        .iter()
-        .try_fold(1usize, |a, &d| a.checked_mul(d))
-        .filter(|&n| n <= MAX_ELEMENTS)
-        .ok_or_else(too_big)?;
-    if numel > 0 {
-        let last = t
-            .shape
-            .iter()
-            .zip(&t.stride)
-            .try_fold(t.storage_offset, |a, (s, st)| {
-                a.checked_add((s - 1).checked_mul(*st)?)
-            })
-            .ok_or_else(too_big)?;
-        if last >= storage_len {
-            return Err(format!(
-                "view of shape {:?} (offset {}, stride {:?}) reaches element {last}, \
-                 but the storage holds {storage_len} (truncated file?)",
-                t.shape, t.storage_offset, t.stride
-            ));
-        }
-    }
-    let mut data = Vec::with_capacity(numel);
-    let mut index = vec![0usize; t.shape.len()];
-    for _ in 0..numel {
-        let at = t.storage_offset
-            + index
-                .iter()
-                .zip(&t.stride)
-                .map(|(i, s)| i * s)
-                .sum::<usize>();
-        data.push(dtype.decode(&storage[at * es..(at + 1) * es]));
-        // odometer increment, last axis fastest (C order)
-        for ax in (0..index.len()).rev() {
-            index[ax] += 1;
-            if index[ax] < t.shape[ax] {
-                break;
-            }
-            index[ax] = 0;
-        }
-    }
-    let tensor = Tensor::new(t.shape.clone(), data).map_err(|e| e.to_string())?;
-    Ok(StoredTensor { dtype, tensor })
 }

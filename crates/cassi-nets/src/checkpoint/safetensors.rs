@@ -2,11 +2,15 @@
 //! `{name: {dtype, shape, data_offsets: [begin, end]}, "__metadata__": …}`,
 //! then the raw little-endian tensor bytes.
 
-use super::StoredTensor;
-use super::dtype::DType;
-use crate::tensor::Tensor;
+use std::sync::Arc;
 
-pub(crate) fn read(bytes: &[u8]) -> Result<Vec<(String, StoredTensor)>, String> {
+use cassi_core::limits;
+
+use super::dtype::DType;
+use super::{Entry, View};
+
+pub(crate) fn read(all: &Arc<Vec<u8>>) -> Result<Vec<(String, Entry)>, String> {
+    let bytes = all.as_slice();
     let not_st = "neither a PyTorch zip checkpoint nor a safetensors file";
     let Some(len_bytes) = bytes.get(..8) else {
         return Err(format!("{not_st} (only {} bytes)", bytes.len()));
@@ -19,7 +23,6 @@ pub(crate) fn read(bytes: &[u8]) -> Result<Vec<(String, StoredTensor)>, String> 
             bytes.len()
         ));
     }
-    let data = &bytes[data_start as usize..];
     let header: serde_json::Value = serde_json::from_slice(&bytes[8..data_start as usize])
         .map_err(|e| format!("{not_st} (safetensors header is not JSON: {e})"))?;
     let serde_json::Value::Object(entries) = header else {
@@ -31,13 +34,22 @@ pub(crate) fn read(bytes: &[u8]) -> Result<Vec<(String, StoredTensor)>, String> 
         if name == "__metadata__" {
             continue;
         }
-        let t = parse_entry(&info, data).map_err(|e| format!("tensor {name}: {e}"))?;
+        let t = parse_entry(&name, &info, all, data_start as usize)
+            .map_err(|e| format!("tensor {name}: {e}"))?;
         out.push((name, t));
     }
     Ok(out)
 }
 
-fn parse_entry(info: &serde_json::Value, data: &[u8]) -> Result<StoredTensor, String> {
+/// Checks one header entry (type, element budget, offsets within the data)
+/// without decoding its values.
+fn parse_entry(
+    name: &str,
+    info: &serde_json::Value,
+    all: &Arc<Vec<u8>>,
+    data_start: usize,
+) -> Result<Entry, String> {
+    let data = &all[data_start..];
     let dtype_name = info["dtype"].as_str().ok_or("no dtype")?;
     let dtype = DType::from_safetensors(dtype_name)
         .ok_or_else(|| format!("unsupported dtype {dtype_name}"))?;
@@ -59,10 +71,12 @@ fn parse_entry(info: &serde_json::Value, data: &[u8]) -> Result<StoredTensor, St
     ) else {
         return Err("data_offsets is not [begin, end]".into());
     };
-    let numel = shape
-        .iter()
-        .try_fold(1usize, |a, &d| a.checked_mul(d))
-        .ok_or("shape overflows")?;
+    let numel = limits::check_elements(
+        &format!("tensor {name} ({dtype_name})"),
+        &shape,
+        "declared in the safetensors header",
+    )
+    .map_err(|e| e.to_string())?;
     let want = (numel as u64).saturating_mul(dtype.size() as u64);
     if end < begin || end - begin != want {
         return Err(format!(
@@ -76,11 +90,19 @@ fn parse_entry(info: &serde_json::Value, data: &[u8]) -> Result<StoredTensor, St
             data.len()
         ));
     }
-    let raw = &data[begin as usize..end as usize];
-    let values = raw
-        .chunks_exact(dtype.size())
-        .map(|b| dtype.decode(b))
-        .collect();
-    let tensor = Tensor::new(shape, values).map_err(|e| e.to_string())?;
-    Ok(StoredTensor { dtype, tensor })
+    let mut stride = vec![1usize; shape.len()];
+    for d in (0..shape.len().saturating_sub(1)).rev() {
+        stride[d] = stride[d + 1] * shape[d + 1];
+    }
+    Ok(Entry::lazy(
+        dtype,
+        shape,
+        View {
+            bytes: Arc::clone(all),
+            start: data_start + begin as usize,
+            len: (end - begin) as usize,
+            offset: 0,
+            stride,
+        },
+    ))
 }

@@ -2,7 +2,7 @@
 //! takes each parameter by name and shape while it is built; at the end,
 //! one error lists every missing, unexpected and mis-shaped tensor.
 
-use super::TensorMap;
+use super::{TensorMap, esc};
 use crate::error::{NetError, Result, shape_str};
 use crate::tensor::Tensor;
 
@@ -34,15 +34,17 @@ impl WeightLoader {
             None => self
                 .missing
                 .push(format!("  missing: {name} {}", shape_str(shape))),
-            Some(t) if t.tensor.shape() != shape => self.misshaped.push(format!(
+            // Name, shape and type come from the header: a tensor the
+            // network does not want as it is is never decoded.
+            Some(t) if t.shape != shape => self.misshaped.push(format!(
                 "  wrong shape: {name}: got {}, wanted {}",
-                shape_str(t.tensor.shape()),
+                shape_str(&t.shape),
                 shape_str(shape)
             )),
             Some(t) if !t.dtype.is_float() => self
                 .not_float
                 .push(format!("  not floating point: {name} ({:?})", t.dtype)),
-            Some(t) => return t.tensor,
+            Some(t) => return t.into_stored().tensor,
         }
         Tensor::zeros(shape.to_vec())
     }
@@ -52,11 +54,11 @@ impl WeightLoader {
     /// when present; its absence is not an error (older PyTorch omits it).
     pub fn skip_buffer(&mut self, name: &str) {
         if let Some(t) = self.map.remove(name)
-            && t.tensor.numel() != 1
+            && t.numel() != 1
         {
             self.misshaped.push(format!(
                 "  wrong shape: {name}: got {} {:?}, wanted an integer scalar",
-                shape_str(t.tensor.shape()),
+                shape_str(&t.shape),
                 t.dtype
             ));
         }
@@ -67,8 +69,8 @@ impl WeightLoader {
     pub fn finish(self) -> Result<()> {
         let unexpected: Vec<String> = self
             .map
-            .iter()
-            .map(|(n, t)| format!("  unexpected: {n} {}", shape_str(t.tensor.shape())))
+            .headers()
+            .map(|(n, t)| format!("  unexpected: {} {}", esc(n), shape_str(&t.shape)))
             .collect();
         let mut report = Vec::new();
         for (title, list) in [
