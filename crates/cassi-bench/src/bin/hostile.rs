@@ -9,6 +9,9 @@
 //! [--seeds DIR] [--count N] [--out bench/results/hostile.json] [--work DIR] [--keep]
 //! [--seed S] [--mem-cap-mib M]`. See crates/cassi-bench/HOSTILE.md.
 
+// The case tables below are tuples: clearer than one-off structs.
+#![allow(clippy::type_complexity)]
+
 #[path = "../hostile/files.rs"]
 mod files;
 #[path = "../hostile/run.rs"]
@@ -122,7 +125,10 @@ impl Flags {
             v.push(format!("input destroyed: {}", self.destroyed.join(", ")));
         }
         if !self.partial.is_empty() {
-            v.push(format!("partial/mixed outputs: {}", self.partial.join(", ")));
+            v.push(format!(
+                "partial/mixed outputs: {}",
+                self.partial.join(", ")
+            ));
         }
         if !self.temp.is_empty() {
             v.push(format!("temp files left: {}", self.temp.join(", ")));
@@ -164,6 +170,7 @@ struct Totals {
     peak_mib: f64,
     peak_case: usize,
     wall_s: f64,
+    external: usize,
 }
 
 struct Ctx {
@@ -203,7 +210,10 @@ fn head(b: &[u8], n: usize) -> String {
 
 impl Ctx {
     fn case_dir(&mut self, tag: &str) -> PathBuf {
-        let d = self.work.join("cases").join(format!("{:05}-{tag}", self.next_id));
+        let d = self
+            .work
+            .join("cases")
+            .join(format!("{:05}-{tag}", self.next_id));
         let _ = std::fs::remove_dir_all(&d);
         std::fs::create_dir_all(&d).unwrap();
         d
@@ -263,7 +273,11 @@ impl Ctx {
             }
         }
         let (added, removed, changed) = run::diff(snap0, snap1);
-        f.temp = added.iter().filter(|a| run::is_temp_name(a)).cloned().collect();
+        f.temp = added
+            .iter()
+            .filter(|a| run::is_temp_name(a))
+            .cloned()
+            .collect();
         let failed = !o.ok();
         if failed {
             for a in &added {
@@ -290,7 +304,8 @@ impl Ctx {
             Expect::Any => {}
             Expect::Success => {
                 if failed {
-                    f.other.push(format!("expected success: {}", head(&o.stderr, 160)));
+                    f.other
+                        .push(format!("expected success: {}", head(&o.stderr, 160)));
                 }
             }
             Expect::Fail | Expect::FailUpFront | Expect::FailOrWarn => {
@@ -303,12 +318,23 @@ impl Ctx {
                         f.meaningless = true;
                     }
                 } else if !o.crashed() && !o.hung {
+                    // a flag counts as named as `--flag`, `flag` or `flag` with `_` for `-`
+                    let named = |n: &str| {
+                        let bare = n.trim_start_matches('-');
+                        err.contains(n)
+                            || err.contains(bare)
+                            || err.contains(&bare.replace('-', "_"))
+                    };
                     let missing: Vec<&String> =
-                        c.must_name.iter().filter(|n| !err.contains(n.as_str())).collect();
+                        c.must_name.iter().filter(|n| !named(n.as_str())).collect();
                     if !missing.is_empty() {
                         f.other.push(format!(
                             "message does not name {}",
-                            missing.iter().map(|s| s.as_str()).collect::<Vec<_>>().join(", ")
+                            missing
+                                .iter()
+                                .map(|s| s.as_str())
+                                .collect::<Vec<_>>()
+                                .join(", ")
                         ));
                     }
                     if c.expect == Expect::FailUpFront && o.wall_s > UP_FRONT_S {
@@ -343,6 +369,7 @@ impl Ctx {
             t.failing += 1;
         }
         t.panics += f.panic as usize;
+        t.external += o.killed_externally() as usize;
         t.destroyed += !f.destroyed.is_empty() as usize;
         t.partial += !f.partial.is_empty() as usize;
         t.temp += !f.temp.is_empty() as usize;
@@ -382,6 +409,7 @@ impl Ctx {
             "peak_rss_mib": (o.peak_mib() * 10.0).round() / 10.0,
             "panic": f.panic,
             "alloc_capped": o.alloc_capped(),
+            "killed_externally": o.killed_externally(),
             "inputs_destroyed": f.destroyed,
             "partial_or_mixed": f.partial,
             "temp_files_left": f.temp,
@@ -491,7 +519,10 @@ fn make_base(ctx: &mut Ctx) -> anyhow::Result<()> {
     let mask2: Vec<f32> = (0..32 * 32).map(|_| (rng.below(2)) as f32).collect();
     write(&b.join("maskB.npy"), &files::npy_f32(&[32, 32], &mask2));
     let maskd: Vec<f64> = mask.iter().map(|&x| x as f64).collect();
-    write(&b.join("mask.mat"), &files::mat5_double(b"mask", 32, 32, &maskd));
+    write(
+        &b.join("mask.mat"),
+        &files::mat5_double(b"mask", 32, 32, &maskd),
+    );
     let scene: Vec<f32> = (0..4 * 32 * 32).map(|_| rng.unit() as f32).collect();
     write(&b.join("scene.npy"), &files::npy_f32(&[4, 32, 32], &scene));
     let scene_small: Vec<f32> = (0..4 * 16 * 16).map(|_| rng.unit() as f32).collect();
@@ -518,7 +549,13 @@ fn make_base(ctx: &mut Ctx) -> anyhow::Result<()> {
     };
     for ext in ["npz", "mat", "npy"] {
         must(&[
-            "simulate", "--scene", "scene.npy", "--mask", "mask.npy", "-o", &format!("m.{ext}"),
+            "simulate",
+            "--scene",
+            "scene.npy",
+            "--mask",
+            "mask.npy",
+            "-o",
+            &format!("m.{ext}"),
         ])?;
     }
     must(&[
@@ -620,8 +657,10 @@ fn mutate(rng: &mut Rng, fmt: Fmt, b: &[u8]) -> (Vec<u8>, String) {
                 {
                     let k = rng.below(entries.len());
                     let (e, what) = files::npy_header_edit(rng, &entries[k].1);
-                    let mut es: Vec<(&str, &[u8])> =
-                        entries.iter().map(|(n, d)| (n.as_str(), d.as_slice())).collect();
+                    let mut es: Vec<(&str, &[u8])> = entries
+                        .iter()
+                        .map(|(n, d)| (n.as_str(), d.as_slice()))
+                        .collect();
                     es[k].1 = &e;
                     let deflate = rng.below(2) == 0;
                     return (
@@ -631,7 +670,9 @@ fn mutate(rng: &mut Rng, fmt: Fmt, b: &[u8]) -> (Vec<u8>, String) {
                 }
                 // a zip header field (sizes, offsets, counts)
                 let sigs: Vec<usize> = (0..b.len().saturating_sub(4))
-                    .filter(|&i| &b[i..i + 2] == b"PK" && (b[i + 2] == 1 || b[i + 2] == 3 || b[i + 2] == 5))
+                    .filter(|&i| {
+                        &b[i..i + 2] == b"PK" && (b[i + 2] == 1 || b[i + 2] == 3 || b[i + 2] == 5)
+                    })
                     .collect();
                 if sigs.is_empty() {
                     return files::flip(rng, b, hdr);
@@ -678,8 +719,10 @@ fn mutate(rng: &mut Rng, fmt: Fmt, b: &[u8]) -> (Vec<u8>, String) {
                         files::truncate(rng, &entries[k].1)
                     };
                     entries[k].1 = p;
-                    let es: Vec<(&str, &[u8])> =
-                        entries.iter().map(|(n, d)| (n.as_str(), d.as_slice())).collect();
+                    let es: Vec<(&str, &[u8])> = entries
+                        .iter()
+                        .map(|(n, d)| (n.as_str(), d.as_slice()))
+                        .collect();
                     return (files::npz(&es, false), format!("data.pkl {what}"));
                 }
                 files::overwrite(rng, b, 0, 128, false)
@@ -732,10 +775,7 @@ fn mutation_cases(ctx: &mut Ctx, seeds_dir: Option<&Path>, count: usize, seed: u
     )];
     let mut pth_seeds = vec![(
         "tiny.pth".to_string(),
-        files::pth_zip(
-            &files::pth_pickle(&[2, 3], &[3, 1], 6),
-            &[0u8; 24],
-        ),
+        files::pth_zip(&files::pth_pickle(&[2, 3], &[3, 1], 6), &[0u8; 24]),
     )];
     let mut st_seeds: Vec<(String, Vec<u8>)> = vec![(
         "tiny.safetensors".to_string(),
@@ -761,7 +801,9 @@ fn mutation_cases(ctx: &mut Ctx, seeds_dir: Option<&Path>, count: usize, seed: u
         walk(sd, &mut files);
         files.sort();
         for p in files {
-            let Ok(md) = std::fs::metadata(&p) else { continue };
+            let Ok(md) = std::fs::metadata(&p) else {
+                continue;
+            };
             let name = p.strip_prefix(sd).unwrap_or(&p).display().to_string();
             let ext = p.extension().and_then(|e| e.to_str()).unwrap_or("");
             // keep copies per case cheap: seeds up to 4 MB
@@ -769,7 +811,8 @@ fn mutation_cases(ctx: &mut Ctx, seeds_dir: Option<&Path>, count: usize, seed: u
                 continue;
             }
             let Ok(b) = std::fs::read(&p) else { continue };
-            let is_h5 = b.len() > 520 && (&b[..8] == b"\x89HDF\r\n\x1a\n" || &b[512..520] == b"\x89HDF\r\n\x1a\n");
+            let is_h5 = b.len() > 520
+                && (&b[..8] == b"\x89HDF\r\n\x1a\n" || &b[512..520] == b"\x89HDF\r\n\x1a\n");
             match ext {
                 "mat" if is_h5 => h5_seeds.push((name, b)),
                 "mat" if md.len() <= 1 << 20 => v5_seeds.push((name, b)),
@@ -818,22 +861,118 @@ fn mutation_cases(ctx: &mut Ctx, seeds_dir: Option<&Path>, count: usize, seed: u
         ctx.notes.push("the cassi binary was built without `--features nets`: the .pth/.safetensors families still run (reconstruct --method mst-s --weights), but the weights loaders are not reached".into());
     }
     let fams = vec![
-        Family { name: "info-npy", cmd: Cmd::Info, fmt: Fmt::Npy, share: 0.14, seeds: npy_seeds.clone() },
-        Family { name: "info-npz", cmd: Cmd::Info, fmt: Fmt::Npz, share: 0.12, seeds: npz_seeds.clone() },
-        Family { name: "info-mat5", cmd: Cmd::Info, fmt: Fmt::Mat5, share: 0.16, seeds: v5_seeds.clone() },
-        Family { name: "info-mat73", cmd: Cmd::Info, fmt: Fmt::Mat73, share: 0.14, seeds: h5_seeds.clone() },
-        Family { name: "reconstruct-meas-npy", cmd: Cmd::ReconMeas, fmt: Fmt::Npy, share: 0.07, seeds: vec![npy_seeds[0].clone()] },
-        Family { name: "reconstruct-meas-npz", cmd: Cmd::ReconMeas, fmt: Fmt::Npz, share: 0.03, seeds: vec![npz_seeds[0].clone()] },
-        Family { name: "reconstruct-meas-mat5", cmd: Cmd::ReconMeas, fmt: Fmt::Mat5, share: 0.03, seeds: vec![v5_seeds[0].clone()] },
-        Family { name: "reconstruct-meas-mat73", cmd: Cmd::ReconMeas, fmt: Fmt::Mat73, share: 0.02, seeds: h5_seeds.clone() },
-        Family { name: "reconstruct-mask-npy", cmd: Cmd::ReconMask, fmt: Fmt::Npy, share: 0.03, seeds: vec![npy_seeds[1].clone()] },
-        Family { name: "reconstruct-mask-mat5", cmd: Cmd::ReconMask, fmt: Fmt::Mat5, share: 0.02, seeds: vec![v5_seeds[1].clone(), v5_seeds[2].clone()] },
-        Family { name: "reconstruct-calibration-json", cmd: Cmd::ReconCalib, fmt: Fmt::Json, share: 0.08, seeds: json_seeds },
-        Family { name: "simulate-scene-npy", cmd: Cmd::Simulate, fmt: Fmt::Npy, share: 0.05, seeds: vec![npy_seeds[2].clone()] },
-        Family { name: "calibrate-meas-npy", cmd: Cmd::Calibrate, fmt: Fmt::Npy, share: 0.02, seeds: vec![npy_seeds[0].clone()] },
-        Family { name: "eval-scene-npy", cmd: Cmd::Eval, fmt: Fmt::Npy, share: 0.007, seeds: vec![npy_seeds[2].clone()] },
-        Family { name: "weights-pth", cmd: Cmd::Weights, fmt: Fmt::Pth, share: if nets { 0.04 } else { 0.015 }, seeds: pth_seeds },
-        Family { name: "weights-safetensors", cmd: Cmd::Weights, fmt: Fmt::Safetensors, share: if nets { 0.03 } else { 0.01 }, seeds: st_seeds },
+        Family {
+            name: "info-npy",
+            cmd: Cmd::Info,
+            fmt: Fmt::Npy,
+            share: 0.14,
+            seeds: npy_seeds.clone(),
+        },
+        Family {
+            name: "info-npz",
+            cmd: Cmd::Info,
+            fmt: Fmt::Npz,
+            share: 0.12,
+            seeds: npz_seeds.clone(),
+        },
+        Family {
+            name: "info-mat5",
+            cmd: Cmd::Info,
+            fmt: Fmt::Mat5,
+            share: 0.16,
+            seeds: v5_seeds.clone(),
+        },
+        Family {
+            name: "info-mat73",
+            cmd: Cmd::Info,
+            fmt: Fmt::Mat73,
+            share: 0.14,
+            seeds: h5_seeds.clone(),
+        },
+        Family {
+            name: "reconstruct-meas-npy",
+            cmd: Cmd::ReconMeas,
+            fmt: Fmt::Npy,
+            share: 0.07,
+            seeds: vec![npy_seeds[0].clone()],
+        },
+        Family {
+            name: "reconstruct-meas-npz",
+            cmd: Cmd::ReconMeas,
+            fmt: Fmt::Npz,
+            share: 0.03,
+            seeds: vec![npz_seeds[0].clone()],
+        },
+        Family {
+            name: "reconstruct-meas-mat5",
+            cmd: Cmd::ReconMeas,
+            fmt: Fmt::Mat5,
+            share: 0.03,
+            seeds: vec![v5_seeds[0].clone()],
+        },
+        Family {
+            name: "reconstruct-meas-mat73",
+            cmd: Cmd::ReconMeas,
+            fmt: Fmt::Mat73,
+            share: 0.02,
+            seeds: h5_seeds.clone(),
+        },
+        Family {
+            name: "reconstruct-mask-npy",
+            cmd: Cmd::ReconMask,
+            fmt: Fmt::Npy,
+            share: 0.03,
+            seeds: vec![npy_seeds[1].clone()],
+        },
+        Family {
+            name: "reconstruct-mask-mat5",
+            cmd: Cmd::ReconMask,
+            fmt: Fmt::Mat5,
+            share: 0.02,
+            seeds: vec![v5_seeds[1].clone(), v5_seeds[2].clone()],
+        },
+        Family {
+            name: "reconstruct-calibration-json",
+            cmd: Cmd::ReconCalib,
+            fmt: Fmt::Json,
+            share: 0.08,
+            seeds: json_seeds,
+        },
+        Family {
+            name: "simulate-scene-npy",
+            cmd: Cmd::Simulate,
+            fmt: Fmt::Npy,
+            share: 0.05,
+            seeds: vec![npy_seeds[2].clone()],
+        },
+        Family {
+            name: "calibrate-meas-npy",
+            cmd: Cmd::Calibrate,
+            fmt: Fmt::Npy,
+            share: 0.02,
+            seeds: vec![npy_seeds[0].clone()],
+        },
+        Family {
+            name: "eval-scene-npy",
+            cmd: Cmd::Eval,
+            fmt: Fmt::Npy,
+            share: 0.007,
+            seeds: vec![npy_seeds[2].clone()],
+        },
+        Family {
+            name: "weights-pth",
+            cmd: Cmd::Weights,
+            fmt: Fmt::Pth,
+            share: if nets { 0.04 } else { 0.015 },
+            seeds: pth_seeds,
+        },
+        Family {
+            name: "weights-safetensors",
+            cmd: Cmd::Weights,
+            fmt: Fmt::Safetensors,
+            share: if nets { 0.03 } else { 0.01 },
+            seeds: st_seeds,
+        },
     ];
     let total_share: f64 = fams.iter().map(|f| f.share).sum();
     let mut plan: Vec<usize> = fams
@@ -861,7 +1000,8 @@ fn mutation_cases(ctx: &mut Ctx, seeds_dir: Option<&Path>, count: usize, seed: u
                     if json_mode {
                         args.push("--json");
                     }
-                    Case::new("mutation/info", fam.name, &label, &dir, &args).inputs(&[file.as_str()])
+                    Case::new("mutation/info", fam.name, &label, &dir, &args)
+                        .inputs(&[file.as_str()])
                 }
                 Cmd::ReconMeas => {
                     write(&dir.join(&file), &bytes);
@@ -897,7 +1037,13 @@ fn mutation_cases(ctx: &mut Ctx, seeds_dir: Option<&Path>, count: usize, seed: u
                         &label,
                         &dir,
                         &[
-                            "reconstruct", "m.npy", "--mask", "mask.npy", "--calibration", &file, "-o",
+                            "reconstruct",
+                            "m.npy",
+                            "--mask",
+                            "mask.npy",
+                            "--calibration",
+                            &file,
+                            "-o",
                             "r.npy",
                         ],
                     )
@@ -911,7 +1057,9 @@ fn mutation_cases(ctx: &mut Ctx, seeds_dir: Option<&Path>, count: usize, seed: u
                         fam.name,
                         &label,
                         &dir,
-                        &["simulate", "--scene", &file, "--mask", "mask.npy", "-o", "s.npy"],
+                        &[
+                            "simulate", "--scene", &file, "--mask", "mask.npy", "-o", "s.npy",
+                        ],
                     )
                     .inputs(&[file.as_str(), "mask.npy"])
                 }
@@ -937,7 +1085,9 @@ fn mutation_cases(ctx: &mut Ctx, seeds_dir: Option<&Path>, count: usize, seed: u
                         fam.name,
                         &label,
                         &dir,
-                        &["eval", "--scenes", "scenes", "--mask", "mask.npy", "-o", "ev"],
+                        &[
+                            "eval", "--scenes", "scenes", "--mask", "mask.npy", "-o", "ev",
+                        ],
                     )
                     .inputs(&[file.as_str(), "mask.npy"])
                     .timeout(90)
@@ -951,8 +1101,16 @@ fn mutation_cases(ctx: &mut Ctx, seeds_dir: Option<&Path>, count: usize, seed: u
                         &label,
                         &dir,
                         &[
-                            "reconstruct", "m.npy", "--mask", "mask.npy", "--method", "mst-s",
-                            "--weights", &file, "-o", "r.npy",
+                            "reconstruct",
+                            "m.npy",
+                            "--mask",
+                            "mask.npy",
+                            "--method",
+                            "mst-s",
+                            "--weights",
+                            &file,
+                            "-o",
+                            "r.npy",
                         ],
                     )
                     .inputs(&[file.as_str(), "m.npy", "mask.npy"])
@@ -981,8 +1139,16 @@ impl Ctx {
         std::fs::create_dir_all(&d).unwrap();
         let o = self.exec(&Spec {
             args: s(&[
-                "reconstruct", "none.npy", "--mask", "none.npy", "--method", "mst-s", "--weights",
-                "none.pth", "-o", "none-out.npy",
+                "reconstruct",
+                "none.npy",
+                "--mask",
+                "none.npy",
+                "--method",
+                "mst-s",
+                "--weights",
+                "none.pth",
+                "-o",
+                "none-out.npy",
             ]),
             cwd: d,
             env: vec![],
@@ -997,7 +1163,14 @@ impl Ctx {
 
 fn reproducers(ctx: &mut Ctx) {
     let all = [
-        "m.npy", "m.npz", "m.mat", "m.json", "mask.npy", "mask.mat", "scene.npy", "c.json",
+        "m.npy",
+        "m.npz",
+        "m.mat",
+        "m.json",
+        "mask.npy",
+        "mask.mat",
+        "scene.npy",
+        "c.json",
         "truth16.npy",
     ];
     let prev_r = ["r.npy", "r.png", "r.json"];
@@ -1007,44 +1180,268 @@ fn reproducers(ctx: &mut Ctx) {
     type Setup = fn(&Path);
     let none: Setup = |_| {};
     let ones: Vec<(&str, Setup, Vec<&str>, Vec<&str>, Vec<&str>)> = vec![
-        ("reconstruct -o = measurement", none,
-         vec!["reconstruct", "m.npy", "--mask", "mask.npy", "-o", "m.npy"], vec!["m.npy", "mask.npy", "m.json"], vec!["m.npy"]),
-        ("reconstruct -o = mask", none,
-         vec!["reconstruct", "m.npy", "--mask", "mask.npy", "-o", "mask.npy"], vec!["m.npy", "mask.npy"], vec!["mask.npy"]),
-        ("reconstruct -o ./measurement (other spelling)", none,
-         vec!["reconstruct", "m.npy", "--mask", "mask.npy", "-o", "./m.npy"], vec!["m.npy", "mask.npy"], vec!["m.npy"]),
-        ("reconstruct -o = --truth", none,
-         vec!["reconstruct", "m.npy", "--mask", "mask.npy", "--truth", "scene.npy", "-o", "scene.npy"], vec!["m.npy", "mask.npy", "scene.npy"], vec!["scene.npy"]),
-        ("simulate --scene s.npy -o s.npy", none,
-         vec!["simulate", "--scene", "scene.npy", "--mask", "mask.npy", "-o", "scene.npy"], vec!["scene.npy", "mask.npy"], vec!["scene.npy"]),
-        ("simulate -o = mask", none,
-         vec!["simulate", "--scene", "scene.npy", "--mask", "mask.npy", "-o", "mask.npy"], vec!["scene.npy", "mask.npy"], vec!["mask.npy"]),
-        ("calibrate --write-mask = input mask", none,
-         vec!["calibrate", "m.npy", "--mask", "mask.npy", "-o", "c2.json", "--write-mask", "mask.npy"], vec!["m.npy", "mask.npy"], vec!["mask.npy"]),
-        ("calibrate --write-mask = measurement", none,
-         vec!["calibrate", "m.npy", "--mask", "mask.npy", "-o", "c2.json", "--write-mask", "m.npy"], vec!["m.npy", "mask.npy"], vec!["m.npy"]),
-        ("calibrate -o = measurement", none,
-         vec!["calibrate", "m.npy", "--mask", "mask.npy", "-o", "m.npy"], vec!["m.npy", "mask.npy"], vec!["m.npy"]),
-        ("calibrate -o m.json over the simulation sidecar", none,
-         vec!["calibrate", "m.npy", "--mask", "mask.npy", "-o", "m.json"], vec!["m.npy", "mask.npy", "m.json"], vec!["m.json"]),
-        ("reconstruct -o c.npy: derived c.json = --calibration", none,
-         vec!["reconstruct", "m.npy", "--mask", "mask.npy", "--calibration", "c.json", "-o", "c.npy"], vec!["m.npy", "mask.npy", "c.json"], vec!["c.json"]),
-        ("reconstruct -o m.npz: derived m.json = --calibration sidecar", none,
-         vec!["reconstruct", "m.npy", "--mask", "mask.npy", "--calibration", "m.json", "-o", "m.npz"], vec!["m.npy", "mask.npy", "m.json", "m.npz"], vec!["m.json"]),
-        ("reconstruct -o hard link of the measurement", |d| { std::fs::hard_link(d.join("m.npy"), d.join("hl.npy")).unwrap(); },
-         vec!["reconstruct", "m.npy", "--mask", "mask.npy", "-o", "hl.npy"], vec!["m.npy", "mask.npy"], vec!["m.npy", "hl.npy"]),
-        ("reconstruct -o symlink to the measurement", |d| { std::os::unix::fs::symlink("m.npy", d.join("sl.npy")).unwrap(); },
-         vec!["reconstruct", "m.npy", "--mask", "mask.npy", "-o", "sl.npy"], vec!["m.npy", "mask.npy"], vec!["m.npy", "sl.npy"]),
-        ("simulate -o symlink to the mask", |d| { std::os::unix::fs::symlink("mask.npy", d.join("ml.npy")).unwrap(); },
-         vec!["simulate", "--scene", "scene.npy", "--mask", "mask.npy", "-o", "ml.npy"], vec!["scene.npy", "mask.npy"], vec!["mask.npy", "ml.npy"]),
-        ("simulate -o hard link of the scene", |d| { std::fs::hard_link(d.join("scene.npy"), d.join("hs.npy")).unwrap(); },
-         vec!["simulate", "--scene", "scene.npy", "--mask", "mask.npy", "-o", "hs.npy"], vec!["scene.npy", "mask.npy"], vec!["scene.npy", "hs.npy"]),
-        ("calibrate --write-mask hard link of the mask", |d| { std::fs::hard_link(d.join("mask.npy"), d.join("hm.npy")).unwrap(); },
-         vec!["calibrate", "m.npy", "--mask", "mask.npy", "-o", "c2.json", "--write-mask", "hm.npy"], vec!["m.npy", "mask.npy"], vec!["mask.npy", "hm.npy"]),
-        ("reconstruct -o through a symlinked folder", |d| { std::fs::create_dir_all(d.join("sub")).unwrap(); std::os::unix::fs::symlink("..", d.join("sub/up")).unwrap(); },
-         vec!["reconstruct", "m.npy", "--mask", "mask.npy", "-o", "sub/up/m.npy"], vec!["m.npy", "mask.npy"], vec!["m.npy"]),
-        ("reconstruct -o m.npy on a .mat measurement's derived json (sidecar) ", none,
-         vec!["reconstruct", "m.mat", "--mask", "mask.npy", "--calibration", "m.json", "-o", "m.npy"], vec!["m.mat", "mask.npy", "m.json", "m.npy"], vec!["m.json"]),
+        (
+            "reconstruct -o = measurement",
+            none,
+            vec!["reconstruct", "m.npy", "--mask", "mask.npy", "-o", "m.npy"],
+            vec!["m.npy", "mask.npy", "m.json"],
+            vec!["m.npy"],
+        ),
+        (
+            "reconstruct -o = mask",
+            none,
+            vec![
+                "reconstruct",
+                "m.npy",
+                "--mask",
+                "mask.npy",
+                "-o",
+                "mask.npy",
+            ],
+            vec!["m.npy", "mask.npy"],
+            vec!["mask.npy"],
+        ),
+        (
+            "reconstruct -o ./measurement (other spelling)",
+            none,
+            vec![
+                "reconstruct",
+                "m.npy",
+                "--mask",
+                "mask.npy",
+                "-o",
+                "./m.npy",
+            ],
+            vec!["m.npy", "mask.npy"],
+            vec!["m.npy"],
+        ),
+        (
+            "reconstruct -o = --truth",
+            none,
+            vec![
+                "reconstruct",
+                "m.npy",
+                "--mask",
+                "mask.npy",
+                "--truth",
+                "scene.npy",
+                "-o",
+                "scene.npy",
+            ],
+            vec!["m.npy", "mask.npy", "scene.npy"],
+            vec!["scene.npy"],
+        ),
+        (
+            "simulate --scene s.npy -o s.npy",
+            none,
+            vec![
+                "simulate",
+                "--scene",
+                "scene.npy",
+                "--mask",
+                "mask.npy",
+                "-o",
+                "scene.npy",
+            ],
+            vec!["scene.npy", "mask.npy"],
+            vec!["scene.npy"],
+        ),
+        (
+            "simulate -o = mask",
+            none,
+            vec![
+                "simulate",
+                "--scene",
+                "scene.npy",
+                "--mask",
+                "mask.npy",
+                "-o",
+                "mask.npy",
+            ],
+            vec!["scene.npy", "mask.npy"],
+            vec!["mask.npy"],
+        ),
+        (
+            "calibrate --write-mask = input mask",
+            none,
+            vec![
+                "calibrate",
+                "m.npy",
+                "--mask",
+                "mask.npy",
+                "-o",
+                "c2.json",
+                "--write-mask",
+                "mask.npy",
+            ],
+            vec!["m.npy", "mask.npy"],
+            vec!["mask.npy"],
+        ),
+        (
+            "calibrate --write-mask = measurement",
+            none,
+            vec![
+                "calibrate",
+                "m.npy",
+                "--mask",
+                "mask.npy",
+                "-o",
+                "c2.json",
+                "--write-mask",
+                "m.npy",
+            ],
+            vec!["m.npy", "mask.npy"],
+            vec!["m.npy"],
+        ),
+        (
+            "calibrate -o = measurement",
+            none,
+            vec!["calibrate", "m.npy", "--mask", "mask.npy", "-o", "m.npy"],
+            vec!["m.npy", "mask.npy"],
+            vec!["m.npy"],
+        ),
+        (
+            "calibrate -o m.json over the simulation sidecar",
+            none,
+            vec!["calibrate", "m.npy", "--mask", "mask.npy", "-o", "m.json"],
+            vec!["m.npy", "mask.npy", "m.json"],
+            vec!["m.json"],
+        ),
+        (
+            "reconstruct -o c.npy: derived c.json = --calibration",
+            none,
+            vec![
+                "reconstruct",
+                "m.npy",
+                "--mask",
+                "mask.npy",
+                "--calibration",
+                "c.json",
+                "-o",
+                "c.npy",
+            ],
+            vec!["m.npy", "mask.npy", "c.json"],
+            vec!["c.json"],
+        ),
+        (
+            "reconstruct -o m.npz: derived m.json = --calibration sidecar",
+            none,
+            vec![
+                "reconstruct",
+                "m.npy",
+                "--mask",
+                "mask.npy",
+                "--calibration",
+                "m.json",
+                "-o",
+                "m.npz",
+            ],
+            vec!["m.npy", "mask.npy", "m.json", "m.npz"],
+            vec!["m.json"],
+        ),
+        (
+            "reconstruct -o hard link of the measurement",
+            |d| {
+                std::fs::hard_link(d.join("m.npy"), d.join("hl.npy")).unwrap();
+            },
+            vec!["reconstruct", "m.npy", "--mask", "mask.npy", "-o", "hl.npy"],
+            vec!["m.npy", "mask.npy"],
+            vec!["m.npy", "hl.npy"],
+        ),
+        (
+            "reconstruct -o symlink to the measurement",
+            |d| {
+                std::os::unix::fs::symlink("m.npy", d.join("sl.npy")).unwrap();
+            },
+            vec!["reconstruct", "m.npy", "--mask", "mask.npy", "-o", "sl.npy"],
+            vec!["m.npy", "mask.npy"],
+            vec!["m.npy", "sl.npy"],
+        ),
+        (
+            "simulate -o symlink to the mask",
+            |d| {
+                std::os::unix::fs::symlink("mask.npy", d.join("ml.npy")).unwrap();
+            },
+            vec![
+                "simulate",
+                "--scene",
+                "scene.npy",
+                "--mask",
+                "mask.npy",
+                "-o",
+                "ml.npy",
+            ],
+            vec!["scene.npy", "mask.npy"],
+            vec!["mask.npy", "ml.npy"],
+        ),
+        (
+            "simulate -o hard link of the scene",
+            |d| {
+                std::fs::hard_link(d.join("scene.npy"), d.join("hs.npy")).unwrap();
+            },
+            vec![
+                "simulate",
+                "--scene",
+                "scene.npy",
+                "--mask",
+                "mask.npy",
+                "-o",
+                "hs.npy",
+            ],
+            vec!["scene.npy", "mask.npy"],
+            vec!["scene.npy", "hs.npy"],
+        ),
+        (
+            "calibrate --write-mask hard link of the mask",
+            |d| {
+                std::fs::hard_link(d.join("mask.npy"), d.join("hm.npy")).unwrap();
+            },
+            vec![
+                "calibrate",
+                "m.npy",
+                "--mask",
+                "mask.npy",
+                "-o",
+                "c2.json",
+                "--write-mask",
+                "hm.npy",
+            ],
+            vec!["m.npy", "mask.npy"],
+            vec!["mask.npy", "hm.npy"],
+        ),
+        (
+            "reconstruct -o through a symlinked folder",
+            |d| {
+                std::fs::create_dir_all(d.join("sub")).unwrap();
+                std::os::unix::fs::symlink("..", d.join("sub/up")).unwrap();
+            },
+            vec![
+                "reconstruct",
+                "m.npy",
+                "--mask",
+                "mask.npy",
+                "-o",
+                "sub/up/m.npy",
+            ],
+            vec!["m.npy", "mask.npy"],
+            vec!["m.npy"],
+        ),
+        (
+            "reconstruct -o m.npy on a .mat measurement's derived json (sidecar) ",
+            none,
+            vec![
+                "reconstruct",
+                "m.mat",
+                "--mask",
+                "mask.npy",
+                "--calibration",
+                "m.json",
+                "-o",
+                "m.npy",
+            ],
+            vec!["m.mat", "mask.npy", "m.json", "m.npy"],
+            vec!["m.json"],
+        ),
     ];
     for (label, setup, args, inputs, names) in ones {
         let d = ctx.case_dir("repro1");
@@ -1060,22 +1457,109 @@ fn reproducers(ctx: &mut Ctx) {
     // ---- 2: a failed run keeps the previous result
     let c2 = "repro/2-failed-run-keeps-previous";
     let twos: Vec<(&str, Setup, Vec<&str>)> = vec![
-        ("reconstruct --bands 1 over a previous result", none,
-         vec!["reconstruct", "m.npy", "--mask", "mask.npy", "--bands", "1", "-o", "r.npy"]),
-        ("reconstruct with a mismatched --truth over a previous result", none,
-         vec!["reconstruct", "m.npy", "--mask", "mask.npy", "--truth", "truth16.npy", "-o", "r.npy"]),
-        ("reconstruct whose preview path is a folder", |d| { std::fs::remove_file(d.join("r.png")).unwrap(); std::fs::create_dir(d.join("r.png")).unwrap(); },
-         vec!["reconstruct", "m.npy", "--mask", "mask.npy", "-o", "r.npy"]),
-        ("reconstruct whose report path is a folder", |d| { std::fs::remove_file(d.join("r.json")).unwrap(); std::fs::create_dir(d.join("r.json")).unwrap(); },
-         vec!["reconstruct", "m.npy", "--mask", "mask.npy", "-o", "r.npy"]),
-        ("calibrate with --write-mask into a missing folder", none,
-         vec!["calibrate", "m.npy", "--mask", "mask.npy", "-o", "c.json", "--write-mask", "nodir/wm.npy"]),
-        ("simulate whose sidecar path is a folder", |d| { std::fs::remove_file(d.join("s.json")).unwrap(); std::fs::create_dir(d.join("s.json")).unwrap(); },
-         vec!["simulate", "--scene", "scene.npy", "--mask", "mask.npy", "-o", "s.npy"]),
-        ("simulate --preview whose preview path is a folder", |d| { std::fs::create_dir(d.join("s.png")).unwrap(); },
-         vec!["simulate", "--scene", "scene.npy", "--mask", "mask.npy", "--preview", "-o", "s.npy"]),
-        ("eval over a previous study with a broken second scene", |d| { std::fs::write(d.join("scenes/zz_broken.npy"), b"\x93NUMPY\x01\x00\x10\x00{'descr': '<f4',").unwrap(); },
-         vec!["eval", "--scenes", "scenes", "--mask", "mask.npy", "-o", "ev"]),
+        (
+            "reconstruct --bands 1 over a previous result",
+            none,
+            vec![
+                "reconstruct",
+                "m.npy",
+                "--mask",
+                "mask.npy",
+                "--bands",
+                "1",
+                "-o",
+                "r.npy",
+            ],
+        ),
+        (
+            "reconstruct with a mismatched --truth over a previous result",
+            none,
+            vec![
+                "reconstruct",
+                "m.npy",
+                "--mask",
+                "mask.npy",
+                "--truth",
+                "truth16.npy",
+                "-o",
+                "r.npy",
+            ],
+        ),
+        (
+            "reconstruct whose preview path is a folder",
+            |d| {
+                std::fs::remove_file(d.join("r.png")).unwrap();
+                std::fs::create_dir(d.join("r.png")).unwrap();
+            },
+            vec!["reconstruct", "m.npy", "--mask", "mask.npy", "-o", "r.npy"],
+        ),
+        (
+            "reconstruct whose report path is a folder",
+            |d| {
+                std::fs::remove_file(d.join("r.json")).unwrap();
+                std::fs::create_dir(d.join("r.json")).unwrap();
+            },
+            vec!["reconstruct", "m.npy", "--mask", "mask.npy", "-o", "r.npy"],
+        ),
+        (
+            "calibrate with --write-mask into a missing folder",
+            none,
+            vec![
+                "calibrate",
+                "m.npy",
+                "--mask",
+                "mask.npy",
+                "-o",
+                "c.json",
+                "--write-mask",
+                "nodir/wm.npy",
+            ],
+        ),
+        (
+            "simulate whose sidecar path is a folder",
+            |d| {
+                std::fs::remove_file(d.join("s.json")).unwrap();
+                std::fs::create_dir(d.join("s.json")).unwrap();
+            },
+            vec![
+                "simulate",
+                "--scene",
+                "scene.npy",
+                "--mask",
+                "mask.npy",
+                "-o",
+                "s.npy",
+            ],
+        ),
+        (
+            "simulate --preview whose preview path is a folder",
+            |d| {
+                std::fs::create_dir(d.join("s.png")).unwrap();
+            },
+            vec![
+                "simulate",
+                "--scene",
+                "scene.npy",
+                "--mask",
+                "mask.npy",
+                "--preview",
+                "-o",
+                "s.npy",
+            ],
+        ),
+        (
+            "eval over a previous study with a broken second scene",
+            |d| {
+                std::fs::write(
+                    d.join("scenes/zz_broken.npy"),
+                    b"\x93NUMPY\x01\x00\x10\x00{'descr': '<f4',",
+                )
+                .unwrap();
+            },
+            vec![
+                "eval", "--scenes", "scenes", "--mask", "mask.npy", "-o", "ev",
+            ],
+        ),
     ];
     for (label, setup, args) in twos {
         let d = ctx.case_dir("repro2");
@@ -1093,35 +1577,167 @@ fn reproducers(ctx: &mut Ctx) {
     let c3 = "repro/3-memory";
     let h5 = include_bytes!("../../../cassi-io/tests/data/v73.mat");
     let bombs: Vec<(&str, Vec<u8>)> = vec![
-        ("h5bomb.mat", files::hdf5_bomb(h5, &[16384, 8192], 8).unwrap_or_default()),
+        (
+            "h5bomb.mat",
+            files::hdf5_bomb(h5, &[16384, 8192], 8).unwrap_or_default(),
+        ),
         ("tiny.pth", files::pth_strided_bomb()),
         ("zeros.npz", files::npz_zero_bomb(&[16384, 16384])),
         ("zbomb.mat", files::mat5_zlib_bomb(8192, 4096)),
-        ("bigst.safetensors", files::safetensors(
-            r#"{"w":{"dtype":"F32","shape":[32768,32768],"data_offsets":[0,4294967296]}}"#, &[0u8; 64])),
-        ("hugehdr.npy", files::npy_raw("<f4", "(16384, 16384)", false, &[0u8; 64])),
+        (
+            "bigst.safetensors",
+            files::safetensors(
+                r#"{"w":{"dtype":"F32","shape":[32768,32768],"data_offsets":[0,4294967296]}}"#,
+                &[0u8; 64],
+            ),
+        ),
+        (
+            "hugehdr.npy",
+            files::npy_raw("<f4", "(16384, 16384)", false, &[0u8; 64]),
+        ),
     ];
     let bd = ctx.work.join("bombs");
     std::fs::create_dir_all(&bd).unwrap();
     for (n, b) in &bombs {
         write(&bd.join(n), b);
     }
-    let sizes: Vec<String> = bombs.iter().map(|(n, b)| format!("{n} {} bytes", b.len())).collect();
-    ctx.notes.push(format!("memory bombs: {}", sizes.join(", ")));
+    let sizes: Vec<String> = bombs
+        .iter()
+        .map(|(n, b)| format!("{n} {} bytes", b.len()))
+        .collect();
+    ctx.notes
+        .push(format!("memory bombs: {}", sizes.join(", ")));
     let threes: Vec<(&str, &str, Vec<&str>)> = vec![
-        ("info on a 6 KB HDF5 .mat with a never-written 1 GiB dataset", "h5bomb.mat", vec!["info", "h5bomb.mat"]),
-        ("reconstruct a never-written 1 GiB HDF5 measurement", "h5bomb.mat", vec!["reconstruct", "h5bomb.mat", "--mask", "mask.npy", "-o", "r.npy"]),
-        ("info on a .pth with a strided 2^30-element view", "tiny.pth", vec!["info", "tiny.pth"]),
-        ("reconstruct --method mst-s --weights: .pth strided 2^30 view", "tiny.pth", vec!["reconstruct", "m.npy", "--mask", "mask.npy", "--method", "mst-s", "--weights", "tiny.pth", "-o", "r.npy"]),
-        ("info on a 1 MB .npz of zeros (1 GiB inflated)", "zeros.npz", vec!["info", "zeros.npz"]),
-        ("reconstruct a 1 MB .npz of zeros", "zeros.npz", vec!["reconstruct", "zeros.npz", "--mask", "mask.npy", "-o", "r.npy"]),
-        ("simulate --scene: 1 MB .npz of zeros", "zeros.npz", vec!["simulate", "--scene", "zeros.npz", "--mask", "mask.npy", "-o", "s.npy"]),
-        ("info on a 261 KB zlib MAT (256 MiB inflated)", "zbomb.mat", vec!["info", "zbomb.mat"]),
-        ("reconstruct a 261 KB zlib MAT", "zbomb.mat", vec!["reconstruct", "zbomb.mat", "--mask", "mask.npy", "-o", "r.npy"]),
-        ("calibrate a 261 KB zlib MAT", "zbomb.mat", vec!["calibrate", "zbomb.mat", "--mask", "mask.npy", "-o", "c.json"]),
-        ("reconstruct --weights: safetensors claiming 4 GiB", "bigst.safetensors", vec!["reconstruct", "m.npy", "--mask", "mask.npy", "--method", "mst-s", "--weights", "bigst.safetensors", "-o", "r.npy"]),
-        ("info on an .npy whose header claims 1 GiB", "hugehdr.npy", vec!["info", "hugehdr.npy"]),
-        ("reconstruct an .npy whose header claims 1 GiB", "hugehdr.npy", vec!["reconstruct", "hugehdr.npy", "--mask", "mask.npy", "-o", "r.npy"]),
+        (
+            "info on a 6 KB HDF5 .mat with a never-written 1 GiB dataset",
+            "h5bomb.mat",
+            vec!["info", "h5bomb.mat"],
+        ),
+        (
+            "reconstruct a never-written 1 GiB HDF5 measurement",
+            "h5bomb.mat",
+            vec![
+                "reconstruct",
+                "h5bomb.mat",
+                "--mask",
+                "mask.npy",
+                "-o",
+                "r.npy",
+            ],
+        ),
+        (
+            "info on a .pth with a strided 2^30-element view",
+            "tiny.pth",
+            vec!["info", "tiny.pth"],
+        ),
+        (
+            "reconstruct --method mst-s --weights: .pth strided 2^30 view",
+            "tiny.pth",
+            vec![
+                "reconstruct",
+                "m.npy",
+                "--mask",
+                "mask.npy",
+                "--method",
+                "mst-s",
+                "--weights",
+                "tiny.pth",
+                "-o",
+                "r.npy",
+            ],
+        ),
+        (
+            "info on a 1 MB .npz of zeros (1 GiB inflated)",
+            "zeros.npz",
+            vec!["info", "zeros.npz"],
+        ),
+        (
+            "reconstruct a 1 MB .npz of zeros",
+            "zeros.npz",
+            vec![
+                "reconstruct",
+                "zeros.npz",
+                "--mask",
+                "mask.npy",
+                "-o",
+                "r.npy",
+            ],
+        ),
+        (
+            "simulate --scene: 1 MB .npz of zeros",
+            "zeros.npz",
+            vec![
+                "simulate",
+                "--scene",
+                "zeros.npz",
+                "--mask",
+                "mask.npy",
+                "-o",
+                "s.npy",
+            ],
+        ),
+        (
+            "info on a 261 KB zlib MAT (256 MiB inflated)",
+            "zbomb.mat",
+            vec!["info", "zbomb.mat"],
+        ),
+        (
+            "reconstruct a 261 KB zlib MAT",
+            "zbomb.mat",
+            vec![
+                "reconstruct",
+                "zbomb.mat",
+                "--mask",
+                "mask.npy",
+                "-o",
+                "r.npy",
+            ],
+        ),
+        (
+            "calibrate a 261 KB zlib MAT",
+            "zbomb.mat",
+            vec![
+                "calibrate",
+                "zbomb.mat",
+                "--mask",
+                "mask.npy",
+                "-o",
+                "c.json",
+            ],
+        ),
+        (
+            "reconstruct --weights: safetensors claiming 4 GiB",
+            "bigst.safetensors",
+            vec![
+                "reconstruct",
+                "m.npy",
+                "--mask",
+                "mask.npy",
+                "--method",
+                "mst-s",
+                "--weights",
+                "bigst.safetensors",
+                "-o",
+                "r.npy",
+            ],
+        ),
+        (
+            "info on an .npy whose header claims 1 GiB",
+            "hugehdr.npy",
+            vec!["info", "hugehdr.npy"],
+        ),
+        (
+            "reconstruct an .npy whose header claims 1 GiB",
+            "hugehdr.npy",
+            vec![
+                "reconstruct",
+                "hugehdr.npy",
+                "--mask",
+                "mask.npy",
+                "-o",
+                "r.npy",
+            ],
+        ),
     ];
     for (label, file, args) in threes {
         let d = ctx.case_dir("repro3");
@@ -1138,24 +1754,260 @@ fn reproducers(ctx: &mut Ctx) {
     // ---- 4: absurd parameters
     let c4 = "repro/4-absurd-parameters";
     let fours: Vec<(&str, Vec<&str>, &str)> = vec![
-        ("reconstruct --stride 0.001", vec!["reconstruct", "m.npy", "--mask", "mask.npy", "--stride", "0.001", "-o", "r.npy"], "--stride"),
-        ("reconstruct --stride 0.01 (5,501 bands)", vec!["reconstruct", "m.npy", "--mask", "mask.npy", "--stride", "0.01", "-o", "r.npy"], "--stride"),
-        ("calibrate --stride 0.01", vec!["calibrate", "m.npy", "--mask", "mask.npy", "--stride", "0.01", "-o", "c.json"], "--stride"),
-        ("reconstruct --stride nan", vec!["reconstruct", "m.npy", "--mask", "mask.npy", "--stride", "nan", "-o", "r.npy"], "--stride"),
-        ("reconstruct --stride -2", vec!["reconstruct", "m.npy", "--mask", "mask.npy", "--stride=-2", "-o", "r.npy"], "--stride"),
-        ("simulate --stride 1e9", vec!["simulate", "--synthetic", "--size", "32", "--bands", "4", "--random-mask", "--stride", "1e9", "-o", "x.npy"], "--stride"),
-        ("simulate --size 20000", vec!["simulate", "--synthetic", "--size", "20000", "--random-mask", "-o", "x.npy"], "--size"),
-        ("simulate --size 0", vec!["simulate", "--synthetic", "--size", "0", "--random-mask", "-o", "x.npy"], "--size"),
-        ("simulate --bands 100000", vec!["simulate", "--synthetic", "--size", "32", "--bands", "100000", "--random-mask", "-o", "x.npy"], "--bands"),
-        ("reconstruct --bands 100000", vec!["reconstruct", "m.npy", "--mask", "mask.npy", "--bands", "100000", "-o", "r.npy"], "--bands"),
-        ("calibrate --bands 100000", vec!["calibrate", "m.npy", "--mask", "mask.npy", "--bands", "100000", "-o", "c.json"], "--bands"),
-        ("eval --size 20000", vec!["eval", "--synthetic", "--size", "20000", "-o", "ev2"], "--size"),
-        ("reconstruct --iterations 4000000000", vec!["reconstruct", "m.npy", "--mask", "mask.npy", "--iterations", "4000000000", "-o", "r.npy"], "--iterations"),
-        ("simulate --open-fraction 2", vec!["simulate", "--synthetic", "--size", "32", "--bands", "4", "--random-mask", "--open-fraction", "2", "-o", "x.npy"], "--open-fraction"),
-        ("simulate --photon-peak -5", vec!["simulate", "--synthetic", "--size", "32", "--bands", "4", "--random-mask", "--photon-peak=-5", "-o", "x.npy"], "--photon-peak"),
-        ("simulate --read-noise inf", vec!["simulate", "--synthetic", "--size", "32", "--bands", "4", "--random-mask", "--read-noise", "inf", "-o", "x.npy"], "--read-noise"),
-        ("simulate --theta nan", vec!["simulate", "--synthetic", "--size", "32", "--bands", "4", "--random-mask", "--theta", "nan", "-o", "x.npy"], "--theta"),
-        ("reconstruct --weight -1", vec!["reconstruct", "m.npy", "--mask", "mask.npy", "--weight=-1", "-o", "r.npy"], "--weight"),
+        (
+            "reconstruct --stride 0.001",
+            vec![
+                "reconstruct",
+                "m.npy",
+                "--mask",
+                "mask.npy",
+                "--stride",
+                "0.001",
+                "-o",
+                "r.npy",
+            ],
+            "--stride",
+        ),
+        (
+            "reconstruct --stride 0.01 (5,501 bands)",
+            vec![
+                "reconstruct",
+                "m.npy",
+                "--mask",
+                "mask.npy",
+                "--stride",
+                "0.01",
+                "-o",
+                "r.npy",
+            ],
+            "--stride",
+        ),
+        (
+            "calibrate --stride 0.01",
+            vec![
+                "calibrate",
+                "m.npy",
+                "--mask",
+                "mask.npy",
+                "--stride",
+                "0.01",
+                "-o",
+                "c.json",
+            ],
+            "--stride",
+        ),
+        (
+            "reconstruct --stride nan",
+            vec![
+                "reconstruct",
+                "m.npy",
+                "--mask",
+                "mask.npy",
+                "--stride",
+                "nan",
+                "-o",
+                "r.npy",
+            ],
+            "--stride",
+        ),
+        (
+            "reconstruct --stride -2",
+            vec![
+                "reconstruct",
+                "m.npy",
+                "--mask",
+                "mask.npy",
+                "--stride=-2",
+                "-o",
+                "r.npy",
+            ],
+            "--stride",
+        ),
+        (
+            "simulate --stride 1e9",
+            vec![
+                "simulate",
+                "--synthetic",
+                "--size",
+                "32",
+                "--bands",
+                "4",
+                "--random-mask",
+                "--stride",
+                "1e9",
+                "-o",
+                "x.npy",
+            ],
+            "--stride",
+        ),
+        (
+            "simulate --size 20000",
+            vec![
+                "simulate",
+                "--synthetic",
+                "--size",
+                "20000",
+                "--random-mask",
+                "-o",
+                "x.npy",
+            ],
+            "--size",
+        ),
+        (
+            "simulate --size 0",
+            vec![
+                "simulate",
+                "--synthetic",
+                "--size",
+                "0",
+                "--random-mask",
+                "-o",
+                "x.npy",
+            ],
+            "--size",
+        ),
+        (
+            "simulate --bands 100000",
+            vec![
+                "simulate",
+                "--synthetic",
+                "--size",
+                "32",
+                "--bands",
+                "100000",
+                "--random-mask",
+                "-o",
+                "x.npy",
+            ],
+            "--bands",
+        ),
+        (
+            "reconstruct --bands 100000",
+            vec![
+                "reconstruct",
+                "m.npy",
+                "--mask",
+                "mask.npy",
+                "--bands",
+                "100000",
+                "-o",
+                "r.npy",
+            ],
+            "--bands",
+        ),
+        (
+            "calibrate --bands 100000",
+            vec![
+                "calibrate",
+                "m.npy",
+                "--mask",
+                "mask.npy",
+                "--bands",
+                "100000",
+                "-o",
+                "c.json",
+            ],
+            "--bands",
+        ),
+        (
+            "eval --size 20000",
+            vec!["eval", "--synthetic", "--size", "20000", "-o", "ev2"],
+            "--size",
+        ),
+        (
+            "reconstruct --iterations 4000000000",
+            vec![
+                "reconstruct",
+                "m.npy",
+                "--mask",
+                "mask.npy",
+                "--iterations",
+                "4000000000",
+                "-o",
+                "r.npy",
+            ],
+            "--iterations",
+        ),
+        (
+            "simulate --open-fraction 2",
+            vec![
+                "simulate",
+                "--synthetic",
+                "--size",
+                "32",
+                "--bands",
+                "4",
+                "--random-mask",
+                "--open-fraction",
+                "2",
+                "-o",
+                "x.npy",
+            ],
+            "--open-fraction",
+        ),
+        (
+            "simulate --photon-peak -5",
+            vec![
+                "simulate",
+                "--synthetic",
+                "--size",
+                "32",
+                "--bands",
+                "4",
+                "--random-mask",
+                "--photon-peak=-5",
+                "-o",
+                "x.npy",
+            ],
+            "--photon-peak",
+        ),
+        (
+            "simulate --read-noise inf",
+            vec![
+                "simulate",
+                "--synthetic",
+                "--size",
+                "32",
+                "--bands",
+                "4",
+                "--random-mask",
+                "--read-noise",
+                "inf",
+                "-o",
+                "x.npy",
+            ],
+            "--read-noise",
+        ),
+        (
+            "simulate --theta nan",
+            vec![
+                "simulate",
+                "--synthetic",
+                "--size",
+                "32",
+                "--bands",
+                "4",
+                "--random-mask",
+                "--theta",
+                "nan",
+                "-o",
+                "x.npy",
+            ],
+            "--theta",
+        ),
+        (
+            "reconstruct --weight -1",
+            vec![
+                "reconstruct",
+                "m.npy",
+                "--mask",
+                "mask.npy",
+                "--weight=-1",
+                "-o",
+                "r.npy",
+            ],
+            "--weight",
+        ),
     ];
     for (label, args, flag) in fours {
         let d = ctx.case_dir("repro4");
@@ -1164,7 +2016,7 @@ fn reproducers(ctx: &mut Ctx) {
         let c = Case::new(c4, "absurd-parameter", label, &d, &args)
             .inputs(&["m.npy", "mask.npy"])
             .expect(Expect::FailUpFront, &[flag])
-            .timeout(30);
+            .timeout(15);
         ctx.run_case(c);
     }
 
@@ -1172,50 +2024,271 @@ fn reproducers(ctx: &mut Ctx) {
     let c5 = "repro/5-meaningless";
     let md = ctx.work.join("meaningless");
     std::fs::create_dir_all(&md).unwrap();
-    write(&md.join("zero_meas.npy"), &files::npy_f32(&[32, 38], &[0.0; 32 * 38]));
-    write(&md.join("zero_mask.npy"), &files::npy_f32(&[32, 32], &[0.0; 32 * 32]));
-    write(&md.join("neg_meas.npy"), &files::npy_f32(&[32, 38], &vec![-0.5; 32 * 38]));
+    write(
+        &md.join("zero_meas.npy"),
+        &files::npy_f32(&[32, 38], &[0.0; 32 * 38]),
+    );
+    write(
+        &md.join("zero_mask.npy"),
+        &files::npy_f32(&[32, 32], &[0.0; 32 * 32]),
+    );
+    write(
+        &md.join("neg_meas.npy"),
+        &files::npy_f32(&[32, 38], &vec![-0.5; 32 * 38]),
+    );
     let mut rng = Rng::new(311);
     let m300: Vec<f32> = (0..256 * 300).map(|_| rng.below(2) as f32).collect();
     write(&md.join("mask300.npy"), &files::npy_f32(&[256, 300], &m300));
     let y311: Vec<f32> = (0..256 * 311).map(|_| rng.unit() as f32).collect();
     write(&md.join("meas311.npy"), &files::npy_f32(&[256, 311], &y311));
     let hot: Vec<f32> = (0..4 * 32 * 32).map(|_| 1e30).collect();
-    write(&md.join("hot_scene.npy"), &files::npy_f32(&[4, 32, 32], &hot));
-    let cal: Value = serde_json::from_slice(&std::fs::read(ctx.base.join("c.json")).unwrap()).unwrap();
+    write(
+        &md.join("hot_scene.npy"),
+        &files::npy_f32(&[4, 32, 32], &hot),
+    );
+    let cal: Value =
+        serde_json::from_slice(&std::fs::read(ctx.base.join("c.json")).unwrap()).unwrap();
     let mut cal_dx = cal.clone();
     cal_dx["parameters"]["dx"] = json!(1e308);
     let mut cal_a1 = cal.clone();
     cal_a1["parameters"]["a1"] = json!(1e-300);
     let mut cal_pos = cal.clone();
     cal_pos["parameters"] = json!([1, 2, 3, 4, 5]);
-    let mut side = serde_json::from_slice::<Value>(&std::fs::read(ctx.base.join("m.json")).unwrap()).unwrap();
+    let mut side =
+        serde_json::from_slice::<Value>(&std::fs::read(ctx.base.join("m.json")).unwrap()).unwrap();
     side["simulation"]["mismatch"]["dx"] = json!(1e308);
     write(&md.join("cal_dx1e308.json"), cal_dx.to_string().as_bytes());
-    write(&md.join("cal_a1_1e-300.json"), cal_a1.to_string().as_bytes());
-    write(&md.join("cal_positional.json"), cal_pos.to_string().as_bytes());
+    write(
+        &md.join("cal_a1_1e-300.json"),
+        cal_a1.to_string().as_bytes(),
+    );
+    write(
+        &md.join("cal_positional.json"),
+        cal_pos.to_string().as_bytes(),
+    );
     write(&md.join("side_dx1e308.json"), side.to_string().as_bytes());
     let fives: Vec<(&str, Vec<&str>, Vec<&str>)> = vec![
-        ("calibrate an all-zero measurement", vec!["calibrate", "zero_meas.npy", "--mask", "mask.npy", "-o", "c.json"], vec!["zero_meas.npy"]),
-        ("reconstruct an all-zero measurement", vec!["reconstruct", "zero_meas.npy", "--mask", "mask.npy", "-o", "r.npy"], vec!["zero_meas.npy"]),
-        ("reconstruct with an all-zero mask", vec!["reconstruct", "m.npy", "--mask", "zero_mask.npy", "-o", "r.npy"], vec!["zero_mask.npy"]),
-        ("calibrate with an all-zero mask", vec!["calibrate", "m.npy", "--mask", "zero_mask.npy", "-o", "c.json"], vec!["zero_mask.npy"]),
-        ("simulate with an all-zero mask", vec!["simulate", "--scene", "scene.npy", "--mask", "zero_mask.npy", "-o", "s.npy"], vec!["zero_mask.npy"]),
-        ("calibrate all-negative measurements", vec!["calibrate", "neg_meas.npy", "--mask", "mask.npy", "-o", "c.json"], vec!["neg_meas.npy"]),
-        ("reconstruct all-negative measurements", vec!["reconstruct", "neg_meas.npy", "--mask", "mask.npy", "-o", "r.npy"], vec!["neg_meas.npy"]),
-        ("simulate --dx 1e9", vec!["simulate", "--scene", "scene.npy", "--mask", "mask.npy", "--dx", "1e9", "-o", "s.npy"], vec!["--dx"]),
-        ("eval --dx 1e9", vec!["eval", "--synthetic", "--size", "32", "--dx", "1e9", "-o", "ev2"], vec!["--dx"]),
-        ("reconstruct --calibration with dx 1e308", vec!["reconstruct", "m.npy", "--mask", "mask.npy", "--calibration", "cal_dx1e308.json", "-o", "r.npy"], vec!["cal_dx1e308.json"]),
-        ("reconstruct --calibration with a1 1e-300", vec!["reconstruct", "m.npy", "--mask", "mask.npy", "--calibration", "cal_a1_1e-300.json", "-o", "r.npy"], vec!["cal_a1_1e-300.json"]),
-        ("reconstruct --calibration with positional parameters [1,2,3,4,5]", vec!["reconstruct", "m.npy", "--mask", "mask.npy", "--calibration", "cal_positional.json", "-o", "r.npy"], vec!["cal_positional.json"]),
-        ("reconstruct --calibration sidecar with dx 1e308", vec!["reconstruct", "m.npy", "--mask", "mask.npy", "--calibration", "side_dx1e308.json", "-o", "r.npy"], vec!["side_dx1e308.json"]),
-        ("reconstruct a 256x311 measurement with a 256x300 mask", vec!["reconstruct", "meas311.npy", "--mask", "mask300.npy", "-o", "r.npy"], vec![]),
-        ("calibrate a 256x311 measurement with a 256x300 mask", vec!["calibrate", "meas311.npy", "--mask", "mask300.npy", "-o", "c.json"], vec![]),
-        ("simulate a scene of 1e30 values", vec!["simulate", "--scene", "hot_scene.npy", "--mask", "mask.npy", "-o", "s.npy"], vec!["hot_scene.npy"]),
+        (
+            "calibrate an all-zero measurement",
+            vec![
+                "calibrate",
+                "zero_meas.npy",
+                "--mask",
+                "mask.npy",
+                "-o",
+                "c.json",
+            ],
+            vec!["zero_meas.npy"],
+        ),
+        (
+            "reconstruct an all-zero measurement",
+            vec![
+                "reconstruct",
+                "zero_meas.npy",
+                "--mask",
+                "mask.npy",
+                "-o",
+                "r.npy",
+            ],
+            vec!["zero_meas.npy"],
+        ),
+        (
+            "reconstruct with an all-zero mask",
+            vec![
+                "reconstruct",
+                "m.npy",
+                "--mask",
+                "zero_mask.npy",
+                "-o",
+                "r.npy",
+            ],
+            vec!["zero_mask.npy"],
+        ),
+        (
+            "calibrate with an all-zero mask",
+            vec![
+                "calibrate",
+                "m.npy",
+                "--mask",
+                "zero_mask.npy",
+                "-o",
+                "c.json",
+            ],
+            vec!["zero_mask.npy"],
+        ),
+        (
+            "simulate with an all-zero mask",
+            vec![
+                "simulate",
+                "--scene",
+                "scene.npy",
+                "--mask",
+                "zero_mask.npy",
+                "-o",
+                "s.npy",
+            ],
+            vec!["zero_mask.npy"],
+        ),
+        (
+            "calibrate all-negative measurements",
+            vec![
+                "calibrate",
+                "neg_meas.npy",
+                "--mask",
+                "mask.npy",
+                "-o",
+                "c.json",
+            ],
+            vec!["neg_meas.npy"],
+        ),
+        (
+            "reconstruct all-negative measurements",
+            vec![
+                "reconstruct",
+                "neg_meas.npy",
+                "--mask",
+                "mask.npy",
+                "-o",
+                "r.npy",
+            ],
+            vec!["neg_meas.npy"],
+        ),
+        (
+            "simulate --dx 1e9",
+            vec![
+                "simulate",
+                "--scene",
+                "scene.npy",
+                "--mask",
+                "mask.npy",
+                "--dx",
+                "1e9",
+                "-o",
+                "s.npy",
+            ],
+            vec!["--dx"],
+        ),
+        (
+            "eval --dx 1e9",
+            vec![
+                "eval",
+                "--synthetic",
+                "--size",
+                "32",
+                "--dx",
+                "1e9",
+                "-o",
+                "ev2",
+            ],
+            vec!["--dx"],
+        ),
+        (
+            "reconstruct --calibration with dx 1e308",
+            vec![
+                "reconstruct",
+                "m.npy",
+                "--mask",
+                "mask.npy",
+                "--calibration",
+                "cal_dx1e308.json",
+                "-o",
+                "r.npy",
+            ],
+            vec!["cal_dx1e308.json"],
+        ),
+        (
+            "reconstruct --calibration with a1 1e-300",
+            vec![
+                "reconstruct",
+                "m.npy",
+                "--mask",
+                "mask.npy",
+                "--calibration",
+                "cal_a1_1e-300.json",
+                "-o",
+                "r.npy",
+            ],
+            vec!["cal_a1_1e-300.json"],
+        ),
+        (
+            "reconstruct --calibration with positional parameters [1,2,3,4,5]",
+            vec![
+                "reconstruct",
+                "m.npy",
+                "--mask",
+                "mask.npy",
+                "--calibration",
+                "cal_positional.json",
+                "-o",
+                "r.npy",
+            ],
+            vec!["cal_positional.json"],
+        ),
+        (
+            "reconstruct --calibration sidecar with dx 1e308",
+            vec![
+                "reconstruct",
+                "m.npy",
+                "--mask",
+                "mask.npy",
+                "--calibration",
+                "side_dx1e308.json",
+                "-o",
+                "r.npy",
+            ],
+            vec!["side_dx1e308.json"],
+        ),
+        (
+            "reconstruct a 256x311 measurement with a 256x300 mask",
+            vec![
+                "reconstruct",
+                "meas311.npy",
+                "--mask",
+                "mask300.npy",
+                "-o",
+                "r.npy",
+            ],
+            vec![],
+        ),
+        (
+            "calibrate a 256x311 measurement with a 256x300 mask",
+            vec![
+                "calibrate",
+                "meas311.npy",
+                "--mask",
+                "mask300.npy",
+                "-o",
+                "c.json",
+            ],
+            vec![],
+        ),
+        (
+            "simulate a scene of 1e30 values",
+            vec![
+                "simulate",
+                "--scene",
+                "hot_scene.npy",
+                "--mask",
+                "mask.npy",
+                "-o",
+                "s.npy",
+            ],
+            vec!["hot_scene.npy"],
+        ),
     ];
     for (label, args, names) in fives {
         let d = ctx.case_dir("repro5");
-        ctx.stage(&d, &["m.npy", "mask.npy", "scene.npy", "c.json", "s.npy", "s.json"]);
+        ctx.stage(
+            &d,
+            &[
+                "m.npy",
+                "mask.npy",
+                "scene.npy",
+                "c.json",
+                "s.npy",
+                "s.json",
+            ],
+        );
         ctx.stage(&d, &prev_r);
         copy_rec(&md, &d);
         let mut c = Case::new(c5, "meaningless", label, &d, &args)
@@ -1229,24 +2302,151 @@ fn reproducers(ctx: &mut Ctx) {
     // ---- 7: escapes, late failures, nan flags, permissions
     let c7 = "repro/7-misc";
     let esc_npz = files::npz(
-        &[("\x1b]0;pwned\x07\x1b[31mred\x1b[0m.npy", &std::fs::read(ctx.base.join("mask.npy")).unwrap())],
+        &[(
+            "\x1b]0;pwned\x07\x1b[31mred\x1b[0m.npy",
+            &std::fs::read(ctx.base.join("mask.npy")).unwrap(),
+        )],
         false,
     );
     let esc_mat = files::mat5_double(b"a\x1b[2Jb\x1b[31m", 2, 2, &[0.0, 1.0, 1.0, 0.0]);
     let esc_npz_bad = files::npz(&[("\x1b[2Jevil.npy", b"\x93NUMPY garbage")], false);
     let sevens: Vec<(&str, Vec<(&str, Vec<u8>)>, Vec<&str>, Expect, Vec<&str>)> = vec![
-        ("info: npz entry name with terminal escapes", vec![("esc.npz", esc_npz.clone())], vec!["info", "esc.npz"], Expect::Any, vec![]),
-        ("info --json: npz entry name with terminal escapes", vec![("esc.npz", esc_npz.clone())], vec!["info", "esc.npz", "--json"], Expect::Any, vec![]),
-        ("info: MAT variable name with terminal escapes", vec![("esc.mat", esc_mat.clone())], vec!["info", "esc.mat"], Expect::Any, vec![]),
-        ("info: broken npz entry with terminal escapes", vec![("escbad.npz", esc_npz_bad)], vec!["info", "escbad.npz"], Expect::Any, vec![]),
-        ("reconstruct --mask-var absent in an escape-named npz", vec![("esc.npz", esc_npz)], vec!["reconstruct", "m.npy", "--mask", "esc.npz", "--mask-var", "nothere", "-o", "r.npy"], Expect::Any, vec![]),
-        ("reconstruct --meas-var absent in an escape-named MAT", vec![("esc.mat", esc_mat)], vec!["reconstruct", "esc.mat", "--mask", "mask.npy", "--meas-var", "zz", "-o", "r.npy"], Expect::Any, vec![]),
-        ("info on a path with terminal escapes", vec![("\x1b[2Jx.npy", b"not an npy".to_vec())], vec!["info", "\x1b[2Jx.npy"], Expect::Any, vec![]),
-        ("eval --count 0", vec![], vec!["eval", "--synthetic", "--size", "32", "--count", "0", "-o", "ev2"], Expect::FailUpFront, vec!["--count"]),
-        ("eval --size 8", vec![], vec!["eval", "--synthetic", "--size", "8", "-o", "ev2"], Expect::FailUpFront, vec!["--size"]),
-        ("eval --sensitivity=nan", vec![], vec!["eval", "--synthetic", "--size", "32", "--sensitivity=nan", "-o", "ev2"], Expect::FailUpFront, vec!["--sensitivity"]),
-        ("eval --sensitivity=-1", vec![], vec!["eval", "--synthetic", "--size", "32", "--sensitivity=-1", "-o", "ev2"], Expect::FailUpFront, vec!["--sensitivity"]),
-        ("eval --limit 0", vec![], vec!["eval", "--synthetic", "--size", "32", "--limit", "0", "-o", "ev2"], Expect::FailUpFront, vec!["--limit"]),
+        (
+            "info: npz entry name with terminal escapes",
+            vec![("esc.npz", esc_npz.clone())],
+            vec!["info", "esc.npz"],
+            Expect::Any,
+            vec![],
+        ),
+        (
+            "info --json: npz entry name with terminal escapes",
+            vec![("esc.npz", esc_npz.clone())],
+            vec!["info", "esc.npz", "--json"],
+            Expect::Any,
+            vec![],
+        ),
+        (
+            "info: MAT variable name with terminal escapes",
+            vec![("esc.mat", esc_mat.clone())],
+            vec!["info", "esc.mat"],
+            Expect::Any,
+            vec![],
+        ),
+        (
+            "info: broken npz entry with terminal escapes",
+            vec![("escbad.npz", esc_npz_bad)],
+            vec!["info", "escbad.npz"],
+            Expect::Any,
+            vec![],
+        ),
+        (
+            "reconstruct --mask-var absent in an escape-named npz",
+            vec![("esc.npz", esc_npz)],
+            vec![
+                "reconstruct",
+                "m.npy",
+                "--mask",
+                "esc.npz",
+                "--mask-var",
+                "nothere",
+                "-o",
+                "r.npy",
+            ],
+            Expect::Any,
+            vec![],
+        ),
+        (
+            "reconstruct --meas-var absent in an escape-named MAT",
+            vec![("esc.mat", esc_mat)],
+            vec![
+                "reconstruct",
+                "esc.mat",
+                "--mask",
+                "mask.npy",
+                "--meas-var",
+                "zz",
+                "-o",
+                "r.npy",
+            ],
+            Expect::Any,
+            vec![],
+        ),
+        (
+            "info on a path with terminal escapes",
+            vec![("\x1b[2Jx.npy", b"not an npy".to_vec())],
+            vec!["info", "\x1b[2Jx.npy"],
+            Expect::Any,
+            vec![],
+        ),
+        (
+            "eval --count 0",
+            vec![],
+            vec![
+                "eval",
+                "--synthetic",
+                "--size",
+                "32",
+                "--count",
+                "0",
+                "-o",
+                "ev2",
+            ],
+            Expect::FailUpFront,
+            vec!["--count"],
+        ),
+        (
+            "eval --size 8",
+            vec![],
+            vec!["eval", "--synthetic", "--size", "8", "-o", "ev2"],
+            Expect::FailUpFront,
+            vec!["--size"],
+        ),
+        (
+            "eval --sensitivity=nan",
+            vec![],
+            vec![
+                "eval",
+                "--synthetic",
+                "--size",
+                "32",
+                "--sensitivity=nan",
+                "-o",
+                "ev2",
+            ],
+            Expect::FailUpFront,
+            vec!["--sensitivity"],
+        ),
+        (
+            "eval --sensitivity=-1",
+            vec![],
+            vec![
+                "eval",
+                "--synthetic",
+                "--size",
+                "32",
+                "--sensitivity=-1",
+                "-o",
+                "ev2",
+            ],
+            Expect::FailUpFront,
+            vec!["--sensitivity"],
+        ),
+        (
+            "eval --limit 0",
+            vec![],
+            vec![
+                "eval",
+                "--synthetic",
+                "--size",
+                "32",
+                "--limit",
+                "0",
+                "-o",
+                "ev2",
+            ],
+            Expect::FailUpFront,
+            vec!["--limit"],
+        ),
     ];
     for (label, files, args, expect, names) in sevens {
         let d = ctx.case_dir("repro7");
@@ -1265,12 +2465,45 @@ fn reproducers(ctx: &mut Ctx) {
     }
     // permissions of replaced outputs
     for (label, args, files, mode) in [
-        ("reconstruct keeps 0640 on replaced outputs", vec!["reconstruct", "m.npy", "--mask", "mask.npy", "-o", "r.npy"], vec!["r.npy", "r.png", "r.json"], 0o640),
-        ("simulate keeps 0600 on replaced outputs", vec!["simulate", "--scene", "scene.npy", "--mask", "mask.npy", "-o", "s.npy"], vec!["s.npy", "s.json"], 0o600),
-        ("calibrate keeps 0664 on a replaced calibration", vec!["calibrate", "m.npy", "--mask", "mask.npy", "-o", "c.json"], vec!["c.json"], 0o664),
+        (
+            "reconstruct keeps 0640 on replaced outputs",
+            vec!["reconstruct", "m.npy", "--mask", "mask.npy", "-o", "r.npy"],
+            vec!["r.npy", "r.png", "r.json"],
+            0o640,
+        ),
+        (
+            "simulate keeps 0600 on replaced outputs",
+            vec![
+                "simulate",
+                "--scene",
+                "scene.npy",
+                "--mask",
+                "mask.npy",
+                "-o",
+                "s.npy",
+            ],
+            vec!["s.npy", "s.json"],
+            0o600,
+        ),
+        (
+            "calibrate keeps 0664 on a replaced calibration",
+            vec!["calibrate", "m.npy", "--mask", "mask.npy", "-o", "c.json"],
+            vec!["c.json"],
+            0o664,
+        ),
     ] {
         let d = ctx.case_dir("repro7perm");
-        ctx.stage(&d, &["m.npy", "mask.npy", "scene.npy", "c.json", "s.npy", "s.json"]);
+        ctx.stage(
+            &d,
+            &[
+                "m.npy",
+                "mask.npy",
+                "scene.npy",
+                "c.json",
+                "s.npy",
+                "s.json",
+            ],
+        );
         ctx.stage(&d, &prev_r);
         for f in &files {
             std::fs::set_permissions(d.join(f), std::fs::Permissions::from_mode(mode)).unwrap();
@@ -1289,16 +2522,45 @@ fn reproducers(ctx: &mut Ctx) {
 fn resume_cases(ctx: &mut Ctx) {
     let cat = "repro/6-resume";
     let variants: Vec<(&str, Vec<&str>)> = vec![
-        ("--resume after changing --mask", vec!["--mask", "maskB.npy"]),
-        ("--resume after changing --dx", vec!["--mask", "mask.npy", "--dx", "1.0"]),
-        ("--resume after changing --iterations", vec!["--mask", "mask.npy", "--iterations", "20"]),
-        ("--resume after changing --noise-seed", vec!["--mask", "mask.npy", "--noise-seed", "9"]),
+        (
+            "--resume after changing --mask",
+            vec!["--mask", "maskB.npy"],
+        ),
+        (
+            "--resume after changing --dx",
+            vec!["--mask", "mask.npy", "--dx", "1.0"],
+        ),
+        (
+            "--resume after changing --iterations",
+            vec!["--mask", "mask.npy", "--iterations", "20"],
+        ),
+        (
+            "--resume after changing --noise-seed",
+            vec!["--mask", "mask.npy", "--noise-seed", "9"],
+        ),
     ];
     for (label, change) in variants {
         let d = ctx.case_dir("resume");
         ctx.stage(&d, &["mask.npy", "maskB.npy"]);
-        let first = s(&["eval", "--synthetic", "--size", "32", "--count", "1", "--mask", "mask.npy", "-o", "ev"]);
-        let o1 = ctx.exec(&Spec { args: first, cwd: d.clone(), env: vec![], timeout: Duration::from_secs(90), signal: None });
+        let first = s(&[
+            "eval",
+            "--synthetic",
+            "--size",
+            "32",
+            "--count",
+            "1",
+            "--mask",
+            "mask.npy",
+            "-o",
+            "ev",
+        ]);
+        let o1 = ctx.exec(&Spec {
+            args: first,
+            cwd: d.clone(),
+            env: vec![],
+            timeout: Duration::from_secs(90),
+            signal: None,
+        });
         let before: BTreeMap<String, Option<String>> = list_json(&d.join("ev/scenes"));
         let mut args = vec!["eval", "--synthetic", "--size", "32", "--count", "1"];
         args.extend(change.iter());
@@ -1307,8 +2569,18 @@ fn resume_cases(ctx: &mut Ctx) {
             .inputs(&["mask.npy", "maskB.npy"])
             .timeout(90);
         let snap0 = run::snapshot(&d);
-        let ins: Vec<Option<String>> = c.inputs.iter().map(|i| run::file_hash(&d.join(i))).collect();
-        let o = ctx.exec(&Spec { args: c.args.clone(), cwd: d.clone(), env: c.env.clone(), timeout: c.timeout, signal: None });
+        let ins: Vec<Option<String>> = c
+            .inputs
+            .iter()
+            .map(|i| run::file_hash(&d.join(i)))
+            .collect();
+        let o = ctx.exec(&Spec {
+            args: c.args.clone(),
+            cwd: d.clone(),
+            env: c.env.clone(),
+            timeout: c.timeout,
+            signal: None,
+        });
         let snap1 = run::snapshot(&d);
         let mut f = Flags::default();
         ctx.judge(&c, &o, &ins, &snap0, &snap1, &mut f);
@@ -1316,11 +2588,18 @@ fn resume_cases(ctx: &mut Ctx) {
         let text = (o.stdout_text() + &o.stderr_text()).to_lowercase();
         let said = text.contains("recomput") || text.contains("differ") || text.contains("stale");
         if !o1.ok() {
-            f.other.push(format!("first eval failed: {}", head(&o1.stderr, 160)));
+            f.other
+                .push(format!("first eval failed: {}", head(&o1.stderr, 160)));
         } else if o.ok() && before == after && !before.is_empty() {
-            f.other.push("resume reused results of another study (per-scene JSON unchanged)".into());
+            f.other
+                .push("resume reused results of another study (per-scene JSON unchanged)".into());
         }
-        ctx.record(&c, &o, f, json!({"scene_json_changed": before != after, "said_recomputed": said}));
+        ctx.record(
+            &c,
+            &o,
+            f,
+            json!({"scene_json_changed": before != after, "said_recomputed": said}),
+        );
     }
 }
 
@@ -1328,7 +2607,10 @@ fn list_json(d: &Path) -> BTreeMap<String, Option<String>> {
     let mut m = BTreeMap::new();
     if let Ok(rd) = std::fs::read_dir(d) {
         for e in rd.flatten() {
-            m.insert(e.file_name().to_string_lossy().into_owned(), content_key(&e.path()));
+            m.insert(
+                e.file_name().to_string_lossy().into_owned(),
+                content_key(&e.path()),
+            );
         }
     }
     m
@@ -1344,65 +2626,224 @@ fn interrupt_cases(ctx: &mut Ctx, per_cmd: usize, seed: u64) {
     let bm: Vec<f32> = (0..n * n).map(|_| rng.below(2) as f32).collect();
     write(&ib.join("bigmask.npy"), &files::npy_f32(&[n, n], &bm));
     let o = ctx.exec(&Spec {
-        args: s(&["simulate", "--synthetic", "--size", "96", "--bands", "28", "--mask", "bigmask.npy", "--paper-mismatch", "-o", "big.npy"]),
+        args: s(&[
+            "simulate",
+            "--synthetic",
+            "--size",
+            "96",
+            "--bands",
+            "28",
+            "--mask",
+            "bigmask.npy",
+            "--paper-mismatch",
+            "-o",
+            "big.npy",
+        ]),
         cwd: ib.clone(),
         env: vec![],
         timeout: Duration::from_secs(60),
         signal: None,
     });
     if !o.ok() {
-        ctx.notes.push(format!("interrupts skipped: base simulate failed: {}", head(&o.stderr, 200)));
+        ctx.notes.push(format!(
+            "interrupts skipped: base simulate failed: {}",
+            head(&o.stderr, 200)
+        ));
         return;
     }
     // (name, current command, previous-output command, expected outputs)
     let cmds: Vec<(&str, Vec<&str>, Vec<&str>, Vec<&str>)> = vec![
-        ("simulate",
-         vec!["simulate", "--synthetic", "--size", "256", "--bands", "28", "--random-mask", "--preview", "--noise-seed", "1", "-o", "s.npy"],
-         vec!["simulate", "--synthetic", "--size", "256", "--bands", "28", "--random-mask", "--preview", "--noise-seed", "2", "-o", "s.npy"],
-         vec!["s.npy", "s.json", "s.png"]),
-        ("reconstruct",
-         vec!["reconstruct", "big.npy", "--mask", "bigmask.npy", "--iterations", "150", "-o", "r.npy"],
-         vec!["reconstruct", "big.npy", "--mask", "bigmask.npy", "--iterations", "120", "-o", "r.npy"],
-         vec!["r.npy", "r.png", "r.json"]),
-        ("calibrate",
-         vec!["calibrate", "big.npy", "--mask", "bigmask.npy", "--write-mask", "wm.npy", "-o", "c.json"],
-         vec!["calibrate", "big.npy", "--mask", "bigmask.npy", "--bands", "27", "--write-mask", "wm.npy", "-o", "c.json"],
-         vec!["c.json", "wm.npy"]),
-        ("eval",
-         vec!["eval", "--synthetic", "--size", "32", "--count", "2", "-o", "ev"],
-         vec!["eval", "--synthetic", "--size", "32", "--count", "2", "--noise-seed", "3", "-o", "ev"],
-         vec!["ev/report.md", "ev/summary.json"]),
+        (
+            "simulate",
+            vec![
+                "simulate",
+                "--synthetic",
+                "--size",
+                "256",
+                "--bands",
+                "28",
+                "--random-mask",
+                "--preview",
+                "--noise-seed",
+                "1",
+                "-o",
+                "s.npy",
+            ],
+            vec![
+                "simulate",
+                "--synthetic",
+                "--size",
+                "256",
+                "--bands",
+                "28",
+                "--random-mask",
+                "--preview",
+                "--noise-seed",
+                "2",
+                "-o",
+                "s.npy",
+            ],
+            vec!["s.npy", "s.json", "s.png"],
+        ),
+        (
+            "reconstruct",
+            vec![
+                "reconstruct",
+                "big.npy",
+                "--mask",
+                "bigmask.npy",
+                "--iterations",
+                "150",
+                "-o",
+                "r.npy",
+            ],
+            vec![
+                "reconstruct",
+                "big.npy",
+                "--mask",
+                "bigmask.npy",
+                "--iterations",
+                "120",
+                "-o",
+                "r.npy",
+            ],
+            vec!["r.npy", "r.png", "r.json"],
+        ),
+        (
+            "calibrate",
+            vec![
+                "calibrate",
+                "big.npy",
+                "--mask",
+                "bigmask.npy",
+                "--write-mask",
+                "wm.npy",
+                "-o",
+                "c.json",
+            ],
+            vec![
+                "calibrate",
+                "big.npy",
+                "--mask",
+                "bigmask.npy",
+                "--bands",
+                "27",
+                "--write-mask",
+                "wm.npy",
+                "-o",
+                "c.json",
+            ],
+            vec!["c.json", "wm.npy"],
+        ),
+        (
+            "eval",
+            vec![
+                "eval",
+                "--synthetic",
+                "--size",
+                "32",
+                "--count",
+                "2",
+                "-o",
+                "ev",
+            ],
+            vec![
+                "eval",
+                "--synthetic",
+                "--size",
+                "32",
+                "--count",
+                "2",
+                "--noise-seed",
+                "3",
+                "-o",
+                "ev",
+            ],
+            vec!["ev/report.md", "ev/summary.json"],
+        ),
     ];
     for (name, cur, prev, outs) in cmds {
         let pd = ctx.work.join(format!("intprev-{name}"));
         let _ = std::fs::remove_dir_all(&pd);
         copy_rec(&ib, &pd);
         let t = Instant::now();
-        let po = ctx.exec(&Spec { args: s(&prev), cwd: pd.clone(), env: vec![], timeout: Duration::from_secs(120), signal: None });
+        let po = ctx.exec(&Spec {
+            args: s(&prev),
+            cwd: pd.clone(),
+            env: vec![],
+            timeout: Duration::from_secs(120),
+            signal: None,
+        });
         let t_prev = t.elapsed().as_secs_f64();
-        let to = ctx.exec(&Spec { args: s(&cur), cwd: pd.clone(), env: vec![], timeout: Duration::from_secs(120), signal: None });
+        let to = ctx.exec(&Spec {
+            args: s(&cur),
+            cwd: pd.clone(),
+            env: vec![],
+            timeout: Duration::from_secs(120),
+            signal: None,
+        });
         // restore the previous set (the timing run replaced it)
         let _ = std::fs::remove_dir_all(&pd);
         copy_rec(&ib, &pd);
-        ctx.exec(&Spec { args: s(&prev), cwd: pd.clone(), env: vec![], timeout: Duration::from_secs(120), signal: None });
+        ctx.exec(&Spec {
+            args: s(&prev),
+            cwd: pd.clone(),
+            env: vec![],
+            timeout: Duration::from_secs(120),
+            signal: None,
+        });
         if !po.ok() || !to.ok() {
-            ctx.notes.push(format!("interrupts of {name} skipped: {}", head(if po.ok() { &to.stderr } else { &po.stderr }, 200)));
+            ctx.notes.push(format!(
+                "interrupts of {name} skipped: {}",
+                head(if po.ok() { &to.stderr } else { &po.stderr }, 200)
+            ));
             continue;
         }
         let t_run = to.wall_s.max(0.005);
-        ctx.notes.push(format!("interrupts of {name}: uninterrupted run {:.3} s (previous {:.3} s)", t_run, t_prev));
+        ctx.notes.push(format!(
+            "interrupts of {name}: uninterrupted run {:.3} s (previous {:.3} s)",
+            t_run, t_prev
+        ));
         for k in 0..per_cmd {
             let d = ctx.case_dir(&format!("int-{name}"));
             copy_rec(&pd, &d);
-            let sig = if k % 2 == 0 { libc::SIGINT } else { libc::SIGTERM };
+            let sig = if k % 2 == 0 {
+                libc::SIGINT
+            } else {
+                libc::SIGTERM
+            };
             let delay = Duration::from_secs_f64(t_run * (0.02 + 1.0 * rng.unit()));
-            let mut c = Case::new("interrupt", name, &format!("{name} {} after {:.0} ms", if sig == libc::SIGINT { "SIGINT" } else { "SIGTERM" }, delay.as_secs_f64() * 1e3), &d, &cur)
-                .inputs(&["big.npy", "bigmask.npy"])
-                .timeout(120);
+            let mut c = Case::new(
+                "interrupt",
+                name,
+                &format!(
+                    "{name} {} after {:.0} ms",
+                    if sig == libc::SIGINT {
+                        "SIGINT"
+                    } else {
+                        "SIGTERM"
+                    },
+                    delay.as_secs_f64() * 1e3
+                ),
+                &d,
+                &cur,
+            )
+            .inputs(&["big.npy", "bigmask.npy"])
+            .timeout(120);
             c.signal = Some((sig, delay));
             let snap0 = run::snapshot(&d);
-            let ins: Vec<Option<String>> = c.inputs.iter().map(|i| run::file_hash(&d.join(i))).collect();
-            let o = ctx.exec(&Spec { args: c.args.clone(), cwd: d.clone(), env: c.env.clone(), timeout: c.timeout, signal: c.signal });
+            let ins: Vec<Option<String>> = c
+                .inputs
+                .iter()
+                .map(|i| run::file_hash(&d.join(i)))
+                .collect();
+            let o = ctx.exec(&Spec {
+                args: c.args.clone(),
+                cwd: d.clone(),
+                env: c.env.clone(),
+                timeout: c.timeout,
+                signal: c.signal,
+            });
             let snap1 = run::snapshot(&d);
             let mut f = Flags::default();
             ctx.judge(&c, &o, &ins, &snap0, &snap1, &mut f);
@@ -1438,33 +2879,79 @@ fn concurrent_cases(ctx: &mut Ctx) {
         ];
         for (k, n) in names.iter().enumerate() {
             jobs.push((
-                s(&["reconstruct", "m.npy", "--mask", "mask.npy", "--iterations", &(20 + 10 * k + round).to_string(), "-o", n[0]]),
+                s(&[
+                    "reconstruct",
+                    "m.npy",
+                    "--mask",
+                    "mask.npy",
+                    "--iterations",
+                    &(20 + 10 * k + round).to_string(),
+                    "-o",
+                    n[0],
+                ]),
                 n.to_vec(),
             ));
         }
         for k in 0..2 {
             let o = format!("s{k}.npy");
             jobs.push((
-                s(&["simulate", "--scene", "scene.npy", "--mask", "mask.npy", "--noise-seed", &(k + 10 * round).to_string(), "-o", &o]),
-                vec![if k == 0 { "s0.npy" } else { "s1.npy" }, if k == 0 { "s0.json" } else { "s1.json" }],
+                s(&[
+                    "simulate",
+                    "--scene",
+                    "scene.npy",
+                    "--mask",
+                    "mask.npy",
+                    "--noise-seed",
+                    &(k + 10 * round).to_string(),
+                    "-o",
+                    &o,
+                ]),
+                vec![
+                    if k == 0 { "s0.npy" } else { "s1.npy" },
+                    if k == 0 { "s0.json" } else { "s1.json" },
+                ],
             ));
         }
         for _ in 0..2 {
             jobs.push((
-                s(&["reconstruct", "m.npy", "--mask", "mask.npy", "--iterations", "33", "-o", "same.npy"]),
+                s(&[
+                    "reconstruct",
+                    "m.npy",
+                    "--mask",
+                    "mask.npy",
+                    "--iterations",
+                    "33",
+                    "-o",
+                    "same.npy",
+                ]),
                 vec!["same.npy", "same.png", "same.json"],
             ));
         }
         let env = vec![("RAYON_NUM_THREADS".to_string(), "1".to_string())];
         // sequential reference
         for (args, _) in &jobs {
-            ctx.exec(&Spec { args: args.clone(), cwd: rd.clone(), env: env.clone(), timeout: Duration::from_secs(60), signal: None });
+            ctx.exec(&Spec {
+                args: args.clone(),
+                cwd: rd.clone(),
+                env: env.clone(),
+                timeout: Duration::from_secs(60),
+                signal: None,
+            });
         }
         let snap0 = run::snapshot(&d);
-        let ins: Vec<String> = ["m.npy", "mask.npy", "scene.npy"].iter().map(|x| run::file_hash(&d.join(x)).unwrap()).collect();
+        let ins: Vec<String> = ["m.npy", "mask.npy", "scene.npy"]
+            .iter()
+            .map(|x| run::file_hash(&d.join(x)).unwrap())
+            .collect();
         let mut running = Vec::new();
         for (args, _) in &jobs {
-            let spec = Spec { args: args.clone(), cwd: d.clone(), env: env.clone(), timeout: Duration::from_secs(60), signal: None };
+            let spec = Spec {
+                args: args.clone(),
+                cwd: d.clone(),
+                env: env.clone(),
+                timeout: Duration::from_secs(60),
+                signal: None,
+            };
             running.push(run::spawn(&ctx.bin, &spec, &ctx.scratch, ctx.mem_cap).expect("spawn"));
         }
         let mut outs: Vec<Option<Outcome>> = vec![None; running.len()];
@@ -1478,11 +2965,21 @@ fn concurrent_cases(ctx: &mut Ctx) {
         }
         let snap1 = run::snapshot(&d);
         let (added, _, _) = run::diff(&snap0, &snap1);
-        let temps: Vec<String> = added.iter().filter(|a| run::is_temp_name(a)).cloned().collect();
+        let temps: Vec<String> = added
+            .iter()
+            .filter(|a| run::is_temp_name(a))
+            .cloned()
+            .collect();
         for (k, ((args, files), o)) in jobs.iter().zip(outs).enumerate() {
             let o = o.unwrap();
             let refs: Vec<&str> = args.iter().map(|x| x.as_str()).collect();
-            let c = Case::new("concurrent", "concurrent", &format!("round {round} job {k}"), &d, &refs);
+            let c = Case::new(
+                "concurrent",
+                "concurrent",
+                &format!("round {round} job {k}"),
+                &d,
+                &refs,
+            );
             let mut f = Flags {
                 panic: o.crashed(),
                 hang: o.hung,
@@ -1494,7 +2991,8 @@ fn concurrent_cases(ctx: &mut Ctx) {
                 f.temp = temps.clone();
             }
             if !o.ok() {
-                f.other.push(format!("concurrent run failed: {}", head(&o.stderr, 160)));
+                f.other
+                    .push(format!("concurrent run failed: {}", head(&o.stderr, 160)));
             }
             for (x, h) in ["m.npy", "mask.npy", "scene.npy"].iter().zip(&ins) {
                 if run::file_hash(&d.join(x)).as_ref() != Some(h) {
@@ -1507,7 +3005,8 @@ fn concurrent_cases(ctx: &mut Ctx) {
                 if a.is_none() {
                     f.partial.push(format!("missing {file}"));
                 } else if a != b {
-                    f.partial.push(format!("{file} differs from the sequential run"));
+                    f.partial
+                        .push(format!("{file} differs from the sequential run"));
                 }
             }
             ctx.record(&c, &o, f, json!({}));
@@ -1520,15 +3019,125 @@ fn concurrent_cases(ctx: &mut Ctx) {
 fn determinism_cases(ctx: &mut Ctx) {
     let ib = ctx.work.join("intbase");
     let configs: Vec<(&str, Vec<&str>, Vec<&str>)> = vec![
-        ("simulate synthetic 64x64x8 with noise, .npy + preview",
-         vec!["simulate", "--synthetic", "--size", "64", "--bands", "8", "--random-mask", "--paper-mismatch", "--preview", "-o", "s.npy"], vec!["s.npy", "s.png", "s.json"]),
-        ("simulate from files, .mat", vec!["simulate", "--scene", "scene.npy", "--mask", "mask.npy", "-o", "s.mat"], vec!["s.mat", "s.json"]),
-        ("simulate subpixel model, .npz", vec!["simulate", "--synthetic", "--size", "48", "--bands", "6", "--random-mask", "--model", "subpixel", "--alpha", "0.5", "-o", "s.npz"], vec!["s.npz", "s.json"]),
-        ("reconstruct gap-tv 96x96x28", vec!["reconstruct", "big.npy", "--mask", "bigmask.npy", "-o", "r.npy"], vec!["r.npy", "r.png", "r.json"]),
-        ("reconstruct admm-tv", vec!["reconstruct", "big.npy", "--mask", "bigmask.npy", "--method", "admm-tv", "--iterations", "40", "-o", "r.npy"], vec!["r.npy", "r.png", "r.json"]),
-        ("reconstruct pnp-tv", vec!["reconstruct", "big.npy", "--mask", "bigmask.npy", "--method", "pnp-tv", "--iterations", "20", "-o", "r.npy"], vec!["r.npy", "r.png", "r.json"]),
-        ("reconstruct with a calibration, .mat", vec!["reconstruct", "m.npy", "--mask", "mask.npy", "--calibration", "c.json", "-o", "r.mat"], vec!["r.mat", "r.png", "r.json"]),
-        ("calibrate 96x96x28", vec!["calibrate", "big.npy", "--mask", "bigmask.npy", "-o", "c2.json"], vec!["c2.json"]),
+        (
+            "simulate synthetic 64x64x8 with noise, .npy + preview",
+            vec![
+                "simulate",
+                "--synthetic",
+                "--size",
+                "64",
+                "--bands",
+                "8",
+                "--random-mask",
+                "--paper-mismatch",
+                "--preview",
+                "-o",
+                "s.npy",
+            ],
+            vec!["s.npy", "s.png", "s.json"],
+        ),
+        (
+            "simulate from files, .mat",
+            vec![
+                "simulate",
+                "--scene",
+                "scene.npy",
+                "--mask",
+                "mask.npy",
+                "-o",
+                "s.mat",
+            ],
+            vec!["s.mat", "s.json"],
+        ),
+        (
+            "simulate subpixel model, .npz",
+            vec![
+                "simulate",
+                "--synthetic",
+                "--size",
+                "48",
+                "--bands",
+                "6",
+                "--random-mask",
+                "--model",
+                "subpixel",
+                "--alpha",
+                "0.5",
+                "-o",
+                "s.npz",
+            ],
+            vec!["s.npz", "s.json"],
+        ),
+        (
+            "reconstruct gap-tv 96x96x28",
+            vec![
+                "reconstruct",
+                "big.npy",
+                "--mask",
+                "bigmask.npy",
+                "-o",
+                "r.npy",
+            ],
+            vec!["r.npy", "r.png", "r.json"],
+        ),
+        (
+            "reconstruct admm-tv",
+            vec![
+                "reconstruct",
+                "big.npy",
+                "--mask",
+                "bigmask.npy",
+                "--method",
+                "admm-tv",
+                "--iterations",
+                "40",
+                "-o",
+                "r.npy",
+            ],
+            vec!["r.npy", "r.png", "r.json"],
+        ),
+        (
+            "reconstruct pnp-tv",
+            vec![
+                "reconstruct",
+                "big.npy",
+                "--mask",
+                "bigmask.npy",
+                "--method",
+                "pnp-tv",
+                "--iterations",
+                "20",
+                "-o",
+                "r.npy",
+            ],
+            vec!["r.npy", "r.png", "r.json"],
+        ),
+        (
+            "reconstruct with a calibration, .mat",
+            vec![
+                "reconstruct",
+                "m.npy",
+                "--mask",
+                "mask.npy",
+                "--calibration",
+                "c.json",
+                "-o",
+                "r.mat",
+            ],
+            vec!["r.mat", "r.png", "r.json"],
+        ),
+        (
+            "calibrate 96x96x28",
+            vec![
+                "calibrate",
+                "big.npy",
+                "--mask",
+                "bigmask.npy",
+                "-o",
+                "c2.json",
+            ],
+            vec!["c2.json"],
+        ),
     ];
     for (label, args, files) in configs {
         let mut dirs = Vec::new();
@@ -1538,7 +3147,13 @@ fn determinism_cases(ctx: &mut Ctx) {
             ctx.stage(&d, &["m.npy", "mask.npy", "scene.npy", "c.json"]);
             copy_rec(&ib.join("big.npy"), &d.join("big.npy"));
             copy_rec(&ib.join("bigmask.npy"), &d.join("bigmask.npy"));
-            let o = ctx.exec(&Spec { args: s(&args), cwd: d.clone(), env: vec![("RAYON_NUM_THREADS".into(), th.into())], timeout: Duration::from_secs(120), signal: None });
+            let o = ctx.exec(&Spec {
+                args: s(&args),
+                cwd: d.clone(),
+                env: vec![("RAYON_NUM_THREADS".into(), th.into())],
+                timeout: Duration::from_secs(120),
+                signal: None,
+            });
             dirs.push(d);
             outs.push(o);
         }
@@ -1560,13 +3175,19 @@ fn determinism_cases(ctx: &mut Ctx) {
         }
         for o in &outs {
             if !o.ok() {
-                f.other.push(format!("run failed: {}", head(&o.stderr, 160)));
+                f.other
+                    .push(format!("run failed: {}", head(&o.stderr, 160)));
             }
         }
         f.determinism = !diffs.is_empty();
         let c = Case::new("determinism", "threads-1-vs-2", label, &dirs[1], &args);
         let o = outs.pop().unwrap();
-        ctx.record(&c, &o, f, json!({"differing_files": diffs, "compared": files}));
+        ctx.record(
+            &c,
+            &o,
+            f,
+            json!({"differing_files": diffs, "compared": files}),
+        );
     }
 }
 
@@ -1576,16 +3197,48 @@ fn print_table(ctx: &Ctx, elapsed: f64) {
     println!();
     println!(
         "{:<36} {:>6} {:>6} {:>6} {:>6} {:>7} {:>5} {:>6} {:>6} {:>5} {:>4} {:>5} {:>6} {:>9} {:>7}",
-        "category", "cases", "FAIL", "panic", "destr", "partial", "temp", ">512M", "meanl", "hang", "esc", "det", "other", "peak MiB", "at case"
+        "category",
+        "cases",
+        "FAIL",
+        "panic",
+        "destr",
+        "partial",
+        "temp",
+        ">512M",
+        "meanl",
+        "hang",
+        "esc",
+        "det",
+        "other",
+        "peak MiB",
+        "at case"
     );
     let mut all = Totals::default();
-    let mark = |n: usize| if n > 0 { format!("{n}!") } else { "0".to_string() };
+    let mark = |n: usize| {
+        if n > 0 {
+            format!("{n}!")
+        } else {
+            "0".to_string()
+        }
+    };
     for (cat, t) in &ctx.totals {
         println!(
             "{:<36} {:>6} {:>6} {:>6} {:>6} {:>7} {:>5} {:>6} {:>6} {:>5} {:>4} {:>5} {:>6} {:>9.1} {:>7}",
-            cat, t.cases, mark(t.failing), mark(t.panics), mark(t.destroyed), mark(t.partial), mark(t.temp),
-            mark(t.rss_over), mark(t.meaningless), mark(t.hangs), mark(t.esc), mark(t.determinism), mark(t.other),
-            t.peak_mib, t.peak_case
+            cat,
+            t.cases,
+            mark(t.failing),
+            mark(t.panics),
+            mark(t.destroyed),
+            mark(t.partial),
+            mark(t.temp),
+            mark(t.rss_over),
+            mark(t.meaningless),
+            mark(t.hangs),
+            mark(t.esc),
+            mark(t.determinism),
+            mark(t.other),
+            t.peak_mib,
+            t.peak_case
         );
         all.cases += t.cases;
         all.failing += t.failing;
@@ -1599,6 +3252,7 @@ fn print_table(ctx: &Ctx, elapsed: f64) {
         all.esc += t.esc;
         all.determinism += t.determinism;
         all.other += t.other;
+        all.external += t.external;
         if t.peak_mib > all.peak_mib {
             all.peak_mib = t.peak_mib;
             all.peak_case = t.peak_case;
@@ -1606,24 +3260,52 @@ fn print_table(ctx: &Ctx, elapsed: f64) {
     }
     println!(
         "{:<36} {:>6} {:>6} {:>6} {:>6} {:>7} {:>5} {:>6} {:>6} {:>5} {:>4} {:>5} {:>6} {:>9.1} {:>7}",
-        "TOTAL", all.cases, mark(all.failing), mark(all.panics), mark(all.destroyed), mark(all.partial), mark(all.temp),
-        mark(all.rss_over), mark(all.meaningless), mark(all.hangs), mark(all.esc), mark(all.determinism), mark(all.other),
-        all.peak_mib, all.peak_case
+        "TOTAL",
+        all.cases,
+        mark(all.failing),
+        mark(all.panics),
+        mark(all.destroyed),
+        mark(all.partial),
+        mark(all.temp),
+        mark(all.rss_over),
+        mark(all.meaningless),
+        mark(all.hangs),
+        mark(all.esc),
+        mark(all.determinism),
+        mark(all.other),
+        all.peak_mib,
+        all.peak_case
     );
-    println!("(FAIL = cases with any violation; partial = partial/mixed output sets; det = determinism mismatches; n! marks a violation)");
+    println!(
+        "(FAIL = cases with any violation; partial = partial/mixed output sets; det = determinism mismatches; n! marks a violation)"
+    );
     println!();
     println!("Named reproducers and special cases that FAIL:");
     for r in &ctx.records {
         let cat = r["category"].as_str().unwrap_or("");
         if !cat.starts_with("mutation") && r["verdict"] == "FAIL" {
-            let v: Vec<&str> = r["violations"].as_array().unwrap().iter().filter_map(|x| x.as_str()).collect();
-            println!("  [{:>5}] {:<34} {:<60} {} | {}", r["id"], cat, r["label"].as_str().unwrap_or(""), r["outcome"].as_str().unwrap_or(""), v.join("; "));
+            let v: Vec<&str> = r["violations"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .filter_map(|x| x.as_str())
+                .collect();
+            println!(
+                "  [{:>5}] {:<34} {:<60} {} | {}",
+                r["id"],
+                cat,
+                r["label"].as_str().unwrap_or(""),
+                r["outcome"].as_str().unwrap_or(""),
+                v.join("; ")
+            );
         }
     }
     let mut fam: BTreeMap<String, (usize, usize)> = BTreeMap::new();
     for r in &ctx.records {
         if r["category"].as_str().unwrap_or("").starts_with("mutation") {
-            let e = fam.entry(r["family"].as_str().unwrap_or("").to_string()).or_default();
+            let e = fam
+                .entry(r["family"].as_str().unwrap_or("").to_string())
+                .or_default();
             e.0 += 1;
             e.1 += (r["verdict"] == "FAIL") as usize;
         }
@@ -1631,7 +3313,16 @@ fn print_table(ctx: &Ctx, elapsed: f64) {
     println!();
     println!("Mutation families (cases / failing):");
     for (k, (n, f)) in fam {
-        println!("  {k:<32} {n:>5} / {}", if f > 0 { format!("{f}!") } else { "0".into() });
+        println!(
+            "  {k:<32} {n:>5} / {}",
+            if f > 0 { format!("{f}!") } else { "0".into() }
+        );
+    }
+    if all.external > 0 {
+        println!(
+            "note: {} case(s) were ended by a termination signal the harness did not send (another process's kill / OOM killer); not counted as panics, see killed_externally in the JSON",
+            all.external
+        );
     }
     for n in &ctx.notes {
         println!("note: {n}");
@@ -1649,12 +3340,22 @@ fn main() -> anyhow::Result<()> {
     };
     let flag = |name: &str| args.iter().any(|a| a == name);
     let bin = PathBuf::from(opt("--cassi").unwrap_or_else(|| "target/release/cassi".into()));
-    let bin = std::fs::canonicalize(&bin).with_context(|| format!("cassi binary {}", bin.display()))?;
-    let count: usize = opt("--count").map(|c| c.parse()).transpose()?.unwrap_or(3000);
+    let bin =
+        std::fs::canonicalize(&bin).with_context(|| format!("cassi binary {}", bin.display()))?;
+    let count: usize = opt("--count")
+        .map(|c| c.parse())
+        .transpose()?
+        .unwrap_or(3000);
     let seed: u64 = opt("--seed").map(|c| c.parse()).transpose()?.unwrap_or(12);
-    let interrupts: usize = opt("--interrupts").map(|c| c.parse()).transpose()?.unwrap_or(12);
+    let interrupts: usize = opt("--interrupts")
+        .map(|c| c.parse())
+        .transpose()?
+        .unwrap_or(12);
     let out = PathBuf::from(opt("--out").unwrap_or_else(|| "bench/results/hostile.json".into()));
-    let mem_cap_mib: u64 = opt("--mem-cap-mib").map(|c| c.parse()).transpose()?.unwrap_or(6144);
+    let mem_cap_mib: u64 = opt("--mem-cap-mib")
+        .map(|c| c.parse())
+        .transpose()?
+        .unwrap_or(6144);
     let seeds_dir = match opt("--seeds") {
         Some(d) => Some(PathBuf::from(d)),
         None => {
@@ -1664,7 +3365,10 @@ fn main() -> anyhow::Result<()> {
     };
     let (work, keep_work) = match opt("--work") {
         Some(w) => (PathBuf::from(w), true),
-        None => (std::env::temp_dir().join(format!("cassi-hostile-{}", std::process::id())), false),
+        None => (
+            std::env::temp_dir().join(format!("cassi-hostile-{}", std::process::id())),
+            false,
+        ),
     };
     let _ = std::fs::remove_dir_all(&work);
     std::fs::create_dir_all(&work)?;
@@ -1684,22 +3388,45 @@ fn main() -> anyhow::Result<()> {
         notes: Vec::new(),
     };
     let t0 = Instant::now();
-    let version = ctx.exec(&Spec { args: s(&["--version"]), cwd: work.clone(), env: vec![], timeout: Duration::from_secs(10), signal: None });
-    eprintln!("hostile: {} ({}) work {}", bin.display(), version.stdout_text().trim(), work.display());
+    let version = ctx.exec(&Spec {
+        args: s(&["--version"]),
+        cwd: work.clone(),
+        env: vec![],
+        timeout: Duration::from_secs(10),
+        signal: None,
+    });
+    eprintln!(
+        "hostile: {} ({}) work {}",
+        bin.display(),
+        version.stdout_text().trim(),
+        work.display()
+    );
     match &seeds_dir {
         Some(d) => eprintln!("hostile: seeds {}", d.display()),
         None => ctx.notes.push("no --seeds folder (../shared/data absent): real .mat/.pth/.safetensors seed families reduced to repository fixtures and hand-built files".into()),
     }
     make_base(&mut ctx)?;
-    eprintln!("hostile: base files ready ({:.1} s)", t0.elapsed().as_secs_f64());
+    eprintln!(
+        "hostile: base files ready ({:.1} s)",
+        t0.elapsed().as_secs_f64()
+    );
     reproducers(&mut ctx);
-    eprintln!("hostile: named reproducers done ({:.1} s)", t0.elapsed().as_secs_f64());
+    eprintln!(
+        "hostile: named reproducers done ({:.1} s)",
+        t0.elapsed().as_secs_f64()
+    );
     resume_cases(&mut ctx);
     eprintln!("hostile: resume done ({:.1} s)", t0.elapsed().as_secs_f64());
     mutation_cases(&mut ctx, seeds_dir.as_deref(), count, seed);
-    eprintln!("hostile: mutations done ({:.1} s)", t0.elapsed().as_secs_f64());
+    eprintln!(
+        "hostile: mutations done ({:.1} s)",
+        t0.elapsed().as_secs_f64()
+    );
     interrupt_cases(&mut ctx, interrupts, seed);
-    eprintln!("hostile: interrupts done ({:.1} s)", t0.elapsed().as_secs_f64());
+    eprintln!(
+        "hostile: interrupts done ({:.1} s)",
+        t0.elapsed().as_secs_f64()
+    );
     concurrent_cases(&mut ctx);
     determinism_cases(&mut ctx);
     let elapsed = t0.elapsed().as_secs_f64();
@@ -1715,6 +3442,7 @@ fn main() -> anyhow::Result<()> {
                 "temp_files_left": t.temp, "peak_rss_over_512mb": t.rss_over,
                 "meaningless_accepted": t.meaningless, "hangs": t.hangs, "esc_in_output": t.esc,
                 "determinism_mismatches": t.determinism, "other_violations": t.other,
+                "killed_externally": t.external,
                 "peak_rss_mib": (t.peak_mib * 10.0).round() / 10.0, "peak_rss_case": t.peak_case,
                 "peak_rss_case_label": peak_label, "wall_s": (t.wall_s * 100.0).round() / 100.0,
             }))

@@ -138,7 +138,7 @@ fn tag(out: &mut Vec<u8>, ty: u32, n: u32) {
 }
 
 fn pad8(out: &mut Vec<u8>) {
-    while out.len() % 8 != 0 {
+    while !out.len().is_multiple_of(8) {
         out.push(0);
     }
 }
@@ -313,7 +313,9 @@ pub fn pth_pickle(shape: &[u32], stride: &[u32], numel: u32) -> Vec<u8> {
     let mut p: Vec<u8> = vec![0x80, 2];
     p.extend(b"ccollections\nOrderedDict\nq\x00)R(X\x01\x00\x00\x00w");
     p.extend(b"ctorch._utils\n_rebuild_tensor_v2\n(");
-    p.extend(b"(X\x07\x00\x00\x00storagectorch\nFloatStorage\nX\x01\x00\x00\x000X\x03\x00\x00\x00cpu");
+    p.extend(
+        b"(X\x07\x00\x00\x00storagectorch\nFloatStorage\nX\x01\x00\x00\x000X\x03\x00\x00\x00cpu",
+    );
     int(&mut p, numel);
     p.extend(b"tQ");
     int(&mut p, 0);
@@ -339,7 +341,10 @@ pub fn pth_zip(pickle: &[u8], storage: &[u8]) -> Vec<u8> {
 
 /// The tiny .pth with a strided view: 2^15 × 2^15 = 2^30 elements over one float (stride 0).
 pub fn pth_strided_bomb() -> Vec<u8> {
-    pth_zip(&pth_pickle(&[32768, 32768], &[0, 0], 1), &0f32.to_le_bytes())
+    pth_zip(
+        &pth_pickle(&[32768, 32768], &[0, 0], 1),
+        &0f32.to_le_bytes(),
+    )
 }
 
 /// Entries of a zip archive (name, bytes), or None.
@@ -479,10 +484,18 @@ pub fn npy_header_edit(rng: &mut Rng, b: &[u8]) -> (Vec<u8>, String) {
         _ => {
             let s = *rng.pick(&shapes);
             let d = *rng.pick(&descrs);
-            (d, s.to_string(), true, format!("descr {d} shape {s} fortran"))
+            (
+                d,
+                s.to_string(),
+                true,
+                format!("descr {d} shape {s} fortran"),
+            )
         }
     };
-    (npy_raw(descr, &shape, fortran, data), format!("npy header: {what}"))
+    (
+        npy_raw(descr, &shape, fortran, data),
+        format!("npy header: {what}"),
+    )
 }
 
 /// Mutate JSON text: a numeric leaf set to an absurd value, a key removed, a value retyped,

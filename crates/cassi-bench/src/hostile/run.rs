@@ -44,9 +44,26 @@ impl Outcome {
     }
     /// A panic or a death by a signal we did not send (the timeout's SIGKILL excluded).
     pub fn crashed(&self) -> bool {
+        const CRASH: [i32; 7] = [
+            libc::SIGSEGV,
+            libc::SIGABRT,
+            libc::SIGBUS,
+            libc::SIGILL,
+            libc::SIGFPE,
+            libc::SIGTRAP,
+            libc::SIGSYS,
+        ];
         self.code == Some(101)
             || self.stderr_text().contains("panicked at")
-            || (self.signal.is_some() && self.signal != self.sent_signal && !self.hung)
+            || (self.signal.is_some_and(|s| CRASH.contains(&s))
+                && self.signal != self.sent_signal
+                && !self.hung)
+    }
+    /// Ended by a termination signal (TERM, INT, KILL, HUP, …) that neither the case nor the
+    /// timeout sent: something outside the harness killed it (another user's `pkill`, the OOM
+    /// killer). Recorded, not counted as a panic.
+    pub fn killed_externally(&self) -> bool {
+        self.signal.is_some() && self.signal != self.sent_signal && !self.hung && !self.crashed()
     }
     /// Aborted because an allocation failed under the harness's address-space cap.
     pub fn alloc_capped(&self) -> bool {
