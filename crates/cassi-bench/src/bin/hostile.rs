@@ -1336,7 +1336,7 @@ fn reproducers(ctx: &mut Ctx) {
                 "-o",
                 "m.npz",
             ],
-            vec!["m.npy", "mask.npy", "m.json", "m.npz"],
+            vec!["m.npy", "mask.npy", "m.json"],
             vec!["m.json"],
         ),
         (
@@ -1439,7 +1439,7 @@ fn reproducers(ctx: &mut Ctx) {
                 "-o",
                 "m.npy",
             ],
-            vec!["m.mat", "mask.npy", "m.json", "m.npy"],
+            vec!["m.mat", "mask.npy", "m.json"],
             vec!["m.json"],
         ),
     ];
@@ -1567,8 +1567,14 @@ fn reproducers(ctx: &mut Ctx) {
         ctx.stage(&d, &prev_r);
         ctx.stage(&d, &["s.npy", "s.json", "scenes", "ev"]);
         setup(&d);
+        // inputs: what the command reads, never its own -o target
+        let out = args.iter().position(|a| *a == "-o").map(|i| args[i + 1]);
+        let ins: Vec<&str> = ["m.npy", "mask.npy", "scene.npy", "c.json"]
+            .into_iter()
+            .filter(|i| Some(*i) != out)
+            .collect();
         let c = Case::new(c2, "failed-run", label, &d, &args)
-            .inputs(&["m.npy", "mask.npy", "scene.npy", "c.json"])
+            .inputs(&ins)
             .timeout(90);
         ctx.run_case(c);
     }
