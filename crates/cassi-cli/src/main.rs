@@ -74,7 +74,7 @@ fn main() -> ExitCode {
         }
         Err(e) => {
             reporter.clear();
-            eprintln!("error: {e:#}");
+            eprintln!("error: {}", report::terminal_text(&format!("{e:#}")));
             ExitCode::FAILURE
         }
     }

@@ -81,7 +81,7 @@ impl Reporter {
     /// Human-readable result text on stdout (not with --quiet or --json).
     pub fn say(&self, text: &str) {
         if !self.quiet && !self.json {
-            println!("{text}");
+            println!("{}", terminal_text(text));
         }
     }
 
@@ -90,7 +90,7 @@ impl Reporter {
     pub fn warn(&self, text: &str) {
         if !self.quiet {
             self.clear();
-            eprintln!("warning: {text}");
+            eprintln!("warning: {}", terminal_text(text));
         }
     }
 
@@ -123,5 +123,27 @@ impl Drop for Progress {
         if let Some(bar) = self.bar.take() {
             bar.finish_and_clear();
         }
+    }
+}
+
+/// `text` as it may reach a terminal: control and text-direction characters
+/// (an ESC in a file or path name, say) shown escaped, line breaks kept.
+pub fn terminal_text(text: &str) -> String {
+    text.split('\n')
+        .map(|line| cassi_io::esc(line))
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::terminal_text;
+
+    #[test]
+    fn escapes_reach_the_terminal_as_text_and_lines_stay_lines() {
+        assert_eq!(
+            terminal_text("a\u{1b}[31mred\nnext"),
+            "a\\u{1b}[31mred\nnext"
+        );
     }
 }

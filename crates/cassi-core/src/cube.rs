@@ -65,6 +65,10 @@ impl Cube {
     pub fn into_vec(self) -> Vec<f32> {
         self.data
     }
+    /// The smallest and largest value ((+∞, −∞) when empty).
+    pub fn min_max(&self) -> (f32, f32) {
+        min_max(&self.data)
+    }
     pub fn band(&self, k: usize) -> &[f32] {
         let n = self.band_len();
         &self.data[k * n..(k + 1) * n]
@@ -179,11 +183,7 @@ impl Frame {
     }
     /// (min, max) of the values; (+∞, −∞) for an empty frame.
     pub fn min_max(&self) -> (f32, f32) {
-        self.data
-            .iter()
-            .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &v| {
-                (lo.min(v), hi.max(v))
-            })
+        min_max(&self.data)
     }
 
     /// Errors naming `what` and the first (row, col) that is NaN or ±Inf.
@@ -197,6 +197,13 @@ impl Frame {
             }),
         }
     }
+}
+
+fn min_max(data: &[f32]) -> (f32, f32) {
+    data.iter()
+        .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &v| {
+            (lo.min(v), hi.max(v))
+        })
 }
 
 #[cfg(test)]

@@ -1,8 +1,12 @@
 //! A study over many scenes, safe to interrupt: each scene's result is
-//! written (atomically) as it finishes, to `<out>/scenes/<name>.json`, with
-//! SHA-256 digests of its inputs (the scene's data, the mask's data, every
-//! setting), and a resumed run reuses a result only when all three match
-//! exactly; otherwise it recomputes the scene and says why.
+//! written (atomically) as it finishes, with SHA-256 digests of its inputs
+//! (the scene's data, the mask's data, every setting), to
+//! `<out>/.pending/scenes/<name>.json` — beside, not over, the results of the
+//! last finished study in `<out>/scenes/`. [`promote_pending`] moves a
+//! finished run's files into place (inside the caller's output set, so they
+//! land together with the report). A resumed run reuses a result, pending or
+//! promoted, only when all three digests match exactly; otherwise it
+//! recomputes the scene and says why.
 
 use std::path::{Path, PathBuf};
 
@@ -168,8 +172,72 @@ fn hex(bytes: &[u8]) -> String {
     bytes.iter().map(|b| format!("{b:02x}")).collect()
 }
 
+/// Where a finished study keeps a scene's result.
 pub fn scene_path(out: &Path, name: &str) -> PathBuf {
     out.join("scenes").join(format!("{name}.json"))
+}
+
+/// The folder inside `out` where a running study keeps what it has finished
+/// until [`promote_pending`] moves it into place.
+pub const PENDING: &str = ".pending";
+
+/// Moves every file a study left in `<out>/.pending/` (and in the pending
+/// folders of the sweeps under `out`) to the same place under `out`, through
+/// [`cassi_io::write_atomic`] — so inside an output set's staging they are
+/// committed together with the rest — and returns the pending folders to
+/// remove once that commit succeeded ([`remove_pending`]).
+pub fn promote_pending(out: &Path) -> anyhow::Result<Vec<PathBuf>> {
+    let mut folders = Vec::new();
+    collect_pending(out, &mut folders)?;
+    for pending in &folders {
+        let target = pending.parent().unwrap_or(out);
+        copy_tree(pending, target)?;
+    }
+    Ok(folders)
+}
+
+/// Removes promoted pending folders (after their files were committed).
+pub fn remove_pending(folders: &[PathBuf]) -> anyhow::Result<()> {
+    for f in folders {
+        std::fs::remove_dir_all(f).with_context(|| format!("cannot remove {}", f.display()))?;
+    }
+    Ok(())
+}
+
+fn collect_pending(dir: &Path, found: &mut Vec<PathBuf>) -> anyhow::Result<()> {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return Ok(());
+    };
+    for entry in entries.flatten() {
+        let path = entry.path();
+        if !entry.file_type().is_ok_and(|t| t.is_dir()) {
+            continue;
+        }
+        if entry.file_name() == PENDING {
+            found.push(path);
+        } else {
+            collect_pending(&path, found)?;
+        }
+    }
+    Ok(())
+}
+
+fn copy_tree(from: &Path, to: &Path) -> anyhow::Result<()> {
+    for entry in
+        std::fs::read_dir(from).with_context(|| format!("cannot list {}", from.display()))?
+    {
+        let entry = entry?;
+        let (src, dst) = (entry.path(), to.join(entry.file_name()));
+        if entry.file_type()?.is_dir() {
+            copy_tree(&src, &dst)?;
+        } else if !entry.file_name().to_string_lossy().starts_with('.') {
+            // (hidden files are temporaries of an interrupted write)
+            let bytes =
+                std::fs::read(&src).with_context(|| format!("cannot read {}", src.display()))?;
+            cassi_io::write_atomic(&dst, &bytes)?;
+        }
+    }
+    Ok(())
 }
 
 /// Runs `study` on every scene (scene i uses noise seed i), writing each
@@ -185,17 +253,29 @@ pub fn run_study(
     qualitative: bool,
     on_event: &mut dyn FnMut(Event<'_>),
 ) -> anyhow::Result<Vec<SceneResult>> {
-    std::fs::create_dir_all(out.join("scenes"))
-        .with_context(|| format!("cannot create {}", out.join("scenes").display()))?;
+    let pending = out.join(PENDING);
+    if !resume && pending.exists() {
+        // an interrupted run's work is kept only for --resume
+        std::fs::remove_dir_all(&pending)
+            .with_context(|| format!("cannot clear {}", pending.display()))?;
+    }
+    std::fs::create_dir_all(pending.join("scenes"))
+        .with_context(|| format!("cannot create {}", pending.join("scenes").display()))?;
     let mut results = Vec::with_capacity(scenes.len());
     for (i, source) in scenes.iter().enumerate() {
         let name = source.name();
-        let path = scene_path(out, &name);
+        let path = scene_path(&pending, &name);
         let noise_seed = i as u64;
         let scene = source.load().with_context(|| format!("scene {name}"))?;
         let inputs = InputDigests::new(&scene, mask, study, noise_seed)?;
         if resume {
-            match earlier_result(&path, &inputs) {
+            // this run's own earlier (interrupted) work first, then the last
+            // finished study's
+            let earlier = match earlier_result(&path, &inputs) {
+                Earlier::None => earlier_result(&scene_path(out, &name), &inputs),
+                e => e,
+            };
+            match earlier {
                 Earlier::Same(r) => {
                     on_event(Event::Skipped { name: &name });
                     results.push(*r);
@@ -220,7 +300,7 @@ pub fn run_study(
         })
         .with_context(|| format!("scene {name}"))?;
         if let Some(method) = study.methods.first().filter(|_| keep) {
-            crate::study_figures::write_qualitative(out, &name, method.name(), &scene, &kept)
+            crate::study_figures::write_qualitative(&pending, &name, method.name(), &scene, &kept)
                 .with_context(|| format!("qualitative figures of scene {name}"))?;
         }
         let record = Record {
@@ -235,6 +315,20 @@ pub fn run_study(
             result: &record.result,
         });
         results.push(record.result);
+    }
+    // pending records of scenes this run does not hold (an earlier,
+    // interrupted run over other scenes) must not be promoted with it
+    let names: Vec<String> = scenes
+        .iter()
+        .map(|s| format!("{}.json", s.name()))
+        .collect();
+    for entry in std::fs::read_dir(pending.join("scenes"))?.flatten() {
+        if !names
+            .iter()
+            .any(|n| *n == *entry.file_name().to_string_lossy())
+        {
+            let _ = std::fs::remove_file(entry.path());
+        }
     }
     Ok(results)
 }

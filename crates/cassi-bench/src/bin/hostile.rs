@@ -220,9 +220,17 @@ impl Ctx {
     }
 
     /// Copy base files / folders into `dir`.
+    /// Copies base files into a case folder; an .npy comes with the JSON
+    /// sidecar beside it, as `cassi simulate` writes them.
     fn stage(&self, dir: &Path, names: &[&str]) {
         for n in names {
             copy_rec(&self.base.join(n), &dir.join(n));
+            if let Some(stem) = n.strip_suffix(".npy") {
+                let sidecar = format!("{stem}.json");
+                if self.base.join(&sidecar).is_file() {
+                    copy_rec(&self.base.join(&sidecar), &dir.join(&sidecar));
+                }
+            }
         }
     }
 
@@ -280,7 +288,11 @@ impl Ctx {
             .collect();
         let failed = !o.ok();
         if failed {
-            for a in &added {
+            // an interrupted or failed `eval` keeps its finished scenes in
+            // `.pending/` for --resume: beside the previous set, not in it
+            let resumable = |p: &String| p.starts_with(".pending") || p.contains("/.pending");
+            let added: Vec<&String> = added.iter().filter(|a| !resumable(a)).collect();
+            for a in added {
                 if !run::is_temp_name(a) {
                     f.partial.push(format!("new {a}"));
                 }
@@ -295,7 +307,9 @@ impl Ctx {
             }
         }
         let err = o.stderr_text();
-        let unclean_code = matches!(o.code, Some(c) if c != 0 && c != 1 && c != 2);
+        // 130: the conventional exit of a run stopped by the signal we sent
+        let interrupted = c.signal.is_some() && o.code == Some(130);
+        let unclean_code = !interrupted && matches!(o.code, Some(c) if c != 0 && c != 1 && c != 2);
         if unclean_code && !o.crashed() {
             f.other
                 .push(format!("unexpected exit code {}", o.code.unwrap_or(-1)));
@@ -588,6 +602,23 @@ fn make_base(ctx: &mut Ctx) -> anyhow::Result<()> {
         "5",
         "-o",
         "s.npy",
+    ])?;
+    // what the networks take (256×256, 28 bands at step 2), so weights cases
+    // reach the checkpoint loaders
+    let mask256: Vec<f32> = (0..256 * 256).map(|_| (rng.below(2)) as f32).collect();
+    write(
+        &b.join("mask256.npy"),
+        &files::npy_f32(&[256, 256], &mask256),
+    );
+    must(&[
+        "simulate",
+        "--synthetic",
+        "--size",
+        "256",
+        "--mask",
+        "mask256.npy",
+        "-o",
+        "m256.npy",
     ])?;
     std::fs::create_dir_all(b.join("scenes"))?;
     std::fs::copy(b.join("scene.npy"), b.join("scenes/scene.npy"))?;
@@ -1094,7 +1125,10 @@ fn mutation_cases(ctx: &mut Ctx, seeds_dir: Option<&Path>, count: usize, seed: u
                 }
                 Cmd::Weights => {
                     write(&dir.join(&file), &bytes);
-                    ctx.stage(&dir, &["m.npy", "mask.npy", "r.npy", "r.png", "r.json"]);
+                    ctx.stage(
+                        &dir,
+                        &["m256.npy", "mask256.npy", "r.npy", "r.png", "r.json"],
+                    );
                     Case::new(
                         "mutation/weights",
                         fam.name,
@@ -1102,9 +1136,9 @@ fn mutation_cases(ctx: &mut Ctx, seeds_dir: Option<&Path>, count: usize, seed: u
                         &dir,
                         &[
                             "reconstruct",
-                            "m.npy",
+                            "m256.npy",
                             "--mask",
-                            "mask.npy",
+                            "mask256.npy",
                             "--method",
                             "mst-s",
                             "--weights",
@@ -1113,7 +1147,7 @@ fn mutation_cases(ctx: &mut Ctx, seeds_dir: Option<&Path>, count: usize, seed: u
                             "r.npy",
                         ],
                     )
-                    .inputs(&[file.as_str(), "m.npy", "mask.npy"])
+                    .inputs(&[file.as_str(), "m256.npy", "mask256.npy"])
                     .timeout(60)
                 }
             };
@@ -1641,9 +1675,9 @@ fn reproducers(ctx: &mut Ctx) {
             "tiny.pth",
             vec![
                 "reconstruct",
-                "m.npy",
+                "m256.npy",
                 "--mask",
-                "mask.npy",
+                "mask256.npy",
                 "--method",
                 "mst-s",
                 "--weights",
@@ -1716,9 +1750,9 @@ fn reproducers(ctx: &mut Ctx) {
             "bigst.safetensors",
             vec![
                 "reconstruct",
-                "m.npy",
+                "m256.npy",
                 "--mask",
-                "mask.npy",
+                "mask256.npy",
                 "--method",
                 "mst-s",
                 "--weights",
@@ -1747,7 +1781,18 @@ fn reproducers(ctx: &mut Ctx) {
     ];
     for (label, file, args) in threes {
         let d = ctx.case_dir("repro3");
-        ctx.stage(&d, &["m.npy", "mask.npy", "c.json", "s.npy", "s.json"]);
+        ctx.stage(
+            &d,
+            &[
+                "m.npy",
+                "mask.npy",
+                "m256.npy",
+                "mask256.npy",
+                "c.json",
+                "s.npy",
+                "s.json",
+            ],
+        );
         ctx.stage(&d, &prev_r);
         let _ = std::fs::hard_link(bd.join(file), d.join(file))
             .or_else(|_| std::fs::copy(bd.join(file), d.join(file)).map(|_| ()));
@@ -2890,6 +2935,8 @@ fn concurrent_cases(ctx: &mut Ctx) {
                     "m.npy",
                     "--mask",
                     "mask.npy",
+                    "--bands",
+                    "4",
                     "--iterations",
                     &(20 + 10 * k + round).to_string(),
                     "-o",
@@ -2925,6 +2972,8 @@ fn concurrent_cases(ctx: &mut Ctx) {
                     "m.npy",
                     "--mask",
                     "mask.npy",
+                    "--bands",
+                    "4",
                     "--iterations",
                     "33",
                     "-o",
@@ -3125,6 +3174,8 @@ fn determinism_cases(ctx: &mut Ctx) {
                 "m.npy",
                 "--mask",
                 "mask.npy",
+                "--bands",
+                "4",
                 "--calibration",
                 "c.json",
                 "-o",

@@ -15,7 +15,9 @@ use cassi_eval::learned::{check_shape, check_stride};
 use cassi_eval::method::{LearnedMethod, StudyMethod};
 use cassi_eval::protocol::Study;
 use cassi_eval::report::{Setup, Sweeps, write_all};
-use cassi_eval::study::{Event, SceneSource, run_study, scenes_in};
+use cassi_eval::study::{
+    Event, SceneSource, promote_pending, remove_pending, run_study, scenes_in,
+};
 use cassi_eval::summary::summarize;
 use cassi_eval::sweep::{ablation, scaled_mismatch, sensitivity};
 use cassi_eval::weights::{
@@ -71,7 +73,7 @@ pub struct EvalArgs {
     pub weights_dir: Option<PathBuf>,
     /// Solver iterations, PnP-HSICNN included (default: each method's own;
     /// networks have none).
-    #[arg(long)]
+    #[arg(long, value_parser = super::inputs::parse_iterations)]
     pub iterations: Option<usize>,
     /// Calibration preset.
     #[arg(long, default_value = "default", value_parser = PRESET_NAMES)]
@@ -431,6 +433,8 @@ pub fn run(args: &EvalArgs, reporter: &Reporter) -> anyhow::Result<()> {
     // the summary, tables, report and figures: all replaced, or none
     interrupt::check()?;
     let staging = checked.begin()?;
+    // the study's scene records and first-scene figures join the set
+    let pending = promote_pending(&args.out)?;
     write_all(
         &args.out,
         &Setup {
@@ -444,6 +448,7 @@ pub fn run(args: &EvalArgs, reporter: &Reporter) -> anyhow::Result<()> {
     )?;
     interrupt::check()?;
     staging.commit()?;
+    remove_pending(&pending)?;
     let mut text = String::from("\n");
     text += &cassi_eval::tables::main_table(&summary);
     text += &format!(

@@ -198,7 +198,12 @@ pub fn load_scene(args: &SceneArgs) -> anyhow::Result<(Cube, Source)> {
         wavelengths_nm: Instrument::with_bands(args.bands, 2.0)?.wavelengths_nm,
         seed: args.scene_seed,
     };
-    let cube = synthetic_scene(&spec).context("synthetic scene")?;
+    let cube = synthetic_scene(&spec).with_context(|| {
+        format!(
+            "synthetic scene (--size {}, --bands {})",
+            args.size, args.bands
+        )
+    })?;
     let source = Source::Synthetic {
         seed: args.scene_seed,
         rows: args.size,
@@ -404,4 +409,30 @@ mod tests {
         // columns fit neither 28 bands nor a whole band count at stride 2
         assert!(!width_fits(DEFAULT_BANDS, 2.0, 11));
     }
+}
+
+/// The most iterations a solver flag accepts: far beyond any useful run
+/// (the defaults are 100–124), short of a run that would never end.
+pub const MAX_ITERATIONS: usize = 100_000;
+
+/// `--iterations`: 1 … [`MAX_ITERATIONS`].
+pub fn parse_iterations(text: &str) -> Result<usize, String> {
+    let n: usize = text
+        .parse()
+        .map_err(|_| format!("'{text}' is not a whole number of iterations"))?;
+    if !(1..=MAX_ITERATIONS).contains(&n) {
+        return Err(format!("must be between 1 and {MAX_ITERATIONS}"));
+    }
+    Ok(n)
+}
+
+/// `--weight`: a denoiser strength, finite and ≥ 0.
+pub fn parse_weight(text: &str) -> Result<f32, String> {
+    let w: f32 = text
+        .parse()
+        .map_err(|_| format!("'{text}' is not a number"))?;
+    if !(w.is_finite() && w >= 0.0) {
+        return Err("must be a finite number ≥ 0 (the TV weight)".into());
+    }
+    Ok(w)
 }

@@ -15,7 +15,7 @@ use cassi_io::{CheckedSet, OutputSet};
 use clap::Args;
 use serde::Serialize;
 
-use super::inputs::{LayoutArg, MeasurementArgs};
+use super::inputs::{LayoutArg, MeasurementArgs, parse_iterations, parse_weight};
 use super::net_reconstruct::{self, NET_METHOD_NAMES};
 use super::simulate::check_output;
 use crate::interrupt;
@@ -41,10 +41,10 @@ pub struct ReconstructArgs {
     #[arg(long)]
     pub weights: Option<PathBuf>,
     /// Override the method's iteration count.
-    #[arg(long)]
+    #[arg(long, value_parser = parse_iterations)]
     pub iterations: Option<usize>,
     /// Override the method's denoiser strength (TV weight), constant.
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true, value_parser = parse_weight)]
     pub weight: Option<f32>,
     /// Dispersion model assumed for reconstruction (a calibration may set it).
     #[arg(long)]

@@ -132,6 +132,14 @@ pub fn run(args: &SimulateArgs, reporter: &Reporter) -> anyhow::Result<()> {
             "{mask_what}: every pixel transmits {v}: the measurement will hold no code"
         ));
     }
+    let (lo, hi) = scene.min_max();
+    if lo < 0.0 || hi > 1.0 {
+        reporter.warn(&format!(
+            "the scene's values span [{lo}, {hi}]; cassi scenes are reflectances in [0, 1] \
+             (the measurement is scaled to --photon-peak all the same, but metrics against \
+             this scene assume [0, 1])"
+        ));
+    }
     validate_mismatch_for_mask(&spec.mismatch, mask.rows(), mask.cols())
         .context("mismatch parameters")?;
     let instrument = Instrument::with_bands(scene.bands(), args.instrument.stride)?;
