@@ -392,25 +392,6 @@ fn sidecar_bands(measurement: &Path) -> Option<usize> {
     Some(record.instrument.bands).filter(|&b| b > 0)
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn widths_fit_their_band_count_within_a_drift() {
-        // 256-column mask, 28 bands at stride 2: 310 nominal; a1 2.04 rounded
-        // gives 311, subpixel 312.
-        for extra in [54, 55, 56, 52, 60] {
-            assert!(width_fits(28, 2.0, extra), "{extra}");
-        }
-        assert!(!width_fits(28, 2.0, 61));
-        assert!(!width_fits(28, 2.0, 11));
-        // the 256×300 mask with a 311-column measurement: 11 extra
-        // columns fit neither 28 bands nor a whole band count at stride 2
-        assert!(!width_fits(DEFAULT_BANDS, 2.0, 11));
-    }
-}
-
 /// The most iterations a solver flag accepts: far beyond any useful run
 /// (the defaults are 100–124), short of a run that would never end.
 pub const MAX_ITERATIONS: usize = 100_000;
@@ -435,4 +416,23 @@ pub fn parse_weight(text: &str) -> Result<f32, String> {
         return Err("must be a finite number ≥ 0 (the TV weight)".into());
     }
     Ok(w)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn widths_fit_their_band_count_within_a_drift() {
+        // 256-column mask, 28 bands at stride 2: 310 nominal; a1 2.04 rounded
+        // gives 311, subpixel 312.
+        for extra in [54, 55, 56, 52, 60] {
+            assert!(width_fits(28, 2.0, extra), "{extra}");
+        }
+        assert!(!width_fits(28, 2.0, 61));
+        assert!(!width_fits(28, 2.0, 11));
+        // the 256×300 mask with a 311-column measurement: 11 extra
+        // columns fit neither 28 bands nor a whole band count at stride 2
+        assert!(!width_fits(DEFAULT_BANDS, 2.0, 11));
+    }
 }
