@@ -828,7 +828,7 @@ fn mst_s_takes_a_calibrated_mask() {
         if let Some(c) = calibration {
             args.extend(["--calibration".into(), s(c).into()]);
         }
-        let res = Command::new(env!("CARGO_BIN_EXE_cassi"))
+        let res = std::process::Command::new(env!("CARGO_BIN_EXE_cassi"))
             .args(&args)
             .output()
             .unwrap();
