@@ -27,5 +27,5 @@ pub use denoise::Denoiser;
 pub use error::{CassiError, Result};
 pub use instrument::{Instrument, STANDARD_WAVELENGTHS_NM};
 pub use linop::{LinearOperator, adjoint_mismatch};
-pub use params::{DispersionParams, MaskPose, Mismatch};
+pub use params::{DispersionParams, MaskPose, Mismatch, Parameter};
 pub use rng::Rng;

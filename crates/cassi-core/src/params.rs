@@ -40,6 +40,120 @@ pub struct DispersionParams {
     pub alpha_deg: f64,
 }
 
+/// One component of the mismatch vector ψ: the one registry of its name in
+/// files, its symbol and unit for people, its display precision and how to
+/// read and write it on a [`Mismatch`]. Tables, CSV, figures, the CLI and the
+/// calibration's free-parameter sets iterate [`Parameter::ALL`] instead of
+/// listing the fields, so a new parameter is one variant here plus its
+/// physics.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Parameter {
+    Dx,
+    Dy,
+    ThetaDeg,
+    A1,
+    AlphaDeg,
+}
+
+impl Parameter {
+    /// Every parameter, in the order tables and files list them.
+    pub const ALL: [Parameter; 5] = [Self::Dx, Self::Dy, Self::ThetaDeg, Self::A1, Self::AlphaDeg];
+
+    pub fn get(self, m: &Mismatch) -> f64 {
+        match self {
+            Self::Dx => m.dx,
+            Self::Dy => m.dy,
+            Self::ThetaDeg => m.theta_deg,
+            Self::A1 => m.a1,
+            Self::AlphaDeg => m.alpha_deg,
+        }
+    }
+
+    pub fn set(self, m: &mut Mismatch, v: f64) {
+        match self {
+            Self::Dx => m.dx = v,
+            Self::Dy => m.dy = v,
+            Self::ThetaDeg => m.theta_deg = v,
+            Self::A1 => m.a1 = v,
+            Self::AlphaDeg => m.alpha_deg = v,
+        }
+    }
+
+    /// The field name in JSON files and CSV headers (`theta_deg`).
+    pub fn key(self) -> &'static str {
+        match self {
+            Self::Dx => "dx",
+            Self::Dy => "dy",
+            Self::ThetaDeg => "theta_deg",
+            Self::A1 => "a1",
+            Self::AlphaDeg => "alpha_deg",
+        }
+    }
+
+    /// The symbol people read (`θ`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Dx => "dx",
+            Self::Dy => "dy",
+            Self::ThetaDeg => "θ",
+            Self::A1 => "a1",
+            Self::AlphaDeg => "α",
+        }
+    }
+
+    /// The unit, as printed after a value ("px", "°", "px/band").
+    pub fn unit(self) -> &'static str {
+        match self {
+            Self::Dx | Self::Dy => "px",
+            Self::ThetaDeg | Self::AlphaDeg => "°",
+            Self::A1 => "px/band",
+        }
+    }
+
+    /// `θ (°)`: the symbol with its unit, for table headers and axes.
+    pub fn label(self) -> String {
+        format!("{} ({})", self.name(), self.unit())
+    }
+
+    /// Decimals shown for a value (a1 needs more than a shift).
+    pub fn decimals(self) -> usize {
+        match self {
+            Self::Dx | Self::Dy | Self::ThetaDeg => 3,
+            Self::A1 => 4,
+            Self::AlphaDeg => 2,
+        }
+    }
+
+    /// Whether the parameter is an offset from zero (printed signed) rather
+    /// than a magnitude (a1).
+    pub fn signed(self) -> bool {
+        !matches!(self, Self::A1)
+    }
+
+    /// `v` at the parameter's precision, signed when it is an offset.
+    pub fn format(self, v: f64) -> String {
+        let d = self.decimals();
+        if self.signed() {
+            format!("{v:+.d$}")
+        } else {
+            format!("{v:.d$}")
+        }
+    }
+
+    /// `dx +1.500 px  dy … α +0.50°`: a whole mismatch on one line.
+    pub fn format_all(m: &Mismatch) -> String {
+        Self::ALL
+            .iter()
+            .map(|p| {
+                let gap = if p.unit() == "°" { "" } else { " " };
+                format!("{} {}{gap}{}", p.name(), p.format(p.get(m)), p.unit())
+            })
+            .collect::<Vec<_>>()
+            .join("  ")
+    }
+}
+
 /// All five mismatch parameters ψ = (dx, dy, θ, a1, α).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Mismatch {
@@ -161,6 +275,24 @@ impl DispersionParams {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_registry_names_every_field_as_the_json_does() {
+        let mut m = Mismatch::paper();
+        let json = serde_json::to_value(m).unwrap();
+        let object = json.as_object().unwrap();
+        assert_eq!(object.len(), Parameter::ALL.len());
+        for p in Parameter::ALL {
+            assert_eq!(object[p.key()].as_f64().unwrap(), p.get(&m), "{p:?}");
+            p.set(&mut m, 7.0);
+            assert_eq!(p.get(&m), 7.0);
+        }
+        assert_eq!(
+            Parameter::format_all(&Mismatch::paper()),
+            "dx +1.500 px  dy +1.000 px  θ +0.300°  a1 2.0400 px/band  α +0.50°"
+        );
+        assert_eq!(Parameter::ThetaDeg.label(), "θ (°)");
+    }
 
     #[test]
     fn json_round_trip_uses_unit_bearing_names() {

@@ -24,7 +24,7 @@ use cassi_core::metrics::{Metrics, evaluate};
 use cassi_core::optics::{DispersionModel, NoiseModel, SimulationSpec, simulate};
 use cassi_core::recon::reconstruct;
 use cassi_core::solvers::Silent;
-use cassi_core::{Cube, Mask, Measurement, Mismatch};
+use cassi_core::{Cube, Mask, Measurement, Mismatch, Parameter};
 use serde::{Deserialize, Serialize};
 
 use crate::method::StudyMethod;
@@ -87,27 +87,45 @@ pub struct Outcome {
 
 /// Estimated − true, per parameter.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct ParameterErrors {
-    pub dx: f64,
-    pub dy: f64,
-    pub theta_deg: f64,
-    pub a1: f64,
-    pub alpha_deg: f64,
-}
+#[serde(transparent)]
+pub struct ParameterErrors(Mismatch);
 
 impl ParameterErrors {
+    /// estimate − truth, per parameter.
     pub fn between(estimate: &Mismatch, truth: &Mismatch) -> Self {
-        Self {
-            dx: estimate.dx - truth.dx,
-            dy: estimate.dy - truth.dy,
-            theta_deg: estimate.theta_deg - truth.theta_deg,
-            a1: estimate.a1 - truth.a1,
-            alpha_deg: estimate.alpha_deg - truth.alpha_deg,
-        }
+        Self::from_fn(|p| p.get(estimate) - p.get(truth))
     }
 
-    pub fn as_array(&self) -> [f64; 5] {
-        [self.dx, self.dy, self.theta_deg, self.a1, self.alpha_deg]
+    /// One value per parameter, from `f`.
+    pub fn from_fn(f: impl Fn(Parameter) -> f64) -> Self {
+        let mut m = Mismatch::nominal(0.0);
+        for p in Parameter::ALL {
+            p.set(&mut m, f(p));
+        }
+        Self(m)
+    }
+
+    /// The value of parameter `p`.
+    pub fn get(&self, p: Parameter) -> f64 {
+        p.get(&self.0)
+    }
+
+    /// `dx +0.012 px  dy −0.004 px  θ +0.002 °  …`, one decimal more than
+    /// the parameters' own precision.
+    pub fn format_all(&self) -> String {
+        Parameter::ALL
+            .iter()
+            .map(|&p| {
+                format!(
+                    "{} {:+.d$} {}",
+                    p.name(),
+                    self.get(p),
+                    p.unit(),
+                    d = p.decimals() + 1
+                )
+            })
+            .collect::<Vec<_>>()
+            .join("  ")
     }
 }
 

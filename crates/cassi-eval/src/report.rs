@@ -8,6 +8,8 @@ use std::path::Path;
 use serde::Serialize;
 
 use crate::protocol::{SceneResult, Study};
+use cassi_core::Parameter;
+
 use crate::study_figures::Figure;
 use crate::summary::Summary;
 use crate::tables;
@@ -139,8 +141,9 @@ pub fn markdown(
     let _ = writeln!(s, "- Nominal mask: {}", setup.mask);
     let _ = writeln!(
         s,
-        "- True mismatch: dx {:+.3} px, dy {:+.3} px, θ {:+.3}°, a1 {:.4} px/band, α {:+.3}° (nominal: 0, 0, 0°, {}, 0°)",
-        m.dx, m.dy, m.theta_deg, m.a1, m.alpha_deg, study.stride
+        "- True mismatch: {} (nominal: {})",
+        Parameter::format_all(&m),
+        Parameter::format_all(&cassi_core::Mismatch::nominal(study.stride))
     );
     let _ = writeln!(
         s,

@@ -122,25 +122,19 @@ pub fn write_summary_figures(
         add(format!("PSNR per scene, {m}"), "psnr_per_scene.png");
     }
 
-    let panel = |name: &str, unit: &str, f: fn(&cassi_core::Mismatch) -> f64| ScatterPanel {
-        name: name.into(),
-        unit: unit.into(),
+    let panel = |p: cassi_core::Parameter| ScatterPanel {
+        name: p.name().into(),
+        unit: p.unit().into(),
         series: vec![
             results
                 .iter()
-                .map(|r| (f(&r.truth), f(&r.calibration.parameters)))
+                .map(|r| (p.get(&r.truth), p.get(&r.calibration.parameters)))
                 .collect(),
         ],
     };
     let scatter = EstimatedVsTrue {
         series_names: vec![format!("{preset} preset")],
-        panels: vec![
-            panel("dx", "px", |m| m.dx),
-            panel("dy", "px", |m| m.dy),
-            panel("θ", "°", |m| m.theta_deg),
-            panel("a1", "px/band", |m| m.a1),
-            panel("α", "°", |m| m.alpha_deg),
-        ],
+        panels: cassi_core::Parameter::ALL.map(panel).to_vec(),
     };
     write_estimated_vs_true(
         &scatter,

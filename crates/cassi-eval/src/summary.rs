@@ -3,6 +3,8 @@
 
 use serde::{Deserialize, Serialize};
 
+use cassi_core::Parameter;
+
 use crate::protocol::{ParameterErrors, Scenario, SceneResult};
 
 /// Means over scenes of one method in one scenario.
@@ -123,24 +125,15 @@ pub fn summarize(results: &[SceneResult]) -> Summary {
         })
         .collect();
     let n = results.len().max(1) as f64;
-    let mut sq = [0.0f64; 5];
-    for r in results {
-        for (s, e) in sq.iter_mut().zip(r.errors.as_array()) {
-            *s += e * e;
-        }
-    }
-    let rmse = sq.map(|s| (s / n).sqrt());
+    let rmse = |p: Parameter| {
+        let sq: f64 = results.iter().map(|r| r.errors.get(p).powi(2)).sum();
+        (sq / n).sqrt()
+    };
     let calib_secs: Vec<f64> = results.iter().map(|r| r.calibration.seconds).collect();
     Summary {
         scenes: results.iter().map(|r| r.scene.clone()).collect(),
         methods,
-        parameter_rmse: ParameterErrors {
-            dx: rmse[0],
-            dy: rmse[1],
-            theta_deg: rmse[2],
-            a1: rmse[3],
-            alpha_deg: rmse[4],
-        },
+        parameter_rmse: ParameterErrors::from_fn(rmse),
         calibration_seconds_median: median(calib_secs.clone()),
         calibration_seconds_mean: mean(calib_secs.into_iter()),
         total_seconds: results.iter().map(|r| r.seconds).sum(),

@@ -3,6 +3,7 @@
 
 use std::fmt::Write;
 
+use cassi_core::Parameter;
 use cassi_core::metrics::METRIC_DEFINITIONS;
 
 use crate::protocol::{Scenario, SceneResult};
@@ -96,34 +97,27 @@ pub fn per_scene_table(results: &[SceneResult], method: &str) -> String {
 
 /// True and estimated parameters per scene, errors, and the RMSE.
 pub fn parameter_table(results: &[SceneResult], summary: &Summary) -> String {
-    let mut s = String::from(
-        "| scene | dx true / est. (px) | dy true / est. (px) | θ true / est. (°) | a1 true / est. | α true / est. (°) | calibration (s) |\n|---|---|---|---|---|---|---:|\n",
-    );
+    let mut s = String::from("| scene |");
+    for p in Parameter::ALL {
+        let _ = write!(s, " {} true / est. ({}) |", p.name(), p.unit());
+    }
+    s += " calibration (s) |\n|---|";
+    s += &"---|".repeat(Parameter::ALL.len());
+    s += "---:|\n";
     for r in results {
         let (t, e) = (r.truth, r.calibration.parameters);
-        let _ = writeln!(
-            s,
-            "| {} | {:+.3} / {:+.3} | {:+.3} / {:+.3} | {:+.3} / {:+.3} | {:.4} / {:.4} | {:+.2} / {:+.2} | {:.1} |",
-            r.scene,
-            t.dx,
-            e.dx,
-            t.dy,
-            e.dy,
-            t.theta_deg,
-            e.theta_deg,
-            t.a1,
-            e.a1,
-            t.alpha_deg,
-            e.alpha_deg,
-            r.calibration.seconds
-        );
+        let _ = write!(s, "| {} |", r.scene);
+        for p in Parameter::ALL {
+            let _ = write!(s, " {} / {} |", p.format(p.get(&t)), p.format(p.get(&e)));
+        }
+        let _ = writeln!(s, " {:.1} |", r.calibration.seconds);
     }
     let q = summary.parameter_rmse;
-    let _ = writeln!(
-        s,
-        "| **RMSE** | {:.4} | {:.4} | {:.4} | {:.4} | {:.3} | median {:.1} |",
-        q.dx, q.dy, q.theta_deg, q.a1, q.alpha_deg, summary.calibration_seconds_median
-    );
+    s += "| **RMSE** |";
+    for p in Parameter::ALL {
+        let _ = write!(s, " {:.d$} |", q.get(p), d = p.decimals() + 1);
+    }
+    let _ = writeln!(s, " median {:.1} |", summary.calibration_seconds_median);
     s
 }
 
@@ -173,37 +167,30 @@ pub fn outcomes_csv(results: &[SceneResult]) -> String {
     s
 }
 
-/// CSV of true and estimated parameters per scene.
+/// CSV of true and estimated parameters per scene (columns named by the
+/// parameters' file keys: `theta_deg_true`, `theta_deg_est`, …).
 pub fn parameters_csv(results: &[SceneResult]) -> String {
-    let mut s = String::from(
-        "scene,dx_true,dx_est,dy_true,dy_est,theta_deg_true,theta_deg_est,a1_true,a1_est,alpha_deg_true,alpha_deg_est,calibration_seconds\n",
-    );
+    let mut s = String::from("scene");
+    for p in Parameter::ALL {
+        let _ = write!(s, ",{0}_true,{0}_est", p.key());
+    }
+    s += ",calibration_seconds\n";
     for r in results {
         let (t, e) = (r.truth, r.calibration.parameters);
-        let _ = writeln!(
-            s,
-            "{},{},{},{},{},{},{},{},{},{},{},{:.3}",
-            r.scene,
-            t.dx,
-            e.dx,
-            t.dy,
-            e.dy,
-            t.theta_deg,
-            e.theta_deg,
-            t.a1,
-            e.a1,
-            t.alpha_deg,
-            e.alpha_deg,
-            r.calibration.seconds
-        );
+        s += &r.scene;
+        for p in Parameter::ALL {
+            let _ = write!(s, ",{},{}", p.get(&t), p.get(&e));
+        }
+        let _ = writeln!(s, ",{:.3}", r.calibration.seconds);
     }
     s
 }
 
 /// Mean PSNR of II, III, IV, ρ and parameter RMSE at each mismatch scale.
 pub fn sensitivity_table(points: &[crate::sweep::SensitivityPoint], preset: &str) -> String {
+    let names = Parameter::ALL.map(|p| p.name()).join(", ");
     let mut s = format!(
-        "| scale | mismatch (dx, dy, θ, a1, α) | method | II (dB) | III (dB) | IV (dB) | ρ | RMSE dx / dy (px), θ (°) | `{preset}` calibration median (s) |\n|---:|---|---|---:|---:|---:|---:|---|---:|\n"
+        "| scale | mismatch ({names}) | method | II (dB) | III (dB) | IV (dB) | ρ | RMSE dx / dy (px), θ (°) | `{preset}` calibration median (s) |\n|---:|---|---|---:|---:|---:|---:|---|---:|\n"
     );
     for p in points {
         let m = p.mismatch;
@@ -212,21 +199,21 @@ pub fn sensitivity_table(points: &[crate::sweep::SensitivityPoint], preset: &str
             let q = p.summary.parameter_rmse;
             let _ = writeln!(
                 s,
-                "| {}× | {:+.2}, {:+.2}, {:+.2}°, {:.3}, {:+.2}° | {} | {:.2} | {:.2} | {:.2} | {:.1} % | {:.3} / {:.3}, {:.3} | {:.1} |",
+                "| {}× | {} | {} | {:.2} | {:.2} | {:.2} | {:.1} % | {:.3} / {:.3}, {:.3} | {:.1} |",
                 p.scale,
-                m.dx,
-                m.dy,
-                m.theta_deg,
-                m.a1,
-                m.alpha_deg,
+                Parameter::ALL
+                    .iter()
+                    .map(|p| p.format(p.get(&m)))
+                    .collect::<Vec<_>>()
+                    .join(", "),
                 ms.method,
                 v(Scenario::Assumed),
                 v(Scenario::Corrected),
                 v(Scenario::Oracle),
                 100.0 * ms.recovery_ratio,
-                q.dx,
-                q.dy,
-                q.theta_deg,
+                q.get(Parameter::Dx),
+                q.get(Parameter::Dy),
+                q.get(Parameter::ThetaDeg),
                 p.summary.calibration_seconds_median
             );
         }

@@ -6,7 +6,7 @@ use cassi_core::calib::Preset;
 use cassi_core::optics::{DispersionModel, NoiseModel};
 use cassi_core::recon::Method;
 use cassi_core::synth::{SceneSpec, random_binary_mask, synthetic_scene};
-use cassi_core::{Cube, Mask, Mismatch};
+use cassi_core::{Cube, Mask, Mismatch, Parameter};
 use cassi_eval::protocol::{Scenario, Study, run_scene};
 use cassi_eval::summary::summarize;
 
@@ -72,7 +72,7 @@ fn scenarios_order_as_they_must_and_calibration_closes_the_gap() {
     );
     assert!(ideal > assumed, "ideal {ideal} vs assumed {assumed}");
     assert!(
-        r.errors.dx.abs() < 0.1 && r.errors.dy.abs() < 0.1,
+        r.errors.get(Parameter::Dx).abs() < 0.1 && r.errors.get(Parameter::Dy).abs() < 0.1,
         "{:?}",
         r.errors
     );
@@ -86,5 +86,7 @@ fn scenarios_order_as_they_must_and_calibration_closes_the_gap() {
     let rho = (corrected - assumed) / (oracle - assumed);
     assert!((m.recovery_ratio - rho).abs() < 1e-12);
     assert_eq!(m.recovery_ratio_per_scene.len(), 2);
-    assert!((s.parameter_rmse.dx - r.errors.dx.abs()).abs() < 1e-12);
+    assert!(
+        (s.parameter_rmse.get(Parameter::Dx) - r.errors.get(Parameter::Dx).abs()).abs() < 1e-12
+    );
 }

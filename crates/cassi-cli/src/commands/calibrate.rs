@@ -2,6 +2,7 @@
 
 use std::path::PathBuf;
 
+use cassi_core::Parameter;
 use cassi_core::calib::{CalibrationProblem, Preset, StageReport, calibrate};
 use cassi_core::optics::{DispersionModel, MaskCode, mask_code, warp_mask};
 use clap::Args;
@@ -65,10 +66,13 @@ pub fn run(args: &CalibrateArgs, reporter: &Reporter) -> anyhow::Result<()> {
     let mut on_stage = |s: &StageReport| {
         // between stages nothing is half-written: a signal ends the run here
         interrupt::stop_point();
-        let p = s.parameters;
         reporter.say(&format!(
-            "  {:<20} dx {:+.3}  dy {:+.3}  θ {:+.3}°  a1 {:.4}  α {:+.2}°  score {:.4e}  ({} evals, {:.2} s)",
-            s.name, p.dx, p.dy, p.theta_deg, p.a1, p.alpha_deg, s.score, s.evaluations, s.seconds
+            "  {:<20} {}  score {:.4e}  ({} evals, {:.2} s)",
+            s.name,
+            Parameter::format_all(&s.parameters),
+            s.score,
+            s.evaluations,
+            s.seconds
         ));
     };
     let cal = reporter.stage("calibrating", || {
@@ -87,15 +91,10 @@ pub fn run(args: &CalibrateArgs, reporter: &Reporter) -> anyhow::Result<()> {
     }
     interrupt::check()?;
     staging.commit()?;
-    let p = cal.parameters;
     reporter.say(&format!(
-        "calibrated: dx {:+.3} px  dy {:+.3} px  θ {:+.3}°  a1 {:.4}  α {:+.2}°\n\
+        "calibrated: {}\n\
          residual score {:.4e} (nominal model {:.4e}), {} evaluations, {:.1} s → {}",
-        p.dx,
-        p.dy,
-        p.theta_deg,
-        p.a1,
-        p.alpha_deg,
+        Parameter::format_all(&cal.parameters),
         cal.score,
         cal.nominal_score,
         cal.evaluations,

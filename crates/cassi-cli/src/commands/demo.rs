@@ -8,7 +8,7 @@ use cassi_core::color::pseudo_rgb;
 use cassi_core::optics::{DispersionModel, NoiseModel, SimulationSpec, simulate};
 use cassi_core::recon::Method;
 use cassi_core::synth::{SceneSpec, random_binary_mask, synthetic_scene};
-use cassi_core::{Instrument, Mismatch};
+use cassi_core::{Instrument, Mismatch, Parameter};
 use cassi_eval::protocol::{Prepared, Scenario, Study, ideal_measurements, run_prepared};
 use cassi_eval::report::{Setup, Sweeps, write_all};
 use cassi_eval::study_figures::write_qualitative;
@@ -206,8 +206,8 @@ pub fn run(args: &DemoArgs, reporter: &Reporter) -> anyhow::Result<()> {
         "cassi demo: the paper's mismatch on the embedded synthetic scene\n\
          \x20 scene        synthetic {l}×{h}×{w} (bands×rows×cols, seed {}), {:.1}–{:.1} nm\n\
          \x20 mask         random binary {h}×{w}, 50 % open (seed {MASK_SEED})\n\
-         \x20 true model   dx {:+.3} px  dy {:+.3} px  θ {:+.3}°  a1 {:.4} px/band  α {:+.3}°  ({} dispersion)\n\
-         \x20 nominal      dx 0, dy 0, θ 0°, a1 {:.1}, α 0°\n\
+         \x20 true model   {}  ({} dispersion)\n\
+         \x20 nominal      {}\n\
          \x20 measurement  {}×{} (nominal model expects {}×{}), photon peak 1e5, SNR {snr_db:.1} dB\n\
          \x20 files        {}\n\n\
          self-calibration ({:.1} s, {} evaluations, no ground truth used):\n{}\n\n\
@@ -217,13 +217,9 @@ pub fn run(args: &DemoArgs, reporter: &Reporter) -> anyhow::Result<()> {
         args.seed,
         wl[0],
         wl[wl.len() - 1],
-        m.dx,
-        m.dy,
-        m.theta_deg,
-        m.a1,
-        m.alpha_deg,
+        Parameter::format_all(&m),
         spec.model.name(),
-        inputs.instrument.stride,
+        Parameter::format_all(&Mismatch::nominal(inputs.instrument.stride)),
         measurement.rows(),
         measurement.cols(),
         h,
@@ -267,21 +263,17 @@ pub fn run(args: &DemoArgs, reporter: &Reporter) -> anyhow::Result<()> {
 
 /// Estimated vs true parameters, one line each.
 fn parameter_table(truth: &Mismatch, est: &Mismatch, model: DispersionModel) -> String {
-    let rows = [
-        ("dx (px)", truth.dx, est.dx),
-        ("dy (px)", truth.dy, est.dy),
-        ("θ (°)", truth.theta_deg, est.theta_deg),
-        ("a1 (px/band)", truth.a1, est.a1),
-        ("α (°)", truth.alpha_deg, est.alpha_deg),
-    ];
     let mut out = format!(
         "  {:<14} {:>9} {:>9} {:>9}",
         "parameter", "true", "estimated", "error"
     );
-    for (name, t, e) in rows {
-        if name.starts_with('α') && model == DispersionModel::Rounded {
-            // a sub-pixel tilt rounds to no row offset at all
-            out += &format!("\n  {name:<14} {t:>9.4}   not identifiable with rounded dispersion");
+    for p in Parameter::ALL {
+        let (name, t, e) = (p.label(), p.get(truth), p.get(est));
+        if !model.identifies(p) {
+            out += &format!(
+                "\n  {name:<14} {t:>9.4}   not identifiable with {} dispersion",
+                model.name()
+            );
             continue;
         }
         out += &format!("\n  {name:<14} {t:>9.4} {e:>9.4} {:>+9.4}", e - t);

@@ -251,15 +251,7 @@ pub fn run(args: &EvalArgs, reporter: &Reporter) -> anyhow::Result<()> {
     let checked = check_files(args)?;
     let methods = study_methods(args)?;
     // the paper's mismatch, single values overridden by the flags
-    let m = &args.mismatch;
-    let p = Mismatch::paper();
-    let mismatch = Mismatch {
-        dx: m.dx.unwrap_or(p.dx),
-        dy: m.dy.unwrap_or(p.dy),
-        theta_deg: m.theta.unwrap_or(p.theta_deg),
-        a1: m.a1.unwrap_or(p.a1),
-        alpha_deg: m.alpha.unwrap_or(p.alpha_deg),
-    };
+    let mismatch = args.mismatch.over(Mismatch::paper());
     mismatch.validate().context("mismatch parameters")?;
     let noise = args.noise.noise()?.unwrap_or(NoiseModel {
         photon_peak: None,
@@ -308,7 +300,7 @@ pub fn run(args: &EvalArgs, reporter: &Reporter) -> anyhow::Result<()> {
     }
     let study = Study {
         mismatch,
-        instrument: m.model,
+        instrument: args.mismatch.model,
         noise,
         preset: Preset::by_name(&args.preset, args.stride)?,
         methods,
@@ -398,12 +390,9 @@ pub fn run(args: &EvalArgs, reporter: &Reporter) -> anyhow::Result<()> {
                     }
                     if let Event::SceneDone { result } = e {
                         reporter.say(&format!(
-                            "  {scale}×: {:<24} errors dx {:+.3} dy {:+.3} θ {:+.3}° a1 {:+.4}",
+                            "  {scale}×: {:<24} errors {}",
                             result.scene,
-                            result.errors.dx,
-                            result.errors.dy,
-                            result.errors.theta_deg,
-                            result.errors.a1
+                            result.errors.format_all()
                         ));
                     }
                 },
@@ -452,12 +441,8 @@ pub fn run(args: &EvalArgs, reporter: &Reporter) -> anyhow::Result<()> {
     let mut text = String::from("\n");
     text += &cassi_eval::tables::main_table(&summary);
     text += &format!(
-        "\nparameter RMSE: dx {:.4} px, dy {:.4} px, θ {:.4}°, a1 {:.4}, α {:.3}°; calibration median {:.1} s; study {:.1} s\nreport: {}",
-        summary.parameter_rmse.dx,
-        summary.parameter_rmse.dy,
-        summary.parameter_rmse.theta_deg,
-        summary.parameter_rmse.a1,
-        summary.parameter_rmse.alpha_deg,
+        "\nparameter RMSE: {}; calibration median {:.1} s; study {:.1} s\nreport: {}",
+        summary.parameter_rmse.format_all().replace('+', ""),
         summary.calibration_seconds_median,
         summary.total_seconds,
         args.out.join("report.md").display()

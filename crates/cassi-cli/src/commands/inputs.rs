@@ -7,7 +7,7 @@ use anyhow::{Context, bail};
 use cassi_core::limits::check_elements;
 use cassi_core::optics::{DispersionModel, MaskCode, NoiseModel, mask_code, validate_measurement};
 use cassi_core::synth::{SceneSpec, random_binary_mask, synthetic_scene};
-use cassi_core::{Cube, Instrument, Mask, Mismatch};
+use cassi_core::{Cube, Instrument, Mask, Mismatch, Parameter};
 use cassi_io::CubeLayout;
 use clap::{Args, ValueEnum};
 
@@ -142,15 +142,30 @@ impl MismatchArgs {
         } else {
             Mismatch::nominal(stride)
         };
-        let m = Mismatch {
-            dx: self.dx.unwrap_or(base.dx),
-            dy: self.dy.unwrap_or(base.dy),
-            theta_deg: self.theta.unwrap_or(base.theta_deg),
-            a1: self.a1.unwrap_or(base.a1),
-            alpha_deg: self.alpha.unwrap_or(base.alpha_deg),
-        };
+        let m = self.over(base);
         m.validate().context("mismatch parameters")?;
         Ok(m)
+    }
+
+    /// The value a flag gives parameter `p`, if it was given.
+    fn flag(&self, p: Parameter) -> Option<f64> {
+        match p {
+            Parameter::Dx => self.dx,
+            Parameter::Dy => self.dy,
+            Parameter::ThetaDeg => self.theta,
+            Parameter::A1 => self.a1,
+            Parameter::AlphaDeg => self.alpha,
+        }
+    }
+
+    /// `base` with every parameter given by a flag replaced.
+    pub fn over(&self, mut base: Mismatch) -> Mismatch {
+        for p in Parameter::ALL {
+            if let Some(v) = self.flag(p) {
+                p.set(&mut base, v);
+            }
+        }
+        base
     }
 }
 

@@ -10,7 +10,7 @@ use cassi_core::metrics::{Metrics, evaluate};
 use cassi_core::optics::{DispersionModel, validate_mismatch_for_mask};
 use cassi_core::recon::{METHOD_NAMES, Method, reconstruct};
 use cassi_core::solvers::IterationInfo;
-use cassi_core::{Instrument, Mismatch};
+use cassi_core::{Instrument, Mismatch, Parameter};
 use cassi_io::{CheckedSet, OutputSet};
 use clap::Args;
 use serde::Serialize;
@@ -101,47 +101,38 @@ pub fn read_model_file(path: &Path) -> anyhow::Result<(Mismatch, Option<Dispersi
     Ok((m, model))
 }
 
-/// The mismatch from a JSON object with exactly the five named fields.
+/// The mismatch from a JSON object with exactly the parameters' named
+/// fields.
 fn named_mismatch(value: &serde_json::Value) -> anyhow::Result<Mismatch> {
-    const NAMES: [&str; 5] = ["dx", "dy", "theta_deg", "a1", "alpha_deg"];
+    let names = Parameter::ALL.map(|p| p.key()).join(", ");
     let Some(object) = value.as_object() else {
         bail!(
-            "must be an object with the named fields {} (got {})",
-            NAMES.join(", "),
+            "must be an object with the named fields {names} (got {})",
             json_kind(value)
         );
     };
     let unknown: Vec<&str> = object
         .keys()
         .map(String::as_str)
-        .filter(|k| !NAMES.contains(k))
+        .filter(|k| !Parameter::ALL.iter().any(|p| p.key() == *k))
         .collect();
     if !unknown.is_empty() {
         bail!(
-            "unknown field(s) {}; the parameters are {}",
-            unknown.join(", "),
-            NAMES.join(", ")
+            "unknown field(s) {}; the parameters are {names}",
+            unknown.join(", ")
         );
     }
-    let mut values = [0.0; 5];
-    for (slot, name) in values.iter_mut().zip(NAMES) {
-        *slot = match object.get(name) {
+    let mut m = Mismatch::nominal(0.0);
+    for p in Parameter::ALL {
+        let name = p.key();
+        let v = match object.get(name) {
             Some(serde_json::Value::Number(n)) => n.as_f64().unwrap_or(f64::NAN),
             Some(other) => bail!("{name} must be a number, got {}", json_kind(other)),
-            None => bail!(
-                "{name} is missing (the parameters are {})",
-                NAMES.join(", ")
-            ),
+            None => bail!("{name} is missing (the parameters are {names})"),
         };
+        p.set(&mut m, v);
     }
-    let [dx, dy, theta_deg, a1, alpha_deg] = values;
-    Ok(Mismatch {
-        dx,
-        dy,
-        theta_deg,
-        a1,
-        alpha_deg,
-    })
+    Ok(m)
 }
 
 fn json_kind(value: &serde_json::Value) -> &'static str {

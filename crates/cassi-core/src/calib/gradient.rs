@@ -21,7 +21,6 @@
 //!   linear interpolation, at the integer offsets.
 
 use rayon::prelude::*;
-use serde::{Deserialize, Serialize};
 
 use super::score::{CalibrationProblem, EPS_FRACTION, ProxyParams, StepNorm, fit_to_model};
 use super::smooth::{gaussian_taps, smooth_step};
@@ -31,50 +30,8 @@ use crate::linop::LinearOperator;
 use crate::optics::{CassiOperator, Dispersion, warp_mask_with_derivatives};
 use crate::params::Mismatch;
 
-/// A component of ψ.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Parameter {
-    Dx,
-    Dy,
-    ThetaDeg,
-    A1,
-    AlphaDeg,
-}
-
-impl Parameter {
-    pub const ALL: [Parameter; 5] = [Self::Dx, Self::Dy, Self::ThetaDeg, Self::A1, Self::AlphaDeg];
-
-    pub fn get(self, m: &Mismatch) -> f64 {
-        match self {
-            Self::Dx => m.dx,
-            Self::Dy => m.dy,
-            Self::ThetaDeg => m.theta_deg,
-            Self::A1 => m.a1,
-            Self::AlphaDeg => m.alpha_deg,
-        }
-    }
-
-    pub fn set(self, m: &mut Mismatch, v: f64) {
-        match self {
-            Self::Dx => m.dx = v,
-            Self::Dy => m.dy = v,
-            Self::ThetaDeg => m.theta_deg = v,
-            Self::A1 => m.a1 = v,
-            Self::AlphaDeg => m.alpha_deg = v,
-        }
-    }
-
-    pub fn name(self) -> &'static str {
-        match self {
-            Self::Dx => "dx",
-            Self::Dy => "dy",
-            Self::ThetaDeg => "θ",
-            Self::A1 => "a1",
-            Self::AlphaDeg => "α",
-        }
-    }
-}
+/// A component of ψ (the registry lives with the parameters).
+pub use crate::params::Parameter;
 
 /// ∂A/∂p for one parameter.
 enum OperatorDerivative {

@@ -63,13 +63,17 @@ pub struct Calibration {
     pub evaluations: usize,
 }
 
-#[derive(Debug, Clone, Copy, Default, Serialize, Deserialize)]
-pub struct Uncertainty {
-    pub dx: Option<f64>,
-    pub dy: Option<f64>,
-    pub theta_deg: Option<f64>,
-    pub a1: Option<f64>,
-    pub alpha_deg: Option<f64>,
+/// A standard error per parameter, `None` where it was not estimated;
+/// written as `{"dx": …, "dy": …, "theta_deg": …, "a1": …, "alpha_deg": …}`.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(transparent)]
+pub struct Uncertainty(pub std::collections::BTreeMap<Parameter, Option<f64>>);
+
+impl Uncertainty {
+    /// The standard error of `p`, if it was estimated.
+    pub fn get(&self, p: Parameter) -> Option<f64> {
+        self.0.get(&p).copied().flatten()
+    }
 }
 
 /// A calibration preset with its settings.

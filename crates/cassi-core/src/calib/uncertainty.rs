@@ -2,7 +2,7 @@
 
 use super::{CalibrationProblem, ProxyParams, Uncertainty};
 use crate::optics::DispersionModel;
-use crate::params::Mismatch;
+use crate::params::{Mismatch, Parameter};
 
 /// σ_i = sqrt(2 f₀ / (N · f_ii)) from central second differences f_ii; also
 /// returns how many scores it evaluated.
@@ -27,20 +27,20 @@ pub(crate) fn curvature_uncertainty(
         (c > 0.0).then(|| (2.0 * f0 / (n * c)).sqrt())
     };
     let subpixel = problem.model == DispersionModel::Subpixel;
-    let u = Uncertainty {
-        dx: axis(0.05, &|m, d| m.dx += d),
-        dy: axis(0.05, &|m, d| m.dy += d),
-        theta_deg: axis(0.05, &|m, d| m.theta_deg += d),
-        a1: if subpixel {
-            axis(0.005, &|m, d| m.a1 += d)
-        } else {
-            None
-        },
-        alpha_deg: if subpixel {
-            axis(0.2, &|m, d| m.alpha_deg += d)
-        } else {
-            None
-        },
-    };
+    let u = Uncertainty(
+        Parameter::ALL
+            .iter()
+            .map(|&p| {
+                // rounded dispersion is piecewise constant in a1 and α: no curvature
+                let step = match p {
+                    Parameter::Dx | Parameter::Dy | Parameter::ThetaDeg => Some(0.05),
+                    Parameter::A1 => subpixel.then_some(0.005),
+                    Parameter::AlphaDeg => subpixel.then_some(0.2),
+                };
+                let sigma = step.and_then(|h| axis(h, &|m, d| p.set(m, p.get(m) + d)));
+                (p, sigma)
+            })
+            .collect(),
+    );
     (u, evaluations.get())
 }

@@ -26,6 +26,13 @@ pub enum DispersionModel {
 }
 
 impl DispersionModel {
+    /// Whether a measurement made through this model can tell parameter `p`
+    /// at all: with rounded offsets a sub-degree tilt α moves no band by a
+    /// whole row, so α leaves no trace.
+    pub fn identifies(self, p: crate::params::Parameter) -> bool {
+        !(self == Self::Rounded && p == crate::params::Parameter::AlphaDeg)
+    }
+
     pub fn name(self) -> &'static str {
         match self {
             Self::Rounded => "rounded",
