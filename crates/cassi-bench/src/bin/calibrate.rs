@@ -14,9 +14,10 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use cassi_bench::{median, shared_data};
-use cassi_core::Mismatch;
 use cassi_core::calib::{CalibrationProblem, PRESET_NAMES, Preset, calibrate};
 use cassi_core::optics::{Dispersion, DispersionModel, NoiseModel, SimulationSpec, simulate};
+use cassi_core::{Mismatch, Parameter};
+use cassi_eval::protocol::ParameterErrors;
 use cassi_eval::report::Machine;
 
 fn main() -> anyhow::Result<()> {
@@ -94,15 +95,10 @@ fn main() -> anyhow::Result<()> {
         let verbose = args.iter().any(|a| a == "--verbose");
         let cal = calibrate(&problem, &preset, &mut |st| {
             if verbose {
-                let m = st.parameters;
                 eprintln!(
-                    "  {:<28} dx {:+.3} dy {:+.3} θ {:+.3} a1 {:.4} α {:+.2} score {:.5e} ({} evals, {:.2} s)",
+                    "  {:<28} {} score {:.5e} ({} evals, {:.2} s)",
                     st.name,
-                    m.dx,
-                    m.dy,
-                    m.theta_deg,
-                    m.a1,
-                    m.alpha_deg,
+                    Parameter::format_all(&st.parameters),
                     st.score,
                     st.evaluations,
                     st.seconds
@@ -121,35 +117,17 @@ fn main() -> anyhow::Result<()> {
             );
         }
         let p = cal.parameters;
-        let err = [
-            p.dx - truth.dx,
-            p.dy - truth.dy,
-            p.theta_deg - truth.theta_deg,
-            p.a1 - truth.a1,
-            p.alpha_deg - truth.alpha_deg,
-        ];
+        let err = ParameterErrors::between(&p, &truth);
         let recovered = recovered(&truth, &p, model, scene.bands());
         n_recovered += usize::from(recovered);
-        for (s, e) in sq.iter_mut().zip(err) {
-            *s += e * e;
+        for (s, q) in sq.iter_mut().zip(Parameter::ALL) {
+            *s += err.get(q).powi(2);
         }
         eprintln!(
-            "{name:<28} truth ({:+.2}, {:+.2}, {:+.2}°, {:.3}, {:+.2}°) dx {:+.3} dy {:+.3} θ {:+.3} a1 {:.4} α {:+.2} | err {:+.3} {:+.3} {:+.3}° {:+.4} {:+.2}° | {:.2} s, {} evals",
-            truth.dx,
-            truth.dy,
-            truth.theta_deg,
-            truth.a1,
-            truth.alpha_deg,
-            p.dx,
-            p.dy,
-            p.theta_deg,
-            p.a1,
-            p.alpha_deg,
-            err[0],
-            err[1],
-            err[2],
-            err[3],
-            err[4],
+            "{name:<28} truth {} | est. {} | err {} | {:.2} s, {} evals",
+            Parameter::format_all(&truth),
+            Parameter::format_all(&p),
+            err.format_all(),
             cal.seconds,
             cal.evaluations
         );
@@ -161,18 +139,17 @@ fn main() -> anyhow::Result<()> {
         );
     }
     let n = rows.len() as f64;
-    let rmse: Vec<f64> = sq.iter().map(|s| (s / n).sqrt()).collect();
+    let rmse = ParameterErrors::from_fn(|q| {
+        let i = Parameter::ALL.iter().position(|&x| x == q).unwrap_or(0);
+        (sq[i] / n).sqrt()
+    });
     let secs: Vec<f64> = rows
         .iter()
         .map(|r| r["calibration"]["seconds"].as_f64().unwrap_or(f64::NAN))
         .collect();
     eprintln!(
-        "RMSE dx {:.4} px, dy {:.4} px, θ {:.4}°, a1 {:.4}, α {:.3}° | recovered {n_recovered}/{} | median {:.2} s",
-        rmse[0],
-        rmse[1],
-        rmse[2],
-        rmse[3],
-        rmse[4],
+        "RMSE {} | recovered {n_recovered}/{} | median {:.2} s",
+        rmse.format_all().replace('+', ""),
         rows.len(),
         median(secs.clone())
     );
@@ -222,7 +199,7 @@ fn main() -> anyhow::Result<()> {
             (None, Some(s)) => format!("paper × {s}"),
             (None, None) => "paper".to_string(),
         },
-        "rmse": { "dx": rmse[0], "dy": rmse[1], "theta_deg": rmse[2], "a1": rmse[3], "alpha_deg": rmse[4] },
+        "rmse": rmse,
         "recovered": n_recovered, "recovered_rule": RECOVERED_RULE,
         "median_seconds": median(secs), "scenes": rows,
     });
