@@ -5,7 +5,7 @@
 
 use std::time::Instant;
 
-use cassi_core::optics::{CassiOperator, Dispersion, DispersionModel};
+use cassi_core::optics::{Blurred, CassiOperator, Dispersion, DispersionModel};
 use cassi_core::{DispersionParams, Frame, LinearOperator, Rng};
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -18,6 +18,7 @@ fn case(
     bands: usize,
     params: DispersionParams,
     model: DispersionModel,
+    blur_sigma_px: f64,
     runs: usize,
 ) -> serde_json::Value {
     let mut rng = Rng::new(1);
@@ -29,7 +30,13 @@ fn case(
             .collect(),
     )
     .unwrap();
-    let op = CassiOperator::new(mask, Dispersion::new(bands, params, model).unwrap()).unwrap();
+    let cassi = CassiOperator::new(mask, Dispersion::new(bands, params, model).unwrap()).unwrap();
+    let (rows, cols) = cassi.measurement_shape();
+    let op: Box<dyn LinearOperator> = if blur_sigma_px > 0.0 {
+        Box::new(Blurred::new(cassi, blur_sigma_px, rows, cols).unwrap())
+    } else {
+        Box::new(cassi)
+    };
     let x: Vec<f32> = (0..op.domain_len()).map(|_| rng.uniform() as f32).collect();
     let mut y = vec![0.0f32; op.range_len()];
     let mut back = vec![0.0f32; op.domain_len()];
@@ -53,6 +60,7 @@ fn case(
     let row = serde_json::json!({
         "size": format!("{size}x{size}x{bands}"),
         "model": model.name(),
+        "blur_sigma_px": blur_sigma_px,
         "a1": params.a1, "alpha_deg": params.alpha_deg,
         "runs": runs,
         "forward_ms_median": median(fwd),
@@ -75,9 +83,10 @@ fn main() {
     };
     let mut rows = Vec::new();
     for (size, runs) in [(256, 200), (660, 40)] {
-        rows.push(case(size, 28, nominal, DispersionModel::Rounded, runs));
-        rows.push(case(size, 28, paper, DispersionModel::Rounded, runs));
-        rows.push(case(size, 28, paper, DispersionModel::Subpixel, runs));
+        rows.push(case(size, 28, nominal, DispersionModel::Rounded, 0.0, runs));
+        rows.push(case(size, 28, paper, DispersionModel::Rounded, 0.0, runs));
+        rows.push(case(size, 28, paper, DispersionModel::Subpixel, 0.0, runs));
+        rows.push(case(size, 28, paper, DispersionModel::Subpixel, 0.5, runs));
     }
     let cpu = std::fs::read_to_string("/proc/cpuinfo")
         .ok()

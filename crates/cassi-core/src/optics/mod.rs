@@ -1,6 +1,7 @@
 //! The CASSI optics model: mask misalignment, dispersion, the forward
 //! operator and its adjoint, detector noise, simulation.
 
+pub mod blur;
 pub mod dispersion;
 pub mod input_checks;
 pub mod noise;
@@ -8,6 +9,7 @@ pub mod operator;
 pub mod simulate;
 pub mod warp;
 
+pub use blur::{Blurred, GaussianBlur};
 pub use dispersion::{Dispersion, DispersionModel, Tap};
 pub use input_checks::{MaskCode, mask_code, validate_measurement, validate_mismatch_for_mask};
 pub use noise::NoiseModel;

@@ -1,0 +1,365 @@
+//! Optical blur on the detector: a separable Gaussian of σ detector pixels
+//! applied to the dispersed image (DESIGN.md's physical instrument), its
+//! adjoint, and its exact derivative in σ — so the blur width can be a model
+//! parameter that calibration fits.
+//!
+//! The kernel is g_i ∝ exp(−i²/(2σ²)) for |i| ≤ r = ⌈4σ⌉, normalised to sum
+//! 1 (a blur moves light, it does not make or lose it), with zero outside the
+//! frame: light blurred past the edge is lost, as on a real sensor. The
+//! matrix of a symmetric kernel with zero boundary is symmetric, so the
+//! adjoint is the blur itself. [`Blurred`] composes the blur after any
+//! [`LinearOperator`] whose range is a frame: y = B(σ) A x.
+
+use std::sync::Mutex;
+
+use rayon::prelude::*;
+
+use crate::error::{CassiError, Result};
+use crate::linop::LinearOperator;
+
+/// The widest blur accepted, detector pixels: beyond it a CASSI image holds
+/// no code worth calibrating.
+pub const MAX_SIGMA_PX: f64 = 8.0;
+
+/// A separable Gaussian blur of one width on frames of one shape.
+#[derive(Debug, Clone)]
+pub struct GaussianBlur {
+    sigma: f64,
+    rows: usize,
+    cols: usize,
+    /// g_{−r..=r}.
+    taps: Vec<f32>,
+    /// ∂g/∂σ, same length.
+    dtaps: Vec<f32>,
+}
+
+impl GaussianBlur {
+    /// The blur of width `sigma_px` (0 = none) on `rows × cols` frames.
+    pub fn new(sigma_px: f64, rows: usize, cols: usize) -> Result<Self> {
+        if !(sigma_px.is_finite() && (0.0..=MAX_SIGMA_PX).contains(&sigma_px)) {
+            return Err(CassiError::InvalidParameter {
+                name: "blur_sigma_px",
+                value: sigma_px,
+                reason: format!("the blur width must lie in [0, {MAX_SIGMA_PX}] detector pixels"),
+            });
+        }
+        let (taps, dtaps) = kernel(sigma_px);
+        Ok(Self {
+            sigma: sigma_px,
+            rows,
+            cols,
+            taps,
+            dtaps,
+        })
+    }
+
+    pub fn sigma(&self) -> f64 {
+        self.sigma
+    }
+
+    /// The kernel's radius r (taps −r ..= r).
+    pub fn radius(&self) -> usize {
+        self.taps.len() / 2
+    }
+
+    /// The normalised taps g_{−r..=r}.
+    pub fn taps(&self) -> &[f32] {
+        &self.taps
+    }
+
+    /// out ← B y for a `rows × cols` frame `y`; `tmp` is scratch of the same
+    /// length.
+    pub fn apply(&self, y: &[f32], out: &mut [f32], tmp: &mut [f32]) {
+        self.separable(y, out, tmp, &self.taps, &self.taps);
+    }
+
+    /// out ← (∂B/∂σ) y = (G′ ⊗ G + G ⊗ G′) y; `tmp` and `tmp2` are scratch.
+    pub fn apply_derivative(&self, y: &[f32], out: &mut [f32], tmp: &mut [f32], tmp2: &mut [f32]) {
+        // rows by G′, cols by G; then rows by G, cols by G′; summed
+        self.separable(y, out, tmp, &self.taps, &self.dtaps);
+        self.separable(y, tmp2, tmp, &self.dtaps, &self.taps);
+        out.iter_mut().zip(tmp2.iter()).for_each(|(o, &t)| *o += t);
+    }
+
+    /// out ← (rows by `vertical`) ∘ (cols by `horizontal`) y.
+    fn separable(
+        &self,
+        y: &[f32],
+        out: &mut [f32],
+        tmp: &mut [f32],
+        horizontal: &[f32],
+        vertical: &[f32],
+    ) {
+        let (rows, cols) = (self.rows, self.cols);
+        debug_assert_eq!(y.len(), rows * cols);
+        if self.sigma == 0.0 && horizontal[0] == 1.0 && vertical[0] == 1.0 {
+            out.copy_from_slice(y);
+            return;
+        }
+        // along each row
+        let r = horizontal.len() / 2;
+        tmp.par_chunks_mut(cols)
+            .zip(y.par_chunks(cols))
+            .for_each(|(t, src)| convolve_line(src, t, horizontal, r));
+        // along each column: output row i = Σ_k v_k · tmp row (i + k − r)
+        let r = vertical.len() / 2;
+        out.par_chunks_mut(cols).enumerate().for_each(|(i, o)| {
+            o.fill(0.0);
+            for (k, &w) in vertical.iter().enumerate() {
+                let Some(src_row) = (i + k).checked_sub(r).filter(|&s| s < rows) else {
+                    continue;
+                };
+                let src = &tmp[src_row * cols..(src_row + 1) * cols];
+                o.iter_mut().zip(src).for_each(|(o, &s)| *o += w * s);
+            }
+        });
+    }
+}
+
+/// dst[j] = Σ_k w_k · src[j + k − r], zero outside `src`.
+fn convolve_line(src: &[f32], dst: &mut [f32], w: &[f32], r: usize) {
+    let n = src.len();
+    for (j, d) in dst.iter_mut().enumerate() {
+        let lo = r.saturating_sub(j);
+        let hi = w.len().min(n + r - j);
+        let mut acc = 0.0f32;
+        for k in lo..hi {
+            acc += w[k] * src[j + k - r];
+        }
+        *d = acc;
+    }
+}
+
+/// The normalised taps and their exact σ-derivative (the radius ⌈4σ⌉ is
+/// held: the taps it adds or drops weigh < e⁻⁸).
+fn kernel(sigma: f64) -> (Vec<f32>, Vec<f32>) {
+    if sigma == 0.0 {
+        return (vec![1.0], vec![0.0]);
+    }
+    let r = (4.0 * sigma).ceil() as i64;
+    let e: Vec<f64> = (-r..=r)
+        .map(|i| (-(i * i) as f64 / (2.0 * sigma * sigma)).exp())
+        .collect();
+    // ∂e_i/∂σ = e_i · i²/σ³
+    let de: Vec<f64> = (-r..=r)
+        .zip(&e)
+        .map(|(i, &ei)| ei * (i * i) as f64 / sigma.powi(3))
+        .collect();
+    let s: f64 = e.iter().sum();
+    let ds: f64 = de.iter().sum();
+    let taps = e.iter().map(|&ei| (ei / s) as f32).collect();
+    let dtaps = e
+        .iter()
+        .zip(&de)
+        .map(|(&ei, &dei)| ((dei * s - ei * ds) / (s * s)) as f32)
+        .collect();
+    (taps, dtaps)
+}
+
+/// y = B(σ) A x: any operator whose range is a `rows × cols` frame, followed
+/// by the optical blur.
+pub struct Blurred<A> {
+    inner: A,
+    blur: GaussianBlur,
+    /// (A x or B y, the row pass, the derivative's second term) — reused by
+    /// every call, never reallocated.
+    scratch: Mutex<(Vec<f32>, Vec<f32>, Vec<f32>)>,
+}
+
+impl<A: LinearOperator> Blurred<A> {
+    /// `inner` followed by a blur of `sigma_px` on its `rows × cols` range.
+    pub fn new(inner: A, sigma_px: f64, rows: usize, cols: usize) -> Result<Self> {
+        if rows * cols != inner.range_len() {
+            return Err(CassiError::Shape {
+                what: "the blurred operator's detector".into(),
+                got: format!("{rows}×{cols}"),
+                expected: format!("{} pixels (the operator's range)", inner.range_len()),
+            });
+        }
+        let m = inner.range_len();
+        Ok(Self {
+            inner,
+            blur: GaussianBlur::new(sigma_px, rows, cols)?,
+            scratch: Mutex::new((vec![0.0; m], vec![0.0; m], vec![0.0; m])),
+        })
+    }
+
+    pub fn inner(&self) -> &A {
+        &self.inner
+    }
+
+    pub fn blur(&self) -> &GaussianBlur {
+        &self.blur
+    }
+
+    /// out ← (∂B/∂σ) A x: the derivative of the model in the blur width.
+    pub fn apply_sigma_derivative(&self, x: &[f32], out: &mut [f32]) {
+        let mut guard = self.scratch.lock().unwrap_or_else(|e| e.into_inner());
+        let (ax, tmp, tmp2) = &mut *guard;
+        self.inner.apply(x, ax);
+        self.blur.apply_derivative(ax, out, tmp, tmp2);
+    }
+}
+
+impl<A: LinearOperator> LinearOperator for Blurred<A> {
+    fn domain_len(&self) -> usize {
+        self.inner.domain_len()
+    }
+
+    fn range_len(&self) -> usize {
+        self.inner.range_len()
+    }
+
+    fn apply(&self, x: &[f32], y: &mut [f32]) {
+        let mut guard = self.scratch.lock().unwrap_or_else(|e| e.into_inner());
+        let (ax, tmp, _) = &mut *guard;
+        self.inner.apply(x, ax);
+        self.blur.apply(ax, y, tmp);
+    }
+
+    fn adjoint(&self, y: &[f32], x: &mut [f32]) {
+        // B is symmetric (symmetric kernel, zero boundary): Bᵀ = B
+        let mut guard = self.scratch.lock().unwrap_or_else(|e| e.into_inner());
+        let (by, tmp, _) = &mut *guard;
+        self.blur.apply(y, by, tmp);
+        self.inner.adjoint(by, x);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::Mismatch;
+    use crate::linop::adjoint_mismatch;
+    use crate::optics::{CassiOperator, DispersionModel};
+    use crate::synth::random_binary_mask;
+
+    fn frame_blur(sigma: f64, rows: usize, cols: usize, y: &[f32]) -> Vec<f32> {
+        let b = GaussianBlur::new(sigma, rows, cols).unwrap();
+        let (mut out, mut tmp) = (vec![0.0; y.len()], vec![0.0; y.len()]);
+        b.apply(y, &mut out, &mut tmp);
+        out
+    }
+
+    #[test]
+    fn a_point_spreads_symmetrically_and_keeps_its_light_away_from_edges() {
+        let (rows, cols) = (21, 23);
+        let mut y = vec![0.0f32; rows * cols];
+        y[10 * cols + 11] = 1.0;
+        let out = frame_blur(0.7, rows, cols, &y);
+        let total: f32 = out.iter().sum();
+        assert!((total - 1.0).abs() < 1e-5, "light kept: {total}");
+        for (dr, dc) in [(1, 0), (0, 1), (2, 1), (3, 3)] {
+            let at = |r: usize, c: usize| out[r * cols + c];
+            let v = at(10 + dr, 11 + dc);
+            assert!((v - at(10 - dr, 11 - dc)).abs() < 1e-7);
+            assert!((v - at(10 + dc, 11 + dr)).abs() < 1e-7, "isotropic");
+        }
+        // the centre's weight is the 1-D tap squared: g0 = 1/Σ exp(−i²/(2σ²))
+        let s: f64 = (-3i32..=3)
+            .map(|i| (-(i * i) as f64 / (2.0 * 0.49)).exp())
+            .sum();
+        assert!((out[10 * cols + 11] as f64 - 1.0 / (s * s)).abs() < 1e-6);
+        // σ = 0 is the identity
+        assert_eq!(frame_blur(0.0, rows, cols, &y), y);
+    }
+
+    #[test]
+    fn light_blurred_past_the_edge_is_lost() {
+        let (rows, cols) = (9, 9);
+        let mut y = vec![0.0f32; rows * cols];
+        y[0] = 1.0; // a corner
+        let total: f32 = frame_blur(1.0, rows, cols, &y).iter().sum();
+        // one quarter of a 2-D Gaussian plus the half axes: well below 1
+        assert!(total < 0.5 && total > 0.25, "{total}");
+    }
+
+    #[test]
+    fn the_blurred_operator_has_an_exact_adjoint_for_both_dispersion_models() {
+        let mask = random_binary_mask(24, 20, 0.5, 3).unwrap();
+        let mut m = Mismatch::paper();
+        m.a1 = 1.87;
+        for model in [DispersionModel::Rounded, DispersionModel::Subpixel] {
+            let a = CassiOperator::with_mismatch(&mask, 6, &m, model).unwrap();
+            let (rows, cols) = a.measurement_shape();
+            for sigma in [0.0, 0.35, 0.7, 1.6] {
+                let b = Blurred::new(a.clone(), sigma, rows, cols).unwrap();
+                let e = adjoint_mismatch(&b, 11);
+                assert!(e < 1e-5, "{model:?} σ {sigma}: {e}");
+            }
+        }
+    }
+
+    #[test]
+    fn the_sigma_derivative_matches_finite_differences() {
+        let (rows, cols) = (17, 19);
+        let y: Vec<f32> = (0..rows * cols)
+            .map(|i| ((i * 7919) % 101) as f32 / 101.0)
+            .collect();
+        for sigma in [0.3, 0.55, 0.8, 1.7] {
+            let b = GaussianBlur::new(sigma, rows, cols).unwrap();
+            let n = y.len();
+            let (mut d, mut t1, mut t2) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+            b.apply_derivative(&y, &mut d, &mut t1, &mut t2);
+            // central difference at a step that keeps the radius ⌈4σ⌉
+            let h = 1e-3;
+            let hi = frame_blur(sigma + h, rows, cols, &y);
+            let lo = frame_blur(sigma - h, rows, cols, &y);
+            let (mut err, mut norm) = (0.0f64, 0.0f64);
+            for i in 0..n {
+                let fd = (hi[i] as f64 - lo[i] as f64) / (2.0 * h);
+                err += (fd - d[i] as f64).powi(2);
+                norm += fd * fd;
+            }
+            let rel = (err / norm).sqrt();
+            assert!(rel < 2e-3, "σ {sigma}: relative error {rel}");
+        }
+    }
+
+    #[test]
+    fn the_model_derivative_is_the_blur_derivative_of_a_x() {
+        let mask = random_binary_mask(12, 10, 0.5, 5).unwrap();
+        let a =
+            CassiOperator::with_mismatch(&mask, 3, &Mismatch::paper(), DispersionModel::Subpixel)
+                .unwrap();
+        let (rows, cols) = a.measurement_shape();
+        let x: Vec<f32> = (0..a.domain_len())
+            .map(|i| (i % 13) as f32 / 13.0)
+            .collect();
+        let h = 1e-3;
+        let at = |s: f64| {
+            let b = Blurred::new(a.clone(), s, rows, cols).unwrap();
+            let mut y = vec![0.0; b.range_len()];
+            b.apply(&x, &mut y);
+            y
+        };
+        let b = Blurred::new(a.clone(), 0.6, rows, cols).unwrap();
+        let mut d = vec![0.0; b.range_len()];
+        b.apply_sigma_derivative(&x, &mut d);
+        let (hi, lo) = (at(0.6 + h), at(0.6 - h));
+        let worst = d
+            .iter()
+            .zip(hi.iter().zip(&lo))
+            .map(|(&d, (&p, &m))| (d as f64 - (p as f64 - m as f64) / (2.0 * h)).abs())
+            .fold(0.0, f64::max);
+        let scale = d.iter().fold(0.0f32, |m, v| m.max(v.abs())) as f64;
+        assert!(worst < 2e-3 * scale, "{worst} vs {scale}");
+    }
+
+    #[test]
+    fn widths_and_shapes_are_checked() {
+        assert!(GaussianBlur::new(-0.1, 4, 4).is_err());
+        assert!(GaussianBlur::new(f64::NAN, 4, 4).is_err());
+        let e = GaussianBlur::new(9.0, 4, 4).unwrap_err().to_string();
+        assert!(e.contains("blur_sigma_px"), "{e}");
+        let mask = random_binary_mask(8, 8, 0.5, 1).unwrap();
+        let a = CassiOperator::with_mismatch(
+            &mask,
+            2,
+            &Mismatch::nominal(2.0),
+            DispersionModel::Rounded,
+        )
+        .unwrap();
+        assert!(Blurred::new(a, 0.5, 8, 8).is_err());
+    }
+}
