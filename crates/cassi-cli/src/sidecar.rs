@@ -4,7 +4,7 @@
 use std::path::{Path, PathBuf};
 
 use cassi_core::Instrument;
-use cassi_core::optics::SimulationSpec;
+use cassi_core::optics::{PhysicalSpec, SimulationSpec};
 use serde::{Deserialize, Serialize};
 
 /// Where an input array came from.
@@ -51,6 +51,12 @@ pub struct SimulationRecord {
     pub instrument: Instrument,
     /// The true instrument and the noise.
     pub simulation: SimulationSpec,
+    /// Present when the measurement came from the physical (oversampled)
+    /// instrument (`cassi simulate --oversample`): its grid, blur, detector
+    /// and ADC. `simulation.model` then only names the S = 1 limit
+    /// (subpixel). Absent in sidecars from the discrete models.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub physical: Option<PhysicalSpec>,
     pub measurement: MeasurementInfo,
 }
 

@@ -100,9 +100,7 @@ impl PhysicalSpec {
             return Err(CassiError::InvalidParameter {
                 name: "blur_sigma_px",
                 value: self.blur_sigma_px,
-                reason: format!(
-                    "the blur σ must be in [0, {MAX_BLUR_SIGMA_PX}] detector pixels"
-                ),
+                reason: format!("the blur σ must be in [0, {MAX_BLUR_SIGMA_PX}] detector pixels"),
             });
         }
         if !self.blur_slope_px_per_nm.is_finite() {
@@ -260,7 +258,11 @@ pub fn simulate_physical_clean(
     let dispersion = Dispersion::new(bands, mismatch.dispersion(), DispersionModel::Subpixel)?;
     let (det_rows, det_cols) = physical_detector_shape(rows, cols, bands, mismatch, spec)?;
     let hint = format!("{rows}×{cols} at --oversample {s}");
-    check_elements("the fine mask", &[rows.saturating_mul(s), cols.saturating_mul(s)], &hint)?;
+    check_elements(
+        "the fine mask",
+        &[rows.saturating_mul(s), cols.saturating_mul(s)],
+        &hint,
+    )?;
     let kernels: Vec<BinKernel> = sigmas.iter().map(|&sg| BinKernel::new(sg, s)).collect();
     let margin = kernels.iter().map(|k| k.radius).max().unwrap_or(0);
     let frame_rows = det_rows.saturating_mul(s).saturating_add(2 * margin);
@@ -291,21 +293,18 @@ pub fn simulate_physical_clean(
     };
     let per_band: Vec<Frame> = (0..bands)
         .into_par_iter()
-        .map_init(
-            Buffers::default,
-            |buf, k| {
-                let (dc, dr) = dispersion.offset(k);
-                geometry.band(
-                    scene.band(k),
-                    &fine_mask,
-                    &row_interp,
-                    &col_interp,
-                    (dc * s as f64, dr * s as f64),
-                    &kernels[k],
-                    buf,
-                )
-            },
-        )
+        .map_init(Buffers::default, |buf, k| {
+            let (dc, dr) = dispersion.offset(k);
+            geometry.band(
+                scene.band(k),
+                &fine_mask,
+                &row_interp,
+                &col_interp,
+                (dc * s as f64, dr * s as f64),
+                &kernels[k],
+                buf,
+            )
+        })
         .collect();
     // summed in band order: the same result for every thread count
     let mut y = Frame::zeros(det_rows, det_cols);
@@ -481,7 +480,10 @@ impl Geometry {
             }
             // the scene at this fine row, then at each fine centre, masked
             let (i0, i1, w) = row_interp.taps[fr];
-            let (a, b) = (&band[i0 * self.cols..][..self.cols], &band[i1 * self.cols..][..self.cols]);
+            let (a, b) = (
+                &band[i0 * self.cols..][..self.cols],
+                &band[i1 * self.cols..][..self.cols],
+            );
             for ((o, &x0), &x1) in buf.scene_row.iter_mut().zip(a).zip(b) {
                 *o = if w == 0.0 { x0 } else { x0 + w * (x1 - x0) };
             }
@@ -569,8 +571,7 @@ mod tests {
                 .map(|i| {
                     let (k, r, c) = (i / (rows * cols), i / cols % rows, i % cols);
                     0.5 + 0.3
-                        * ((r as f32 * 0.37 + k as f32 * 0.3).sin()
-                            * (c as f32 * 0.23 + 0.1).cos())
+                        * ((r as f32 * 0.37 + k as f32 * 0.3).sin() * (c as f32 * 0.23 + 0.1).cos())
                 })
                 .collect(),
         )
@@ -608,7 +609,11 @@ mod tests {
             .zip(b.as_slice())
             .map(|(x, y)| (x - y).abs() as f64)
             .fold(0.0, f64::max);
-        d / b.as_slice().iter().map(|v| v.abs() as f64).fold(0.0, f64::max)
+        d / b
+            .as_slice()
+            .iter()
+            .map(|v| v.abs() as f64)
+            .fold(0.0, f64::max)
     }
 
     fn norm_diff(a: &Frame, b: &Frame) -> f64 {
@@ -681,8 +686,8 @@ mod tests {
             mismatch(0.0, 0.0, 0.0, 2.04, 0.5),
         ] {
             let ours = simulate_physical(&scene, &mask, &wl, &m, &spec(1, 0.0), None).unwrap();
-            let op = CassiOperator::with_mismatch(&mask, bands, &m, DispersionModel::Subpixel)
-                .unwrap();
+            let op =
+                CassiOperator::with_mismatch(&mask, bands, &m, DispersionModel::Subpixel).unwrap();
             let theirs = op.forward(&scene).unwrap();
             let rel = rel_max(&ours, &theirs);
             assert!(rel <= 1e-6, "{m:?}: {rel}");
@@ -776,9 +781,16 @@ mod tests {
         // goes to (col, row) = (7 + 2 cos 30°, 7 + 2 sin 30°) = (8.73, 8.0)
         let y = single_pixel_shot(&mismatch(0.0, 0.0, 30.0, 2.0, 0.0), 0.0);
         let (r, c) = centroid(&y);
-        assert!((r - 8.0).abs() < 0.05 && (c - 8.732).abs() < 0.05, "{r} {c}");
+        assert!(
+            (r - 8.0).abs() < 0.05 && (c - 8.732).abs() < 0.05,
+            "{r} {c}"
+        );
         // a turned square is area-integrated to within one of its 16 fine samples
-        assert!((total(&y) - 1.0).abs() <= 1.0 / 16.0 + 1e-6, "{}", total(&y));
+        assert!(
+            (total(&y) - 1.0).abs() <= 1.0 / 16.0 + 1e-6,
+            "{}",
+            total(&y)
+        );
     }
 
     #[test]
@@ -807,7 +819,11 @@ mod tests {
             None,
         )
         .unwrap();
-        assert!(total(&edge) < 0.95 && total(&edge) > 0.5, "{}", total(&edge));
+        assert!(
+            total(&edge) < 0.95 && total(&edge) > 0.5,
+            "{}",
+            total(&edge)
+        );
     }
 
     /// A point source in band k only, all mask pixels open: the light's
@@ -830,12 +846,14 @@ mod tests {
             let a = f64::to_radians(alpha);
             let (r, c) = centroid(&y);
             let (er, ec) = (6.0 + a1 * k as f64 * a.sin(), 8.0 + a1 * k as f64 * a.cos());
-            assert!((r - er).abs() < 1e-4 && (c - ec).abs() < 1e-4, "{a1} {alpha}: {r} {c}");
+            assert!(
+                (r - er).abs() < 1e-4 && (c - ec).abs() < 1e-4,
+                "{a1} {alpha}: {r} {c}"
+            );
             assert!((total(&y) - 1.0).abs() < 1e-5);
             // with blur too (σ 0.5 px, far from the edges)
-            let yb =
-                simulate_physical(&scene, &mask, &wavelengths(bands), &m, &spec(4, 0.5), None)
-                    .unwrap();
+            let yb = simulate_physical(&scene, &mask, &wavelengths(bands), &m, &spec(4, 0.5), None)
+                .unwrap();
             let (rb, cb) = centroid(&yb);
             assert!((rb - er).abs() < 1e-4 && (cb - ec).abs() < 1e-4);
             assert!((total(&yb) - 1.0).abs() < 1e-5);
@@ -927,7 +945,10 @@ mod tests {
             for (&v, &c) in q.as_slice().iter().zip(clean.as_slice()) {
                 let level = v / step;
                 assert!((level - level.round()).abs() < 1e-3, "{bits}: {v}");
-                assert!((v - c).abs() <= 0.5 * step * (1.0 + 1e-4), "{bits}: {v} vs {c}");
+                assert!(
+                    (v - c).abs() <= 0.5 * step * (1.0 + 1e-4),
+                    "{bits}: {v} vs {c}"
+                );
             }
             assert!((q.max() - top).abs() <= 1e-6 * top);
         }
@@ -975,7 +996,10 @@ mod tests {
             detector: Some((4, 40_000_000)),
             ..Default::default()
         });
-        assert!(e.contains("too large") && e.contains("fine band frame"), "{e}");
+        assert!(
+            e.contains("too large") && e.contains("fine band frame"),
+            "{e}"
+        );
         assert!(run(spec(0, 0.0)).contains("oversample"));
         assert!(run(spec(2, -0.1)).contains("blur_sigma_px"));
         assert!(run(spec(2, f64::NAN)).contains("blur_sigma_px"));
@@ -1042,8 +1066,7 @@ mod tests {
             adc_bits: Some(12),
             ..Default::default()
         };
-        let back: PhysicalSpec =
-            serde_json::from_str(&serde_json::to_string(&s).unwrap()).unwrap();
+        let back: PhysicalSpec = serde_json::from_str(&serde_json::to_string(&s).unwrap()).unwrap();
         assert_eq!(back, s);
     }
 }
