@@ -4,7 +4,7 @@
 use std::path::{Path, PathBuf};
 
 use cassi_core::Instrument;
-use cassi_core::optics::SimulationSpec;
+use cassi_core::optics::{PhysicalSpec, SimulationSpec};
 use serde::{Deserialize, Serialize};
 
 /// Where an input array came from.
@@ -51,6 +51,12 @@ pub struct SimulationRecord {
     pub instrument: Instrument,
     /// The true instrument and the noise.
     pub simulation: SimulationSpec,
+    /// Present when the measurement came from the physical (oversampled)
+    /// instrument (`cassi simulate --oversample`): its grid, blur, detector
+    /// and ADC. `simulation.model` then only names the S = 1 limit
+    /// (subpixel). Absent in sidecars from the discrete models.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub physical: Option<PhysicalSpec>,
     pub measurement: MeasurementInfo,
 }
 
@@ -70,4 +76,39 @@ pub fn existing_sidecar(measurement: &Path) -> Option<PathBuf> {
     let text = std::fs::read_to_string(&path).ok()?;
     let v: serde_json::Value = serde_json::from_str(&text).ok()?;
     (v.get("simulation").is_some() && v.get("measurement").is_some()).then_some(path)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A sidecar written before the physical instrument existed still parses
+    /// (no `physical`), and a physical one round-trips.
+    #[test]
+    fn old_sidecars_parse_and_physical_ones_round_trip() {
+        let old = r#"{
+          "cassi_version": "0.1.0",
+          "scene": {"kind": "synthetic", "seed": 0, "rows": 8, "cols": 8, "bands": 2},
+          "mask": {"kind": "random", "seed": 1, "open_fraction": 0.5, "rows": 8, "cols": 8},
+          "instrument": {"bands": 2, "stride": 2.0, "wavelengths_nm": [450.0, 650.0]},
+          "simulation": {
+            "mismatch": {"dx": 0.0, "dy": 0.0, "theta_deg": 0.0, "a1": 2.0, "alpha_deg": 0.0},
+            "model": "rounded",
+            "noise": {"photon_peak": 100000.0, "read_noise": 0.01, "seed": 0}
+          },
+          "measurement": {"path": "m.npy", "shape": [8, 10], "min": 0.0, "max": 1.0}
+        }"#;
+        let mut record: SimulationRecord = serde_json::from_str(old).unwrap();
+        assert!(record.physical.is_none());
+        assert!(!serde_json::to_string(&record).unwrap().contains("physical"));
+        record.physical = Some(PhysicalSpec {
+            oversample: 4,
+            blur_sigma_px: 0.5,
+            detector: Some((8, 11)),
+            ..Default::default()
+        });
+        let back: SimulationRecord =
+            serde_json::from_str(&serde_json::to_string(&record).unwrap()).unwrap();
+        assert_eq!(back.physical, record.physical);
+    }
 }

@@ -74,6 +74,7 @@ pub fn run(args: &DemoArgs, reporter: &Reporter) -> anyhow::Result<()> {
         },
         instrument,
         spec,
+        physical: None,
     };
     let meas_path = args.out.join("measurement.npy");
     let (measurement, record) = simulate_and_write(&inputs, &meas_path, true, reporter)?;

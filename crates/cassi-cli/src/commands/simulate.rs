@@ -2,10 +2,11 @@
 
 use std::path::{Path, PathBuf};
 
-use anyhow::Context;
+use anyhow::{Context, bail};
 use cassi_core::limits::check_elements;
 use cassi_core::optics::{
-    MaskCode, SimulationSpec, mask_code, simulate, validate_mismatch_for_mask,
+    DispersionModel, MaskCode, PhysicalSpec, SimulationSpec, mask_code, physical_detector_shape,
+    simulate, simulate_physical, validate_mismatch_for_mask,
 };
 use cassi_core::{Cube, Instrument, Mask, Measurement};
 use cassi_io::OutputSet;
@@ -30,12 +31,126 @@ pub struct SimulateArgs {
     pub mismatch: MismatchArgs,
     #[command(flatten)]
     pub noise: NoiseArgs,
+    #[command(flatten)]
+    pub physical: PhysicalArgs,
     /// Output measurement (.npy, .npz or .mat); a JSON sidecar goes beside it.
     #[arg(long, short)]
     pub output: PathBuf,
     /// Also write a 16-bit PNG preview of the measurement beside it.
     #[arg(long)]
     pub preview: bool,
+}
+
+/// The physical instrument (`--oversample` and what needs it).
+#[derive(Args)]
+pub struct PhysicalArgs {
+    /// Simulate the physical instrument on an N× finer grid (crisp mask
+    /// squares, the scene interpolated, continuous dispersion, blur, binning
+    /// to detector pixels) instead of a discrete --model (not with --model).
+    #[arg(long, value_name = "N", value_parser = parse_oversample, conflicts_with = "model",
+          allow_hyphen_values = true)]
+    pub oversample: Option<usize>,
+    /// Optical blur: Gaussian σ in detector pixels (at the middle wavelength
+    /// when --blur-slope is given).
+    #[arg(long, value_name = "SIGMA", requires = "oversample", value_parser = parse_blur,
+          allow_hyphen_values = true)]
+    pub blur: Option<f64>,
+    /// Wavelength-dependent blur: σ(λ) = SIGMA + S·(λ − λ_c), px per nm, λ_c
+    /// the middle of the band wavelengths' range.
+    #[arg(long, value_name = "S", requires = "oversample", allow_hyphen_values = true,
+          value_parser = parse_blur_slope)]
+    pub blur_slope: Option<f64>,
+    /// A fixed detector size (the real data's convention: the sensor crop is
+    /// fixed by the design, its origin at detector pixel (0, 0), and light
+    /// beyond it is lost). ROWS must be the mask's rows. Default: the mask's
+    /// rows × (W + ⌈max_k d_k⌉).
+    #[arg(long, value_name = "ROWSxCOLS", requires = "oversample", value_parser = parse_detector)]
+    pub detector: Option<(usize, usize)>,
+    /// Quantise the electron counts to 2^B levels of the full well (= the
+    /// photon peak, at the clean measurement's maximum): 1 … 24 bits.
+    #[arg(long, value_name = "B", requires = "oversample", value_parser = parse_adc_bits,
+          allow_hyphen_values = true)]
+    pub adc_bits: Option<u32>,
+}
+
+impl PhysicalArgs {
+    /// The physical spec, or `None` without `--oversample`.
+    pub fn spec(&self) -> anyhow::Result<Option<PhysicalSpec>> {
+        let Some(oversample) = self.oversample else {
+            return Ok(None);
+        };
+        let spec = PhysicalSpec {
+            oversample,
+            blur_sigma_px: self.blur.unwrap_or(0.0),
+            blur_slope_px_per_nm: self.blur_slope.unwrap_or(0.0),
+            detector: self.detector,
+            adc_bits: self.adc_bits,
+        };
+        spec.validate().context("physical instrument")?;
+        Ok(Some(spec))
+    }
+}
+
+/// `--oversample`: a whole number ≥ 1.
+fn parse_oversample(text: &str) -> Result<usize, String> {
+    match text.parse::<usize>() {
+        Ok(n) if n >= 1 => Ok(n),
+        _ => Err(format!(
+            "'{text}': expected a whole number ≥ 1 of fine grid points per detector pixel \
+             (benchmarks use 4)"
+        )),
+    }
+}
+
+/// `--blur`: σ in detector pixels, finite, 0 … 100.
+fn parse_blur(text: &str) -> Result<f64, String> {
+    match text.parse::<f64>() {
+        Ok(v)
+            if v.is_finite()
+                && (0.0..=cassi_core::optics::physical::MAX_BLUR_SIGMA_PX).contains(&v) =>
+        {
+            Ok(v)
+        }
+        _ => Err(format!(
+            "'{text}': expected a blur σ in detector pixels, 0 … {}",
+            cassi_core::optics::physical::MAX_BLUR_SIGMA_PX
+        )),
+    }
+}
+
+/// `--blur-slope`: a finite number of px per nm.
+fn parse_blur_slope(text: &str) -> Result<f64, String> {
+    match text.parse::<f64>() {
+        Ok(v) if v.is_finite() => Ok(v),
+        _ => Err(format!("'{text}': expected a finite slope in px per nm")),
+    }
+}
+
+/// `--detector ROWSxCOLS`, both ≥ 1.
+pub fn parse_detector(text: &str) -> Result<(usize, usize), String> {
+    let parsed = text.split_once(['x', 'X', '×']).and_then(|(r, c)| {
+        Some((
+            r.trim().parse::<usize>().ok()?,
+            c.trim().parse::<usize>().ok()?,
+        ))
+    });
+    match parsed {
+        Some((r, c)) if r >= 1 && c >= 1 => Ok((r, c)),
+        _ => Err(format!(
+            "--detector: expected ROWSxCOLS (two whole numbers ≥ 1, e.g. 256x310), got '{text}'"
+        )),
+    }
+}
+
+/// `--adc-bits`: 1 … 24.
+fn parse_adc_bits(text: &str) -> Result<u32, String> {
+    let max = cassi_core::optics::physical::MAX_ADC_BITS;
+    match text.parse::<u32>() {
+        Ok(b) if (1..=max).contains(&b) => Ok(b),
+        _ => Err(format!(
+            "'{text}': expected a whole number of bits, 1 … {max}"
+        )),
+    }
 }
 
 /// The inputs of one simulation, already loaded.
@@ -46,6 +161,9 @@ pub struct SimulationInputs {
     pub mask_source: Source,
     pub instrument: Instrument,
     pub spec: SimulationSpec,
+    /// `Some`: the physical instrument ([`simulate_physical`]) with
+    /// `spec.mismatch` and `spec.noise`; `spec.model` is not used.
+    pub physical: Option<PhysicalSpec>,
 }
 
 /// Simulates and writes the measurement, its sidecar and (optionally) a PNG
@@ -59,7 +177,17 @@ pub fn simulate_and_write(
     reporter: &Reporter,
 ) -> anyhow::Result<(Measurement, SimulationRecord)> {
     let measurement = reporter.stage("simulating the measurement", || {
-        Ok(simulate(&inputs.scene, &inputs.mask, &inputs.spec)?)
+        Ok(match &inputs.physical {
+            None => simulate(&inputs.scene, &inputs.mask, &inputs.spec)?,
+            Some(physical) => simulate_physical(
+                &inputs.scene,
+                &inputs.mask,
+                &inputs.instrument.wavelengths_nm,
+                &inputs.spec.mismatch,
+                physical,
+                inputs.spec.noise.as_ref(),
+            )?,
+        })
     })?;
     interrupt::check()?;
     let (min, max) = measurement.min_max();
@@ -69,6 +197,7 @@ pub fn simulate_and_write(
         mask: inputs.mask_source.clone(),
         instrument: inputs.instrument.clone(),
         simulation: inputs.spec,
+        physical: inputs.physical,
         measurement: MeasurementInfo {
             path: output.to_path_buf(),
             shape: [measurement.rows(), measurement.cols()],
@@ -116,9 +245,15 @@ pub fn run(args: &SimulateArgs, reporter: &Reporter) -> anyhow::Result<()> {
     let checked = set.check()?;
     // Parameters first: a typo should not cost a scene load.
     Instrument::with_bands(1, args.instrument.stride).context("--stride")?;
+    let physical = args.physical.spec()?;
     let spec = SimulationSpec {
         mismatch: args.mismatch.mismatch(args.instrument.stride)?,
-        model: args.mismatch.model,
+        // the physical instrument's S = 1 limit is the subpixel model
+        model: if physical.is_some() {
+            DispersionModel::Subpixel
+        } else {
+            args.mismatch.model
+        },
         noise: args.noise.noise()?,
     };
     let (scene, scene_source) = reporter.stage("loading the scene", || load_scene(&args.scene))?;
@@ -150,6 +285,36 @@ pub fn run(args: &SimulateArgs, reporter: &Reporter) -> anyhow::Result<()> {
         &[mask.rows(), mask.cols() + reach.ceil() as usize + 1],
         &format!("{} bands at a1 {}", scene.bands(), spec.mismatch.a1),
     )?;
+    if let Some(physical) = &physical {
+        physical
+            .blur_sigmas(&instrument.wavelengths_nm)
+            .context("--blur/--blur-slope")?;
+        if let Some((rows, cols)) = physical.detector {
+            if rows != mask.rows() {
+                bail!(
+                    "--detector {rows}x{cols}: the detector has the mask's {} rows (calibrate and \
+                     reconstruct read measurements with the mask's rows); only its width may \
+                     differ from the default",
+                    mask.rows()
+                );
+            }
+            check_elements("the measurement", &[rows, cols], "from --detector")?;
+        }
+        let (rows, cols) = physical_detector_shape(
+            mask.rows(),
+            mask.cols(),
+            scene.bands(),
+            &spec.mismatch,
+            physical,
+        )?;
+        if cols < mask.cols() {
+            reporter.warn(&format!(
+                "--detector {rows}x{cols} is narrower than the mask ({} columns): the light of \
+                 the mask's right-hand columns is lost even in band 0",
+                mask.cols()
+            ));
+        }
+    }
     let inputs = SimulationInputs {
         scene,
         scene_source,
@@ -157,6 +322,7 @@ pub fn run(args: &SimulateArgs, reporter: &Reporter) -> anyhow::Result<()> {
         mask_source,
         instrument,
         spec,
+        physical,
     };
     let staging = checked.begin()?;
     let (measurement, record) = simulate_and_write(&inputs, &args.output, args.preview, reporter)?;

@@ -6,6 +6,7 @@ pub mod dispersion;
 pub mod input_checks;
 pub mod noise;
 pub mod operator;
+pub mod physical;
 pub mod simulate;
 pub mod warp;
 
@@ -14,5 +15,8 @@ pub use dispersion::{Dispersion, DispersionModel, Tap};
 pub use input_checks::{MaskCode, mask_code, validate_measurement, validate_mismatch_for_mask};
 pub use noise::NoiseModel;
 pub use operator::{CassiOperator, validate_mask};
+pub use physical::{
+    PhysicalSpec, physical_detector_shape, quantise_adc, simulate_physical, simulate_physical_clean,
+};
 pub use simulate::{SimulationSpec, simulate, simulate_oversampled};
 pub use warp::{WarpWithDerivatives, warp_mask, warp_mask_with_derivatives};

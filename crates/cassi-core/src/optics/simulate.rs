@@ -37,6 +37,13 @@ pub fn simulate(scene: &Cube, nominal_mask: &Mask, spec: &SimulationSpec) -> Res
 /// detector binned back by averaging. The result has the shape `simulate`
 /// gives, yet was not made by the operator a reconstruction uses: an
 /// evaluation with the true parameters is then not an inverse crime.
+///
+/// This is the older, simpler 2× study model (block-replicated scene, the
+/// bilinearly warped block mask, the discrete `model` on the fine grid) that
+/// `cassi-eval`'s subpixel study uses; it is kept as it is so that study's
+/// numbers stay comparable. The physical instrument (crisp mask squares,
+/// interpolated scene, blur, a fixed detector, ADC) is
+/// [`super::physical::simulate_physical`].
 pub fn simulate_oversampled(
     scene: &Cube,
     nominal_mask: &Mask,

@@ -1,0 +1,198 @@
+//! `cassi simulate --oversample`: the physical instrument from the command
+//! line — shape, sidecar, the library's numbers, and clear refusals.
+
+use std::path::PathBuf;
+
+use cassi_core::optics::{NoiseModel, PhysicalSpec, simulate_physical};
+use cassi_core::synth::{SceneSpec, random_binary_mask, synthetic_scene};
+use cassi_core::{Instrument, Mismatch};
+use common::{assert_fails, cassi, ok, s};
+
+mod common;
+
+fn scratch(name: &str) -> PathBuf {
+    common::scratch("physical-tests", name)
+}
+
+const BASE: [&str; 10] = [
+    "simulate",
+    "--synthetic",
+    "--size",
+    "32",
+    "--bands",
+    "4",
+    "--random-mask",
+    "--mask-seed",
+    "2",
+    "--quiet",
+];
+
+fn args<'a>(extra: &[&'a str]) -> Vec<&'a str> {
+    BASE.iter().copied().chain(extra.iter().copied()).collect()
+}
+
+#[test]
+fn oversampled_simulation_has_the_fixed_detector_and_a_full_sidecar() {
+    let dir = scratch("physical");
+    let meas = dir.join("phys.npy");
+    let mismatch = [
+        "--dx", "0.4", "--dy", "-0.3", "--theta", "0.2", "--a1", "2.05",
+    ];
+    let physical = [
+        "--oversample",
+        "4",
+        "--blur",
+        "0.5",
+        "--blur-slope",
+        "0.001",
+        "--detector",
+        "32x40",
+        "--adc-bits",
+        "12",
+        "--photon-peak",
+        "20000",
+        "--read-noise",
+        "3",
+        "--noise-seed",
+        "5",
+    ];
+    let mut a = args(&mismatch);
+    a.extend(physical);
+    a.extend(["-o", s(&meas)]);
+    ok(&cassi(&a));
+    let y = cassi_io::load_frame(&meas, None).unwrap();
+    assert_eq!(y.shape(), (32, 40));
+
+    // the sidecar records the physical instrument, the mismatch and the noise
+    let sidecar: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("phys.json")).unwrap()).unwrap();
+    let spec: PhysicalSpec = serde_json::from_value(sidecar["physical"].clone()).unwrap();
+    assert_eq!(
+        spec,
+        PhysicalSpec {
+            oversample: 4,
+            blur_sigma_px: 0.5,
+            blur_slope_px_per_nm: 0.001,
+            detector: Some((32, 40)),
+            adc_bits: Some(12),
+        }
+    );
+    assert_eq!(sidecar["measurement"]["shape"], serde_json::json!([32, 40]));
+    assert_eq!(sidecar["simulation"]["mismatch"]["dx"], 0.4);
+    assert_eq!(sidecar["simulation"]["noise"]["read_noise"], 3.0);
+    assert_eq!(sidecar["simulation"]["model"], "subpixel");
+
+    // exactly the library's numbers
+    let instrument = Instrument::with_bands(4, 2.0).unwrap();
+    let scene = synthetic_scene(&SceneSpec {
+        rows: 32,
+        cols: 32,
+        wavelengths_nm: instrument.wavelengths_nm.clone(),
+        seed: 0,
+    })
+    .unwrap();
+    let mask = random_binary_mask(32, 32, 0.5, 2).unwrap();
+    let m = Mismatch {
+        dx: 0.4,
+        dy: -0.3,
+        theta_deg: 0.2,
+        a1: 2.05,
+        alpha_deg: 0.0,
+    };
+    let noise = NoiseModel {
+        photon_peak: Some(20000.0),
+        read_noise: 3.0,
+        seed: 5,
+    };
+    let want = simulate_physical(
+        &scene,
+        &mask,
+        &instrument.wavelengths_nm,
+        &m,
+        &spec,
+        Some(&noise),
+    )
+    .unwrap();
+    assert_eq!(y, want);
+
+    // not the discrete measurement of the same instrument
+    let discrete = dir.join("discrete.npy");
+    let mut a = args(&mismatch);
+    a.extend([
+        "--model",
+        "subpixel",
+        "--photon-peak",
+        "20000",
+        "--read-noise",
+        "3",
+        "--noise-seed",
+        "5",
+        "-o",
+        s(&discrete),
+    ]);
+    ok(&cassi(&a));
+    let d = cassi_io::load_frame(&discrete, None).unwrap();
+    assert_eq!(d.shape(), (32, 39), "the discrete default detector");
+    let (mut diff, mut energy) = (0.0f64, 0.0f64);
+    for r in 0..32 {
+        for c in 0..39 {
+            diff += ((y.get(r, c) - d.get(r, c)) as f64).powi(2);
+            energy += (d.get(r, c) as f64).powi(2);
+        }
+    }
+    let rel = (diff / energy).sqrt();
+    assert!(
+        rel > 0.02,
+        "physical vs discrete: relative difference {rel}"
+    );
+    // the sidecar of a discrete simulation has no physical record
+    let sidecar: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("discrete.json")).unwrap()).unwrap();
+    assert!(sidecar.get("physical").is_none());
+}
+
+#[test]
+fn physical_flags_are_checked_and_name_themselves() {
+    let dir = scratch("refusals");
+    let out = dir.join("x.npy");
+    let o = s(&out);
+    // parse errors (clap: exit code 2) name the flag
+    for (extra, needle) in [
+        (
+            vec!["--oversample", "4", "--detector", "256x"],
+            "--detector",
+        ),
+        (
+            vec!["--oversample", "4", "--detector", "256x"],
+            "expected ROWSxCOLS",
+        ),
+        (vec!["--oversample", "0"], "--oversample"),
+        (vec!["--oversample", "2", "--blur", "-1"], "--blur"),
+        (vec!["--oversample", "2", "--adc-bits", "40"], "--adc-bits"),
+        (vec!["--blur", "0.5"], "--oversample"),
+        (vec!["--oversample", "4", "--model", "rounded"], "--model"),
+    ] {
+        let mut a = args(&extra);
+        a.extend(["-o", o]);
+        let run = cassi(&a);
+        let stderr = String::from_utf8_lossy(&run.stderr);
+        assert_eq!(run.status.code(), Some(2), "{extra:?}: {stderr}");
+        assert!(stderr.contains(needle), "{extra:?}: {stderr}");
+        assert!(!out.exists());
+    }
+    // checks after loading (exit code 1)
+    let mut a = args(&["--oversample", "4", "--detector", "30x40", "-o", o]);
+    a.retain(|x| *x != "--quiet");
+    assert_fails(&a, &["--detector 30x40", "32 rows"], &out);
+    let a = args(&[
+        "--oversample",
+        "4",
+        "--blur",
+        "0.2",
+        "--blur-slope",
+        "0.01",
+        "-o",
+        o,
+    ]);
+    assert_fails(&a, &["blur_slope", "band 0"], &out);
+}
