@@ -26,6 +26,6 @@ pub use cube::{Cube, Frame, Mask, Measurement};
 pub use denoise::Denoiser;
 pub use error::{CassiError, Result};
 pub use instrument::{Instrument, STANDARD_WAVELENGTHS_NM};
-pub use linop::{LinearOperator, adjoint_mismatch};
+pub use linop::{AatNormaliser, LinearOperator, NormaliserKind, adjoint_mismatch};
 pub use params::{DispersionParams, MaskPose, Mismatch};
 pub use rng::Rng;

@@ -7,7 +7,7 @@ use super::dispersion::{Dispersion, DispersionModel};
 use super::warp::warp_mask;
 use crate::cube::{Cube, Frame, Mask, Measurement};
 use crate::error::{CassiError, Result, shape_error};
-use crate::linop::LinearOperator;
+use crate::linop::{AatNormaliser, LinearOperator, NormaliserKind};
 use crate::params::Mismatch;
 
 /// Tolerance on the [0, 1] mask range (stored masks carry rounding noise).
@@ -210,6 +210,34 @@ impl LinearOperator for CassiOperator {
 
     fn diag_aat(&self) -> Option<Vec<f32>> {
         Some(CassiOperator::diag_aat(self).into_vec())
+    }
+
+    /// diag(A Aᵀ), [`NormaliserKind::Exact`], when every band lands on one
+    /// detector pixel per cube pixel (the rounded model, or subpixel offsets
+    /// that happen to be integers): each column of A has one non-zero, so
+    /// A Aᵀ is diagonal. Otherwise (split taps, A Aᵀ couples neighbouring
+    /// detector pixels) the row sums Φ = A Aᵀ 𝟙 = A (Aᵀ 𝟙), one adjoint and
+    /// one apply: A ≥ 0 (mask and tap weights), so Φ − A Aᵀ is diagonally
+    /// dominant with a non-negative diagonal and Φ ⪰ A Aᵀ (Gershgorin), a
+    /// [`NormaliserKind::Majoriser`]. (For the exact case A Aᵀ 𝟙 would be
+    /// the same diagonal up to summation order; diag(A Aᵀ) keeps rounded
+    /// reconstructions bit-identical to before.)
+    fn aat_normaliser(&self) -> Option<AatNormaliser> {
+        let exact = (0..self.bands()).all(|k| self.dispersion.taps(k).len() <= 1);
+        if exact {
+            return Some(AatNormaliser {
+                phi: CassiOperator::diag_aat(self).into_vec(),
+                kind: NormaliserKind::Exact,
+            });
+        }
+        let mut back = vec![0.0f32; self.domain_len()];
+        self.adjoint(&vec![1.0f32; self.range_len()], &mut back);
+        let mut phi = vec![0.0f32; self.range_len()];
+        self.apply(&back, &mut phi);
+        Some(AatNormaliser {
+            phi,
+            kind: NormaliserKind::Majoriser,
+        })
     }
 
     fn apply(&self, x: &[f32], y: &mut [f32]) {
