@@ -44,7 +44,7 @@ fn mean(v: &[f64]) -> f64 {
 
 fn main() -> anyhow::Result<()> {
     let data = shared_data();
-    let mask = cassi_io::load_frame(&data.join("masks/tsa_simu_mask256.mat"), Some("mask"))?;
+    let mask = cassi_io::load_frame(data.join("masks/tsa_simu_mask256.mat"), Some("mask"))?;
     let mut scenes: Vec<PathBuf> = std::fs::read_dir(data.join("scenes"))
         .with_context(|| format!("{}: the CAVE scenes are needed", data.display()))?
         .filter_map(|e| e.ok().map(|e| e.path()))
