@@ -43,6 +43,9 @@ fn with_projection(nonnegative: bool) -> anyhow::Result<Method> {
     Ok(m)
 }
 
+/// Voxels darker than this (in the truth) count as dark.
+const DARK: f32 = 0.05;
+
 fn mean(v: &[f64]) -> f64 {
     v.iter().sum::<f64>() / v.len().max(1) as f64
 }
@@ -69,6 +72,8 @@ fn main() -> anyhow::Result<()> {
     let mut rows = Vec::new();
     // psnr[variant][setting][scene]
     let mut table = vec![vec![Vec::new(); SETTINGS.len()]; variants.len()];
+    // [dark share of the MSE, bright share, mean signed error on dark voxels]
+    let mut errors = vec![vec![Vec::<[f64; 3]>::new(); SETTINGS.len()]; variants.len()];
     let t0 = Instant::now();
     for (si, path) in scenes.iter().enumerate() {
         let name = path
@@ -127,9 +132,30 @@ fn main() -> anyhow::Result<()> {
             let method = with_projection(*nonneg)?;
             for (ci, (y, model_params, model)) in cases.iter().enumerate() {
                 let r = reconstruct(y, &mask, bands, model_params, *model, &method, &mut Silent)?;
-                let p = psnr(&truth, &r.cube.clipped_to_unit())?;
+                let est = r.cube.clipped_to_unit();
+                let p = psnr(&truth, &est)?;
                 table[vi][ci].push(p);
                 entry[SETTINGS[ci]][*vname] = serde_json::json!(p);
+                // where the error sits: dark voxels (truth < DARK), where the
+                // clamp at 0 acts, against the rest; mean signed error there
+                let (mut dark, mut bright) = ((0.0f64, 0.0f64, 0usize), (0.0f64, 0usize));
+                for (&t, &e) in truth.as_slice().iter().zip(est.as_slice()) {
+                    let d = (e - t) as f64;
+                    if t < DARK {
+                        dark.0 += d * d;
+                        dark.1 += d;
+                        dark.2 += 1;
+                    } else {
+                        bright.0 += d * d;
+                        bright.1 += 1;
+                    }
+                }
+                let n_all = (dark.2 + bright.1).max(1) as f64;
+                errors[vi][ci].push([
+                    dark.0 / n_all,
+                    bright.0 / n_all,
+                    dark.1 / dark.2.max(1) as f64,
+                ]);
                 eprintln!(
                     "{name:<28} {:<20} {vname:<14} {p:7.3} dB  ({:.0} s)",
                     SETTINGS[ci],
@@ -163,6 +189,29 @@ fn main() -> anyhow::Result<()> {
     let (tune, tune_overall) = summary(0..half);
     let (held_out, _) = summary(half..n);
     let keep_projection = tune_overall[0] >= tune_overall[1];
+    // the error split over all 10 scenes, per variant and setting
+    let mut error_split = serde_json::json!({});
+    for (vi, (vname, _)) in variants.iter().enumerate() {
+        for (ci, setting) in SETTINGS.iter().enumerate() {
+            let e = &errors[vi][ci];
+            let m = |k: usize| mean(&e.iter().map(|v| v[k]).collect::<Vec<_>>());
+            error_split[*setting][*vname] = serde_json::json!({
+                "mse_on_dark_voxels": m(0),
+                "mse_on_other_voxels": m(1),
+                "mean_signed_error_on_dark_voxels": m(2),
+            });
+        }
+    }
+    // how much of the MSE the projection adds sits off the dark voxels
+    for setting in SETTINGS {
+        let g = |v: &str, k: &str| error_split[setting][v][k].as_f64().unwrap_or(f64::NAN);
+        let d_dark =
+            g("projection", "mse_on_dark_voxels") - g("no_projection", "mse_on_dark_voxels");
+        let d_other =
+            g("projection", "mse_on_other_voxels") - g("no_projection", "mse_on_other_voxels");
+        error_split[setting]["share_of_the_projection_mse_change_on_other_voxels"] =
+            serde_json::json!(d_other / (d_dark + d_other));
+    }
     let decision = if keep_projection {
         "keep the x ≥ 0 projection inside the iterations (better mean PSNR on the tuning half)"
     } else {
@@ -183,8 +232,13 @@ fn main() -> anyhow::Result<()> {
         },
         "scenes": rows,
         "tune_mean_psnr": tune,
+        "error_split_all_scenes": {
+            "what": "MSE contributions (summed over voxels, divided by all voxels) of voxels with truth < 0.05 and of the rest, and the mean signed error (estimate clipped to [0, 1] minus truth) on those dark voxels; means over the 10 scenes",
+            "values": error_split,
+        },
         "held_out_mean_psnr": held_out,
         "decision": decision,
+        "reason": "measured: without the projection the mean PSNR is higher on the tuning half (and on the held-out half), in every setting with the right model; only with the nominal model on a mismatched measurement does the projection keep a 0.1-0.3 dB edge. Where: most of the MSE the projection adds sits on voxels with truth ≥ 0.05, not on the dark voxels it clamps (error_split_all_scenes), and it raises the dark voxels' positive bias. Our reading (not separately tested): clamping negatives raises each band's sum along a dispersion line, and the next data step takes that light back from the brighter voxels sharing the same detector pixels.",
         "keep_projection": keep_projection,
         "seconds": t0.elapsed().as_secs_f64(),
         "machine": Machine::this(),
