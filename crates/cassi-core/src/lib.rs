@@ -26,6 +26,9 @@ pub use cube::{Cube, Frame, Mask, Measurement};
 pub use denoise::Denoiser;
 pub use error::{CassiError, Result};
 pub use instrument::{Instrument, STANDARD_WAVELENGTHS_NM};
-pub use linop::{LinearOperator, adjoint_mismatch};
+pub use linop::{
+    AatNormaliser, LinearOperator, NonNegativeOperator, NormaliserKind, adjoint_mismatch,
+    row_sum_majoriser,
+};
 pub use params::{DispersionParams, MaskPose, Mismatch, Parameter};
 pub use rng::Rng;

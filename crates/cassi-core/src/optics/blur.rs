@@ -15,7 +15,7 @@ use std::sync::Mutex;
 use rayon::prelude::*;
 
 use crate::error::{CassiError, Result};
-use crate::linop::LinearOperator;
+use crate::linop::{AatNormaliser, LinearOperator, NonNegativeOperator, row_sum_majoriser};
 
 /// The widest blur accepted, detector pixels: beyond it a CASSI image holds
 /// no code worth calibrating.
@@ -156,8 +156,9 @@ fn kernel(sigma: f64) -> (Vec<f32>, Vec<f32>) {
     (taps, dtaps)
 }
 
-/// y = B(σ) A x: any operator whose range is a `rows × cols` frame, followed
-/// by the optical blur.
+/// y = B(σ) A x: a non-negative operator whose range is a `rows × cols`
+/// frame, followed by the optical blur. B and A are both non-negative, so
+/// the solvers' normaliser is the row-sum majoriser B A Aᵀ B 𝟙.
 pub struct Blurred<A> {
     inner: A,
     blur: GaussianBlur,
@@ -166,7 +167,7 @@ pub struct Blurred<A> {
     scratch: Mutex<(Vec<f32>, Vec<f32>, Vec<f32>)>,
 }
 
-impl<A: LinearOperator> Blurred<A> {
+impl<A: NonNegativeOperator> Blurred<A> {
     /// `inner` followed by a blur of `sigma_px` on its `rows × cols` range.
     pub fn new(inner: A, sigma_px: f64, rows: usize, cols: usize) -> Result<Self> {
         if rows * cols != inner.range_len() {
@@ -201,7 +202,9 @@ impl<A: LinearOperator> Blurred<A> {
     }
 }
 
-impl<A: LinearOperator> LinearOperator for Blurred<A> {
+impl<A: NonNegativeOperator> NonNegativeOperator for Blurred<A> {}
+
+impl<A: NonNegativeOperator> LinearOperator for Blurred<A> {
     fn domain_len(&self) -> usize {
         self.inner.domain_len()
     }
@@ -215,6 +218,10 @@ impl<A: LinearOperator> LinearOperator for Blurred<A> {
         let (ax, tmp, _) = &mut *guard;
         self.inner.apply(x, ax);
         self.blur.apply(ax, y, tmp);
+    }
+
+    fn aat_normaliser(&self) -> Option<AatNormaliser> {
+        Some(row_sum_majoriser(self))
     }
 
     fn adjoint(&self, y: &[f32], x: &mut [f32]) {

@@ -7,7 +7,9 @@ use super::dispersion::{Dispersion, DispersionModel};
 use super::warp::warp_mask;
 use crate::cube::{Cube, Frame, Mask, Measurement};
 use crate::error::{CassiError, Result, shape_error};
-use crate::linop::LinearOperator;
+use crate::linop::{
+    AatNormaliser, LinearOperator, NonNegativeOperator, NormaliserKind, row_sum_majoriser,
+};
 use crate::params::Mismatch;
 
 /// Tolerance on the [0, 1] mask range (stored masks carry rounding noise).
@@ -197,6 +199,9 @@ fn shifted_row(r: usize, offset: i32, rows: usize) -> Option<usize> {
     (yr >= 0 && (yr as usize) < rows).then_some(yr as usize)
 }
 
+/// Mask transmissions and tap weights are ≥ 0.
+impl NonNegativeOperator for CassiOperator {}
+
 impl LinearOperator for CassiOperator {
     fn domain_len(&self) -> usize {
         let (l, h, w) = self.cube_shape();
@@ -210,6 +215,27 @@ impl LinearOperator for CassiOperator {
 
     fn diag_aat(&self) -> Option<Vec<f32>> {
         Some(CassiOperator::diag_aat(self).into_vec())
+    }
+
+    /// diag(A Aᵀ), [`NormaliserKind::Exact`], when every band lands on one
+    /// detector pixel per cube pixel (the rounded model, or subpixel offsets
+    /// that happen to be integers): each column of A has one non-zero, so
+    /// A Aᵀ is diagonal. Otherwise (split taps, A Aᵀ couples neighbouring
+    /// detector pixels) the row sums Φ = A Aᵀ 𝟙 = A (Aᵀ 𝟙), one adjoint and
+    /// one apply: A ≥ 0 (mask and tap weights), so Φ − A Aᵀ is diagonally
+    /// dominant with a non-negative diagonal and Φ ⪰ A Aᵀ (Gershgorin), a
+    /// [`NormaliserKind::Majoriser`]. (For the exact case A Aᵀ 𝟙 would be
+    /// the same diagonal up to summation order; diag(A Aᵀ) keeps rounded
+    /// reconstructions bit-identical to before.)
+    fn aat_normaliser(&self) -> Option<AatNormaliser> {
+        let exact = (0..self.bands()).all(|k| self.dispersion.taps(k).len() <= 1);
+        if exact {
+            return Some(AatNormaliser {
+                phi: CassiOperator::diag_aat(self).into_vec(),
+                kind: NormaliserKind::Exact,
+            });
+        }
+        Some(row_sum_majoriser(self))
     }
 
     fn apply(&self, x: &[f32], y: &mut [f32]) {

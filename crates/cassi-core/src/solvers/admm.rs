@@ -1,14 +1,17 @@
 //! ADMM with any denoiser as the prior step (plug-and-play ADMM; Yuan et al.
 //! 2020), with the CASSI-friendly closed-form x-update.
 //!
-//! One iteration, with Φ = diag(A Aᵀ) and v = θ + b:
+//! One iteration, with Φ the operator's normaliser of A Aᵀ
+//! ([`crate::LinearOperator::aat_normaliser`]) and v = θ + b:
 //! ```text
-//! x ← v + Aᵀ((y − A v) / (Φ + γ))      (data consistency, exact for A Aᵀ diagonal)
+//! x ← v + τ Aᵀ((y − A v) / (Φ + γ))    (data consistency, exact for A Aᵀ diagonal)
 //! θ ← D(max(x − b, 0), λ_k)            (prior)
 //! b ← b − (x − θ)                      (dual update)
 //! ```
 //! starting from θ = Aᵀ y, b = 0; the answer is θ. ADMM-TV is this with a TV
-//! denoiser.
+//! denoiser. Φ = diag(A Aᵀ) (exact) or a majoriser A Aᵀ 𝟙 ⪰ A Aᵀ when
+//! dispersion taps split between pixels, τ = 1; τ is line-searched only for
+//! an operator that guarantees neither (see `DataStep` in `common.rs`).
 
 use std::time::Instant;
 
@@ -16,7 +19,9 @@ use serde::{Deserialize, Serialize};
 
 use rayon::prelude::*;
 
-use super::common::{CHUNK, check_stop, finish, lanes_dist_sq, lanes_dot, norm_sq, prepare};
+use super::common::{
+    CHUNK, DataStep, check_stop, finish, lanes_dist_sq, lanes_dot, norm_sq, prepare,
+};
 use super::observer::{IterationInfo, Observer};
 use super::schedule::Strength;
 use super::{Solution, StopReason};
@@ -84,8 +89,12 @@ impl Admm {
                 reason: "the ADMM penalty must be a positive number".into(),
             });
         }
-        let phi = prepare(op, y, shape, p.iterations, &p.strength, "ADMM")?;
-        let inv: Vec<f32> = phi.iter().map(|&d| 1.0 / (d + p.gamma)).collect();
+        let data_step = DataStep::admm(
+            prepare(op, y, shape, p.iterations, &p.strength, "ADMM")?,
+            p.gamma,
+        );
+        let inv = &data_step.inv;
+        let searched = data_step.line_search.is_some();
         let (m, n) = (op.range_len(), op.domain_len());
         self.y_hat.clear();
         self.y_hat.resize(m, 0.0);
@@ -116,15 +125,21 @@ impl Admm {
                         .for_each(|((v, &t), &b)| *v = t + b)
                 });
             op.apply(&self.x, &mut self.y_hat);
-            let mut res_sq = 0.0f64;
+            let (mut res_sq, mut r_dot_p, mut p_sq) = (0.0f64, 0.0f64, 0.0f64);
             for i in 0..m {
                 let e = y[i] - self.y_hat[i];
                 res_sq += e as f64 * e as f64;
-                self.residual[i] = e * inv[i];
+                let pi = e * inv[i];
+                self.residual[i] = pi;
+                if searched {
+                    r_dot_p += e as f64 * pi as f64;
+                    p_sq += pi as f64 * pi as f64;
+                }
             }
             let last_residual = res_sq.sqrt() / y_norm;
-            // x = v + Aᵀ r (the step lands in θ's storage first: θ_old = v − b)
+            // x = v + τ Aᵀ p (the step lands in θ's storage first: θ_old = v − b)
             op.adjoint(&self.residual, theta.as_mut_slice());
+            let tau = data_step.tau(r_dot_p, p_sq, theta.as_slice());
             let nonnegative = p.nonnegative;
             theta
                 .as_mut_slice()
@@ -133,7 +148,7 @@ impl Admm {
                 .zip(self.dual.par_chunks(CHUNK))
                 .for_each(|((t, x), b)| {
                     for ((t, xv), &b) in t.iter_mut().zip(x.iter_mut()).zip(b) {
-                        *xv += *t;
+                        *xv += tau * *t;
                         let input = *xv - b;
                         *t = if nonnegative { input.max(0.0) } else { input };
                     }

@@ -2,19 +2,27 @@
 //! denoiser as the prior step, plain or accelerated with Yuan's (2016)
 //! accumulated residual.
 //!
-//! One iteration, with Φ = diag(A Aᵀ):
+//! One iteration, with Φ the operator's normaliser of A Aᵀ
+//! ([`crate::LinearOperator::aat_normaliser`]):
 //! ```text
-//! plain:        x ← x + Aᵀ((y − A x) / Φ)
-//! accelerated:  y₁ ← y₁ + (y − A x);  x ← x + Aᵀ((y₁ − A x) / Φ)
+//! plain:        x ← x + τ Aᵀ((y − A x) / Φ)
+//! accelerated:  y₁ ← y₁ + (y − A x);  x ← x + τ Aᵀ((y₁ − A x) / Φ)
 //! then          x ← D(max(x, 0), λ_k)   (the clamp when `nonnegative`)
 //! ```
 //! starting from x = Aᵀ y, y₁ = 0. GAP-TV is this with a TV denoiser.
+//!
+//! Φ = diag(A Aᵀ) when A Aᵀ is diagonal (CASSI's rounded model: τ = 1 is the
+//! exact projection onto {A x = y}); the row sums A Aᵀ 𝟙 ⪰ A Aᵀ when it is
+//! not (the subpixel model's split taps: τ = 1, a relaxed projection that
+//! never overshoots); τ is line-searched only for an operator that
+//! guarantees neither. Why not the line search or diag(A Aᵀ) for split taps:
+//! see `DataStep` in `common.rs` (issue #13).
 
 use std::time::Instant;
 
 use serde::{Deserialize, Serialize};
 
-use super::common::{add_step, check_stop, finish, inverse_or_zero, norm_sq, prepare};
+use super::common::{DataStep, add_step, check_stop, finish, norm_sq, prepare};
 use super::observer::{IterationInfo, Observer};
 use super::schedule::Strength;
 use super::{Solution, StopReason};
@@ -79,8 +87,9 @@ impl Gap {
         observer: &mut dyn Observer,
     ) -> Result<Solution> {
         let p = self.params;
-        let phi = prepare(op, y, shape, p.iterations, &p.strength, "GAP")?;
-        let inv_phi = inverse_or_zero(&phi);
+        let data_step = DataStep::gap(prepare(op, y, shape, p.iterations, &p.strength, "GAP")?);
+        let inv_phi = &data_step.inv;
+        let searched = data_step.line_search.is_some();
         let (m, n) = (op.range_len(), op.domain_len());
         for buf in [&mut self.y_hat, &mut self.y_acc, &mut self.residual] {
             buf.clear();
@@ -98,7 +107,7 @@ impl Gap {
         let mut done = 0;
         for it in 0..p.iterations {
             op.apply(x.as_slice(), &mut self.y_hat);
-            let mut res_sq = 0.0f64;
+            let (mut res_sq, mut t_dot_p, mut p_sq) = (0.0f64, 0.0f64, 0.0f64);
             for i in 0..m {
                 let e = y[i] - self.y_hat[i];
                 res_sq += e as f64 * e as f64;
@@ -108,11 +117,17 @@ impl Gap {
                 } else {
                     e
                 };
-                self.residual[i] = target * inv_phi[i];
+                let pi = target * inv_phi[i];
+                self.residual[i] = pi;
+                if searched {
+                    t_dot_p += target as f64 * pi as f64;
+                    p_sq += pi as f64 * pi as f64;
+                }
             }
             let last_residual = res_sq.sqrt() / y_norm;
             op.adjoint(&self.residual, &mut self.step);
-            let (step_sq, x_sq) = add_step(x.as_mut_slice(), &self.step, p.nonnegative);
+            let tau = data_step.tau(t_dot_p, p_sq, &self.step);
+            let (step_sq, x_sq) = add_step(x.as_mut_slice(), &self.step, tau, p.nonnegative);
             denoiser.denoise(&mut x, p.strength.at(it, p.iterations));
             done = it + 1;
             let relative_step = step_sq.sqrt() / x_sq.sqrt().max(f64::MIN_POSITIVE);
