@@ -151,6 +151,48 @@ pub fn warp_mask_with_derivatives(mask: &Mask, pose: &MaskPose) -> WarpWithDeriv
     }
 }
 
+/// W(m; ψ) as a physical mask does it: each detector pixel's value is the
+/// mean transmission over its area of the mask's crisp squares moved by
+/// `pose` (square j covers [j − ½, j + ½)), integrated by `samples` ×
+/// `samples` point samples (the crisp-square lookup of the physical
+/// simulator, `optics::physical`).
+///
+/// Why the model keeps the bilinear warp: for a translation the overlap of
+/// a unit square moved by (dx, dy) with a detector pixel is exactly
+/// tri(x)·tri(y), tri(t) = max(0, 1 − |t|) — bilinear interpolation. So
+/// [`warp_mask`] *is* the exact pixel-area warp when θ = 0, and for small θ
+/// it departs from it only where a rotated square's corners cross a pixel
+/// edge (measured in the tests, 40×40 random binary mask, 64×64 samples:
+/// at most 0.010 transmission for θ ≤ 1°, 0.078 at θ = 30°).
+pub fn warp_mask_area(mask: &Mask, pose: &MaskPose, samples: usize) -> Mask {
+    let (rows, cols) = mask.shape();
+    let s = samples.max(1);
+    let map = SourceMap::new(rows, cols, pose);
+    let offsets: Vec<f64> = (0..s)
+        .map(|a| (a as f64 - (s as f64 - 1.0) / 2.0) / s as f64)
+        .collect();
+    let weight = 1.0 / (s * s) as f64;
+    let mut out = Frame::zeros(rows, cols);
+    for row in 0..rows {
+        let out_row = out.row_mut(row);
+        for (col, o) in out_row.iter_mut().enumerate() {
+            let (qc, qr) = map.centred(col, row);
+            let mut acc = 0.0f64;
+            for &oy in &offsets {
+                for &ox in &offsets {
+                    let (uc, ur) = map.source((qc + ox, qr + oy));
+                    let (j, i) = ((uc + 0.5).floor(), (ur + 0.5).floor());
+                    if j >= 0.0 && i >= 0.0 && j < cols as f64 && i < rows as f64 {
+                        acc += mask.get(i as usize, j as usize) as f64;
+                    }
+                }
+            }
+            *o = (acc * weight) as f32;
+        }
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -353,5 +395,56 @@ mod tests {
                 "err {err}, scale {scale}"
             );
         }
+    }
+
+    fn max_abs_diff(a: &Mask, b: &Mask) -> f32 {
+        a.as_slice()
+            .iter()
+            .zip(b.as_slice())
+            .map(|(x, y)| (x - y).abs())
+            .fold(0.0, f32::max)
+    }
+
+    #[test]
+    fn the_bilinear_warp_is_the_exact_pixel_area_warp_for_translations() {
+        let mask = crate::synth::random_binary_mask(24, 20, 0.5, 9).unwrap();
+        for (dx, dy) in [(0.3, -0.7), (1.5, 1.0), (-2.25, 0.6), (0.0, 0.5)] {
+            let pose = MaskPose {
+                dx,
+                dy,
+                theta_deg: 0.0,
+            };
+            let bilinear = warp_mask(&mask, &pose);
+            // the point-sampled area converges to bilinear at rate 1/S
+            let e16 = max_abs_diff(&bilinear, &warp_mask_area(&mask, &pose, 16));
+            let e64 = max_abs_diff(&bilinear, &warp_mask_area(&mask, &pose, 64));
+            assert!(e16 <= 2.0 / 16.0 + 1e-6, "({dx}, {dy}): {e16}");
+            assert!(e64 <= 2.0 / 64.0 + 1e-6, "({dx}, {dy}): {e64}");
+        }
+    }
+
+    #[test]
+    fn under_a_degree_of_rotation_the_bilinear_warp_stays_within_a_percent() {
+        let mask = crate::synth::random_binary_mask(40, 40, 0.5, 4).unwrap();
+        for theta in [0.3, 0.8, 1.0] {
+            let pose = MaskPose {
+                dx: 0.4,
+                dy: -0.3,
+                theta_deg: theta,
+            };
+            let e = max_abs_diff(&warp_mask(&mask, &pose), &warp_mask_area(&mask, &pose, 64));
+            eprintln!("θ {theta}°: max |bilinear − area| = {e:.4}");
+            // measured ≤ 0.0096 (θ 0.3–1°)
+            assert!(e < 0.015, "θ {theta}: {e}");
+        }
+        // a large rotation is where the two models part
+        let pose = MaskPose {
+            dx: 0.0,
+            dy: 0.0,
+            theta_deg: 30.0,
+        };
+        let e = max_abs_diff(&warp_mask(&mask, &pose), &warp_mask_area(&mask, &pose, 64));
+        eprintln!("30°: max |bilinear − area| = {e:.4}");
+        assert!(e > 0.05, "30°: {e}");
     }
 }
