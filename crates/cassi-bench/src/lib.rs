@@ -25,3 +25,20 @@ pub fn shared_data() -> std::path::PathBuf {
             std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data")
         })
 }
+
+/// The CAVE scenes (`scenes/*.npy` under `data`), sorted by name; an error
+/// naming the folder when there are none.
+pub fn cave_scenes(data: &std::path::Path) -> anyhow::Result<Vec<std::path::PathBuf>> {
+    use anyhow::Context;
+    let dir = data.join("scenes");
+    let mut scenes: Vec<std::path::PathBuf> = std::fs::read_dir(&dir)
+        .with_context(|| format!("{}: the CAVE scenes are needed", data.display()))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|e| e == "npy"))
+        .collect();
+    scenes.sort();
+    if scenes.is_empty() {
+        anyhow::bail!("no scenes in {}", dir.display());
+    }
+    Ok(scenes)
+}

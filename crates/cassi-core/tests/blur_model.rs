@@ -5,7 +5,7 @@
 //! the blurred subpixel family never loses to the nominal model, and once the
 //! blur is real, modelling it beats leaving it out.
 
-use cassi_core::denoise::{TvChambolle2d, TvChambolleParams};
+use cassi_core::denoise::{NoPrior, TvChambolle2d, TvChambolleParams};
 use cassi_core::linop::LinearOperator;
 use cassi_core::metrics::psnr;
 use cassi_core::optics::{
@@ -121,15 +121,6 @@ fn the_true_blurred_model_never_loses_and_modelling_blur_pays() {
     assert!(mean > 0.0, "gains from modelling blur: {blur_gains:?}");
 }
 
-/// The prior that does nothing: GAP then only enforces A x = y.
-struct Identity;
-impl Denoiser for Identity {
-    fn denoise(&mut self, _: &mut Cube, _: f32) {}
-    fn name(&self) -> String {
-        "identity".into()
-    }
-}
-
 #[test]
 fn gap_reaches_the_data_through_the_blurred_operator() {
     use cassi_core::solvers::{GapParams, History};
@@ -151,7 +142,7 @@ fn gap_reaches_the_data_through_the_blurred_operator() {
             ..GapParams::default()
         };
         let sol = Gap::new(params)
-            .solve(&op, &y, (BANDS, 32, 32), &mut Identity, &mut h)
+            .solve(&op, &y, (BANDS, 32, 32), &mut NoPrior, &mut h)
             .unwrap();
         let first = h.iterations[0].relative_residual;
         eprintln!(

@@ -5,7 +5,7 @@
 //! fitted operator did not make (2× oversampled simulation, binned: no
 //! inverse crime).
 
-use cassi_core::denoise::{TvChambolle2d, TvChambolleParams};
+use cassi_core::denoise::{NoPrior, TvChambolle2d, TvChambolleParams};
 use cassi_core::linop::{AatNormaliser, LinearOperator, NormaliserKind, adjoint_mismatch};
 use cassi_core::metrics::psnr;
 use cassi_core::optics::{
@@ -187,15 +187,6 @@ fn the_true_operators_are_adjoint_and_their_normaliser_majorises_aat() {
     }
 }
 
-/// The prior that does nothing: GAP then only enforces A x = y.
-struct Identity;
-impl Denoiser for Identity {
-    fn denoise(&mut self, _: &mut Cube, _: f32) {}
-    fn name(&self) -> String {
-        "identity".into()
-    }
-}
-
 #[test]
 fn gap_and_admm_reach_data_consistency_on_every_true_operator() {
     let (scene, mask) = scene_and_mask(32, 8, 4);
@@ -218,7 +209,7 @@ fn gap_and_admm_reach_data_consistency_on_every_true_operator() {
                     ..GapParams::default()
                 };
                 let sol = Gap::new(params)
-                    .solve(op, &y, shape, &mut Identity, &mut h)
+                    .solve(op, &y, shape, &mut NoPrior, &mut h)
                     .unwrap();
                 let r: Vec<f64> = h.iterations.iter().map(|i| i.relative_residual).collect();
                 eprintln!(
@@ -254,7 +245,7 @@ fn gap_and_admm_reach_data_consistency_on_every_true_operator() {
                 nonnegative: false,
                 ..AdmmParams::default()
             })
-            .solve(&op, &y, shape, &mut Identity, &mut h)
+            .solve(&op, &y, shape, &mut NoPrior, &mut h)
             .unwrap();
             eprintln!(
                 "ADMM {name:8} {model:?}: residual {:.2e} → {:.2e}",

@@ -10,9 +10,6 @@
 //! `--preset paper` runs the paper's Algorithm 1 instead of `default`.
 //! Writes `bench/results/calibrate_<preset>_<model>[_random<SEED>|_scale<S>].json`.
 
-use std::path::PathBuf;
-
-use anyhow::Context;
 use cassi_bench::{median, shared_data};
 use cassi_core::calib::{CalibrationProblem, PRESET_NAMES, Preset, calibrate};
 use cassi_core::optics::{Dispersion, DispersionModel, NoiseModel, SimulationSpec, simulate};
@@ -35,12 +32,7 @@ fn main() -> anyhow::Result<()> {
     let limit: usize = opt("--limit").map(|s| s.parse()).transpose()?.unwrap_or(10);
     let data = shared_data();
     let mask = cassi_io::load_frame(data.join("masks/tsa_simu_mask256.mat"), Some("mask"))?;
-    let mut scenes: Vec<PathBuf> = std::fs::read_dir(data.join("scenes"))
-        .with_context(|| format!("{}: the CAVE scenes are needed", data.display()))?
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| p.extension().is_some_and(|e| e == "npy"))
-        .collect();
-    scenes.sort();
+    let mut scenes = cassi_bench::cave_scenes(&data)?;
     scenes.truncate(limit);
     let random: Option<u64> = opt("--random").map(|s| s.parse()).transpose()?;
     let only = opt("--only");

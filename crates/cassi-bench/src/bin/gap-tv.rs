@@ -126,15 +126,7 @@ fn main() -> anyhow::Result<()> {
     }
     let data = shared_data();
     let mask_path = data.join("masks/tsa_simu_mask256.mat");
-    let mut scenes: Vec<PathBuf> = std::fs::read_dir(data.join("scenes"))
-        .with_context(|| format!("{}: the CAVE scenes are needed", data.display()))?
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| p.extension().is_some_and(|e| e == "npy"))
-        .collect();
-    scenes.sort();
-    if scenes.is_empty() {
-        bail!("no scenes in {}", data.join("scenes").display());
-    }
+    let scenes = cassi_bench::cave_scenes(&data)?;
 
     let ours = rust_scenes(&scenes, &mask_path)?;
     let exe = std::env::current_exe()?;

@@ -14,10 +14,9 @@
 //! Run: `cargo run --release -p cassi-bench --bin gap_projection`. Writes
 //! `bench/results/gap_projection.json` (or $CASSI_BENCH_OUT).
 
-use std::path::PathBuf;
 use std::time::Instant;
 
-use anyhow::{Context, bail};
+use anyhow::bail;
 use cassi_bench::shared_data;
 use cassi_core::Mismatch;
 use cassi_core::metrics::psnr;
@@ -53,12 +52,7 @@ fn mean(v: &[f64]) -> f64 {
 fn main() -> anyhow::Result<()> {
     let data = shared_data();
     let mask = cassi_io::load_frame(data.join("masks/tsa_simu_mask256.mat"), Some("mask"))?;
-    let mut scenes: Vec<PathBuf> = std::fs::read_dir(data.join("scenes"))
-        .with_context(|| format!("{}: the CAVE scenes are needed", data.display()))?
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| p.extension().is_some_and(|e| e == "npy"))
-        .collect();
-    scenes.sort();
+    let scenes = cassi_bench::cave_scenes(&data)?;
     if scenes.len() < 2 {
         bail!(
             "need at least 2 scenes in {}",

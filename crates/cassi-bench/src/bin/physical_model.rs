@@ -15,10 +15,8 @@
 //! Run: `cargo run --release -p cassi-bench --bin physical_model`. Writes
 //! `bench/results/physical_model.json` (or $CASSI_BENCH_OUT).
 
-use std::path::PathBuf;
 use std::time::Instant;
 
-use anyhow::{Context, bail};
 use cassi_bench::shared_data;
 use cassi_core::denoise::{TvChambolle2d, TvChambolleParams};
 use cassi_core::linop::LinearOperator;
@@ -73,15 +71,7 @@ fn mean(v: &[f64]) -> f64 {
 fn main() -> anyhow::Result<()> {
     let data = shared_data();
     let mask = cassi_io::load_frame(data.join("masks/tsa_simu_mask256.mat"), Some("mask"))?;
-    let mut scenes: Vec<PathBuf> = std::fs::read_dir(data.join("scenes"))
-        .with_context(|| format!("{}: the CAVE scenes are needed", data.display()))?
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| p.extension().is_some_and(|e| e == "npy"))
-        .collect();
-    scenes.sort();
-    if scenes.is_empty() {
-        bail!("no scenes in {}", data.join("scenes").display());
-    }
+    let scenes = cassi_bench::cave_scenes(&data)?;
     let half = scenes.len() / 2;
     let wl = STANDARD_WAVELENGTHS_NM.to_vec();
     let noise = NoiseModel {

@@ -13,6 +13,19 @@ pub trait Denoiser: Send {
     fn name(&self) -> String;
 }
 
+/// The prior that does nothing: a solver with it only enforces the data
+/// (GAP reduces to repeated projection onto {A x = y}) — for convergence
+/// tests and for least-squares reconstructions.
+pub struct NoPrior;
+
+impl Denoiser for NoPrior {
+    fn denoise(&mut self, _: &mut crate::Cube, _: f32) {}
+
+    fn name(&self) -> String {
+        "none".into()
+    }
+}
+
 pub mod tv;
 pub mod tv3d;
 pub use tv::{

@@ -2,18 +2,10 @@
 
 use super::*;
 use crate::cube::{Cube, Frame};
+use crate::denoise::NoPrior;
 use crate::linop::LinearOperator;
 use crate::optics::{CassiOperator, Dispersion, DispersionModel};
 use crate::rng::Rng;
-
-/// The prior that does nothing: GAP reduces to projection onto {A x = y}.
-struct Identity;
-impl crate::Denoiser for Identity {
-    fn denoise(&mut self, _: &mut Cube, _: f32) {}
-    fn name(&self) -> String {
-        "identity".into()
-    }
-}
 
 fn problem(seed: u64) -> (CassiOperator, Vec<f32>, (usize, usize, usize)) {
     let mut rng = Rng::new(seed);
@@ -59,7 +51,7 @@ fn one_plain_gap_step_is_an_exact_projection_when_aat_is_diagonal() {
         ..Default::default()
     };
     let sol = Gap::new(params)
-        .solve(&op, &y, shape, &mut Identity, &mut Silent)
+        .solve(&op, &y, shape, &mut NoPrior, &mut Silent)
         .unwrap();
     let r = relative_residual(&op, &sol.cube, &y);
     assert!(r < 1e-6, "residual after one projection: {r}");
@@ -73,7 +65,7 @@ fn accelerated_gap_and_admm_reach_data_consistency() {
         ..Default::default()
     };
     let sol = Gap::new(gap)
-        .solve(&op, &y, shape, &mut Identity, &mut Silent)
+        .solve(&op, &y, shape, &mut NoPrior, &mut Silent)
         .unwrap();
     assert!(relative_residual(&op, &sol.cube, &y) < 1e-3);
     let mut history = History::default();
@@ -82,7 +74,7 @@ fn accelerated_gap_and_admm_reach_data_consistency() {
         ..Default::default()
     };
     let sol = Admm::new(admm)
-        .solve(&op, &y, shape, &mut Identity, &mut history)
+        .solve(&op, &y, shape, &mut NoPrior, &mut history)
         .unwrap();
     let r = relative_residual(&op, &sol.cube, &y);
     assert!(r < 0.05, "ADMM residual {r}");
@@ -101,7 +93,7 @@ fn observer_and_tolerance_stop_the_solve() {
         }
     };
     let sol = Gap::new(GapParams::default())
-        .solve(&op, &y, shape, &mut Identity, &mut stop_at_3)
+        .solve(&op, &y, shape, &mut NoPrior, &mut stop_at_3)
         .unwrap();
     assert_eq!((sol.iterations, sol.stop), (3, StopReason::Observer));
     let params = GapParams {
@@ -109,7 +101,7 @@ fn observer_and_tolerance_stop_the_solve() {
         ..Default::default()
     };
     let sol = Gap::new(params)
-        .solve(&op, &y, shape, &mut Identity, &mut Silent)
+        .solve(&op, &y, shape, &mut NoPrior, &mut Silent)
         .unwrap();
     assert_eq!(sol.stop, StopReason::Converged);
     assert!(sol.iterations < 100);
@@ -120,17 +112,17 @@ fn bad_problems_are_errors() {
     let (op, y, _) = problem(4);
     let mut gap = Gap::new(GapParams::default());
     assert!(
-        gap.solve(&op, &y, (6, 12, 11), &mut Identity, &mut Silent)
+        gap.solve(&op, &y, (6, 12, 11), &mut NoPrior, &mut Silent)
             .is_err()
     );
     assert!(
-        gap.solve(&op, &y[1..], (6, 12, 10), &mut Identity, &mut Silent)
+        gap.solve(&op, &y[1..], (6, 12, 10), &mut NoPrior, &mut Silent)
             .is_err()
     );
     let mut bad = y.clone();
     bad[5] = f32::NAN;
     assert!(
-        gap.solve(&op, &bad, (6, 12, 10), &mut Identity, &mut Silent)
+        gap.solve(&op, &bad, (6, 12, 10), &mut NoPrior, &mut Silent)
             .unwrap_err()
             .to_string()
             .contains("index 5")
@@ -140,7 +132,7 @@ fn bad_problems_are_errors() {
         ..Default::default()
     });
     assert!(
-        zero.solve(&op, &y, (6, 12, 10), &mut Identity, &mut Silent)
+        zero.solve(&op, &y, (6, 12, 10), &mut NoPrior, &mut Silent)
             .is_err()
     );
     let mut admm = Admm::new(AdmmParams {
@@ -148,7 +140,7 @@ fn bad_problems_are_errors() {
         ..Default::default()
     });
     assert!(
-        admm.solve(&op, &y, (6, 12, 10), &mut Identity, &mut Silent)
+        admm.solve(&op, &y, (6, 12, 10), &mut NoPrior, &mut Silent)
             .is_err()
     );
 }
