@@ -78,6 +78,14 @@ pub fn existing_sidecar(measurement: &Path) -> Option<PathBuf> {
     (v.get("simulation").is_some() && v.get("measurement").is_some()).then_some(path)
 }
 
+/// The band count the simulation sidecar beside `measurement` records, if
+/// there is one that parses (any other JSON file there says nothing).
+pub fn recorded_bands(measurement: &Path) -> Option<usize> {
+    let text = std::fs::read_to_string(sidecar_path(measurement)).ok()?;
+    let record: SimulationRecord = serde_json::from_str(&text).ok()?;
+    Some(record.instrument.bands).filter(|&b| b > 0)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

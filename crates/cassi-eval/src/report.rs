@@ -55,6 +55,14 @@ pub struct Setup<'a> {
     pub mask: &'a str,
 }
 
+/// The study's files in `--out`, besides its folders (`scenes/`,
+/// `figures/`, `sensitivity/`): what [`write_all`] writes.
+pub const SUMMARY_FILE: &str = "summary.json";
+pub const OUTCOMES_FILE: &str = "outcomes.csv";
+pub const PARAMETERS_FILE: &str = "parameters.csv";
+pub const REPORT_FILE: &str = "report.md";
+pub const STUDY_FILES: [&str; 4] = [SUMMARY_FILE, OUTCOMES_FILE, PARAMETERS_FILE, REPORT_FILE];
+
 /// Writes every study file into `out`.
 pub fn write_all(
     out: &Path,
@@ -71,15 +79,15 @@ pub fn write_all(
         "metric_definitions": cassi_core::metrics::METRIC_DEFINITIONS,
     });
     cassi_io::write_atomic(
-        out.join("summary.json"),
+        out.join(SUMMARY_FILE),
         (serde_json::to_string_pretty(&json)? + "\n").as_bytes(),
     )?;
     cassi_io::write_atomic(
-        out.join("outcomes.csv"),
+        out.join(OUTCOMES_FILE),
         tables::outcomes_csv(results).as_bytes(),
     )?;
     cassi_io::write_atomic(
-        out.join("parameters.csv"),
+        out.join(PARAMETERS_FILE),
         tables::parameters_csv(results).as_bytes(),
     )?;
     let mut figures = crate::study_figures::write_summary_figures(
@@ -111,7 +119,7 @@ pub fn write_all(
         });
     }
     let md = markdown(setup, study, results, summary, sweeps, &figures, &machine);
-    cassi_io::write_atomic(out.join("report.md"), md.as_bytes())?;
+    cassi_io::write_atomic(out.join(REPORT_FILE), md.as_bytes())?;
     Ok(())
 }
 

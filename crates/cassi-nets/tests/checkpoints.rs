@@ -10,6 +10,7 @@ use std::path::{Path, PathBuf};
 
 use cassi_nets::{DType, HsiSdecnn, Mst, MstConfig, NetError, TensorMap};
 use common::shared_data;
+use common::torch_pickle::{c_strides, pickle_int, pickle_str};
 
 /// A fresh scratch directory for one test, removed on drop.
 struct TempDir(PathBuf);
@@ -49,25 +50,6 @@ fn spec(name: &str, shape: &[usize]) -> Spec {
         stride: None,
         storage: (0..n).map(|i| (i % 97) as f32 * 0.01 - 0.3).collect(),
     }
-}
-
-fn c_strides(shape: &[usize]) -> Vec<usize> {
-    let mut s = vec![1; shape.len()];
-    for i in (0..shape.len().saturating_sub(1)).rev() {
-        s[i] = s[i + 1] * shape[i + 1];
-    }
-    s
-}
-
-fn pickle_str(out: &mut Vec<u8>, s: &str) {
-    out.push(b'X');
-    out.extend((s.len() as u32).to_le_bytes());
-    out.extend(s.as_bytes());
-}
-
-fn pickle_int(out: &mut Vec<u8>, v: usize) {
-    out.push(b'J');
-    out.extend((v as i32).to_le_bytes());
 }
 
 /// The pickle torch.save writes for an OrderedDict of float tensors (protocol 2).

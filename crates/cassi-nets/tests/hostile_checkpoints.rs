@@ -6,12 +6,15 @@
 //! fields overwritten with big numbers) and asserts no panic, a bounded peak
 //! allocation, and an error or a well-formed map.
 
+mod common;
+
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 use std::io::Write;
 use std::path::PathBuf;
 
 use cassi_nets::{HsiSdecnn, NetError, TensorMap};
+use common::torch_pickle::{c_strides, pickle_int, pickle_str};
 use proptest::prelude::*;
 
 // ---- counting allocator (per thread: tests run in parallel) ----
@@ -102,43 +105,24 @@ impl Drop for TempDir {
 /// name, shape, stride, storage element count (f32).
 type Spec<'a> = (&'a str, Vec<usize>, Vec<usize>, usize);
 
-fn c_strides(shape: &[usize]) -> Vec<usize> {
-    let mut s = vec![1; shape.len()];
-    for i in (0..shape.len().saturating_sub(1)).rev() {
-        s[i] = s[i + 1] * shape[i + 1];
-    }
-    s
-}
-
-fn pstr(out: &mut Vec<u8>, s: &str) {
-    out.push(b'X');
-    out.extend((s.len() as u32).to_le_bytes());
-    out.extend(s.as_bytes());
-}
-
-fn pint(out: &mut Vec<u8>, v: usize) {
-    out.push(b'J');
-    out.extend((v as i32).to_le_bytes());
-}
-
 /// The zip torch.save writes for an OrderedDict of float tensors.
 fn pth_bytes(tensors: &[Spec]) -> Vec<u8> {
     let mut p = vec![0x80, 2];
     p.extend(b"ccollections\nOrderedDict\n)R(");
     for (i, (name, shape, stride, numel)) in tensors.iter().enumerate() {
-        pstr(&mut p, name);
+        pickle_str(&mut p, name);
         p.extend(b"ctorch._utils\n_rebuild_tensor_v2\n((");
-        pstr(&mut p, "storage");
+        pickle_str(&mut p, "storage");
         p.extend(b"ctorch\nFloatStorage\n");
-        pstr(&mut p, &i.to_string());
-        pstr(&mut p, "cpu");
-        pint(&mut p, *numel);
+        pickle_str(&mut p, &i.to_string());
+        pickle_str(&mut p, "cpu");
+        pickle_int(&mut p, *numel);
         p.extend(b"tQ");
-        pint(&mut p, 0);
+        pickle_int(&mut p, 0);
         p.push(b'(');
-        shape.iter().for_each(|&d| pint(&mut p, d));
+        shape.iter().for_each(|&d| pickle_int(&mut p, d));
         p.extend(b"t(");
-        stride.iter().for_each(|&d| pint(&mut p, d));
+        stride.iter().for_each(|&d| pickle_int(&mut p, d));
         p.extend(b"t\x89ccollections\nOrderedDict\n)RtR");
     }
     p.extend(b"u.");

@@ -4,16 +4,15 @@ use std::path::PathBuf;
 
 use cassi_core::Parameter;
 use cassi_core::calib::{CalibrationProblem, Preset, StageReport, calibrate};
-use cassi_core::optics::{DispersionModel, MaskCode, mask_code, warp_mask};
+use cassi_core::optics::{DispersionModel, warp_mask};
 use clap::Args;
 
 use cassi_io::OutputSet;
 
-use super::inputs::MeasurementArgs;
+use super::inputs::{MeasurementArgs, UncodedMask};
 use super::simulate::check_output;
 use crate::interrupt;
 use crate::report::Reporter;
-use crate::sidecar::existing_sidecar;
 
 #[derive(Args)]
 pub struct CalibrateArgs {
@@ -38,25 +37,14 @@ pub fn run(args: &CalibrateArgs, reporter: &Reporter) -> anyhow::Result<()> {
     // every file read and written, compared before any work
     check_output_json(&args.output)?;
     let mut set = OutputSet::new();
-    set.input("the measurement", &args.input.measurement)
-        .input("--mask", &args.input.mask);
-    if let Some(sidecar) = existing_sidecar(&args.input.measurement) {
-        set.input("the measurement's simulation sidecar", sidecar);
-    }
+    args.input.declare_inputs(&mut set);
     set.output("-o", &args.output);
     if let Some(p) = &args.write_mask {
         check_output(p)?;
         set.output("--write-mask", p);
     }
     let checked = set.check()?;
-    let (measurement, mask, bands) = args.input.load(reporter)?;
-    if let MaskCode::Uniform(v) = mask_code(&mask, "mask")? {
-        anyhow::bail!(
-            "{}: every pixel of the mask transmits {v}: an uncoded aperture leaves no pattern \
-             to calibrate against",
-            args.input.mask.display()
-        );
-    }
+    let (measurement, mask, bands) = args.input.load(reporter, UncodedMask::Refuse)?;
     let problem = CalibrationProblem {
         measurement: &measurement,
         nominal_mask: &mask,

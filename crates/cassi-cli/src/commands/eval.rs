@@ -14,7 +14,7 @@ use cassi_core::{Instrument, Mask, Mismatch};
 use cassi_eval::learned::{check_shape, check_stride};
 use cassi_eval::method::{LearnedMethod, StudyMethod};
 use cassi_eval::protocol::Study;
-use cassi_eval::report::{Setup, Sweeps, write_all};
+use cassi_eval::report::{REPORT_FILE, STUDY_FILES, Setup, Sweeps, write_all};
 use cassi_eval::study::{
     Event, SceneSource, promote_pending, remove_pending, run_study, scenes_in,
 };
@@ -217,10 +217,9 @@ fn check_files(args: &EvalArgs) -> anyhow::Result<CheckedSet> {
     if let Some(p) = &args.mask {
         set.input("--mask", p);
     }
-    for flag in &args.weights {
-        if let Some((_, file)) = flag.split_once('=') {
-            set.input("--weights", file.trim());
-        }
+    let names: Vec<String> = args.methods.iter().map(|m| m.trim().to_string()).collect();
+    for (_, file) in parse_weight_flags(&args.weights, &names)? {
+        set.input("--weights", file);
     }
     if let Some(dir) = &args.weights_dir
         && let Ok(entries) = std::fs::read_dir(dir)
@@ -230,12 +229,7 @@ fn check_files(args: &EvalArgs) -> anyhow::Result<CheckedSet> {
         }
     }
     let out = &args.out;
-    for file in [
-        "summary.json",
-        "outcomes.csv",
-        "parameters.csv",
-        "report.md",
-    ] {
+    for file in STUDY_FILES {
         set.output(format!("--out's {file}"), out.join(file));
     }
     set.output_dir("--out's scenes/", out.join("scenes"))
@@ -445,7 +439,7 @@ pub fn run(args: &EvalArgs, reporter: &Reporter) -> anyhow::Result<()> {
         summary.parameter_rmse.format_all().replace('+', ""),
         summary.calibration_seconds_median,
         summary.total_seconds,
-        args.out.join("report.md").display()
+        args.out.join(REPORT_FILE).display()
     );
     reporter.say(&text);
     reporter.emit(&serde_json::to_value(&summary)?);

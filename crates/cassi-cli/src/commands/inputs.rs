@@ -1,18 +1,18 @@
 //! Argument groups shared by subcommands: where the scene and the mask come
 //! from, the mismatch, the noise.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use anyhow::{Context, bail};
 use cassi_core::limits::check_elements;
 use cassi_core::optics::{DispersionModel, MaskCode, NoiseModel, mask_code, validate_measurement};
 use cassi_core::synth::{SceneSpec, random_binary_mask, synthetic_scene};
 use cassi_core::{Cube, Instrument, Mask, Mismatch, Parameter};
-use cassi_io::CubeLayout;
+use cassi_io::{CubeLayout, OutputSet};
 use clap::{Args, ValueEnum};
 
 use crate::report::Reporter;
-use crate::sidecar::{Source, sidecar_path};
+use crate::sidecar::{Source, existing_sidecar, recorded_bands, sidecar_path};
 
 #[derive(Clone, Copy, ValueEnum)]
 pub enum LayoutArg {
@@ -275,6 +275,14 @@ pub struct MeasurementArgs {
     pub stride: f64,
 }
 
+/// What a command does with a mask that codes nothing (all open, or one
+/// gray level): reconstruction can still run, calibration cannot.
+#[derive(Clone, Copy)]
+pub enum UncodedMask {
+    Warn,
+    Refuse,
+}
+
 /// The band count a measurement is assumed to hold when nothing says
 /// otherwise: the benchmark instruments' 28.
 pub const DEFAULT_BANDS: usize = 28;
@@ -288,6 +296,7 @@ impl MeasurementArgs {
     pub fn load(
         &self,
         reporter: &Reporter,
+        uncoded: UncodedMask,
     ) -> anyhow::Result<(cassi_core::Measurement, Mask, usize)> {
         Instrument::with_bands(1, self.stride).context("--stride")?;
         let measurement = cassi_io::load_frame(&self.measurement, self.meas_var.as_deref())?;
@@ -295,10 +304,16 @@ impl MeasurementArgs {
         let mask_what = format!("mask {}", self.mask.display());
         cassi_core::optics::validate_mask(&mask, &mask_what)?;
         if let MaskCode::Uniform(v) = mask_code(&mask, &mask_what)? {
-            reporter.warn(&format!(
-                "{mask_what}: every pixel transmits {v}: nothing is coded, so the bands \
-                 overlap uncoded on the detector"
-            ));
+            match uncoded {
+                UncodedMask::Warn => reporter.warn(&format!(
+                    "{mask_what}: every pixel transmits {v}: nothing is coded, so the bands \
+                     overlap uncoded on the detector"
+                )),
+                UncodedMask::Refuse => bail!(
+                    "{mask_what}: every pixel transmits {v}: an uncoded aperture leaves no \
+                     pattern to calibrate against"
+                ),
+            }
         }
         validate_measurement(&measurement, &self.measurement.display().to_string())?;
         if measurement.rows() != mask.rows() {
@@ -321,6 +336,17 @@ impl MeasurementArgs {
             reporter.say(&format!("bands: {bands} ({origin})"));
         }
         Ok((measurement, mask, bands))
+    }
+
+    /// Declares the files this reads — the measurement, the mask and the
+    /// measurement's simulation sidecar (which describes it: never an
+    /// output) — as inputs of `set`.
+    pub fn declare_inputs(&self, set: &mut OutputSet) {
+        set.input("the measurement", &self.measurement)
+            .input("--mask", &self.mask);
+        if let Some(sidecar) = existing_sidecar(&self.measurement) {
+            set.input("the measurement's simulation sidecar", sidecar);
+        }
     }
 
     /// The band count and where it came from: --bands, the measurement's
@@ -353,7 +379,7 @@ impl MeasurementArgs {
             }
             return Ok((bands, "from --bands".into()));
         }
-        if let Some(bands) = sidecar_bands(&self.measurement)
+        if let Some(bands) = recorded_bands(&self.measurement)
             && width_fits(bands, s, extra)
         {
             return Ok((
@@ -397,14 +423,6 @@ fn width_slack(bands: usize, stride: f64) -> usize {
 fn width_fits(bands: usize, stride: f64, extra: usize) -> bool {
     let nominal = (bands - 1) as f64 * stride;
     (extra as f64 - nominal).abs() <= width_slack(bands, stride) as f64
-}
-
-/// The band count a simulation sidecar beside the measurement records, if
-/// there is one (any other JSON file there is not a sidecar and says nothing).
-fn sidecar_bands(measurement: &Path) -> Option<usize> {
-    let text = std::fs::read_to_string(sidecar_path(measurement)).ok()?;
-    let record: crate::sidecar::SimulationRecord = serde_json::from_str(&text).ok()?;
-    Some(record.instrument.bands).filter(|&b| b > 0)
 }
 
 /// The most iterations a solver flag accepts: far beyond any useful run

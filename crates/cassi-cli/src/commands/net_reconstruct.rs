@@ -134,7 +134,9 @@ fn run_learned(
             args.input.stride
         );
     }
-    let (measurement, mask, bands) = args.input.load(reporter)?;
+    let (measurement, mask, bands) = args
+        .input
+        .load(reporter, super::inputs::UncodedMask::Warn)?;
     if !pnp && bands != MST_BANDS {
         bail!(
             "--method {} reconstructs {MST_BANDS} bands; the measurement and mask give {bands}",

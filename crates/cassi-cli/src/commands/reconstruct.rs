@@ -15,12 +15,11 @@ use cassi_io::{CheckedSet, OutputSet};
 use clap::Args;
 use serde::Serialize;
 
-use super::inputs::{LayoutArg, MeasurementArgs, parse_iterations, parse_weight};
+use super::inputs::{LayoutArg, MeasurementArgs, UncodedMask, parse_iterations, parse_weight};
 use super::net_reconstruct::{self, NET_METHOD_NAMES};
 use super::simulate::check_output;
 use crate::interrupt;
 use crate::report::Reporter;
-use crate::sidecar::existing_sidecar;
 
 #[derive(Args)]
 pub struct ReconstructArgs {
@@ -177,7 +176,7 @@ pub fn run(args: &ReconstructArgs, reporter: &Reporter) -> anyhow::Result<()> {
             args.method
         );
     }
-    let (measurement, mask, bands) = args.input.load(reporter)?;
+    let (measurement, mask, bands) = args.input.load(reporter, UncodedMask::Warn)?;
     let (params, file_model) = args.model_parameters(&mask)?;
     let model = args.model.or(file_model).unwrap_or_default();
     let instrument = Instrument::with_bands(bands, args.input.stride)?;
@@ -250,11 +249,7 @@ impl ReconstructArgs {
     pub(crate) fn check_files(&self) -> anyhow::Result<CheckedSet> {
         check_output(&self.output)?;
         let mut set = OutputSet::new();
-        set.input("the measurement", &self.input.measurement)
-            .input("--mask", &self.input.mask);
-        if let Some(sidecar) = existing_sidecar(&self.input.measurement) {
-            set.input("the measurement's simulation sidecar", sidecar);
-        }
+        self.input.declare_inputs(&mut set);
         for (flag, path) in [
             ("--calibration", &self.calibration),
             ("--truth", &self.truth),
@@ -338,19 +333,14 @@ impl Outputs<'_> {
         mut summary: String,
         metrics: Option<&Metrics>,
     ) -> anyhow::Result<()> {
-        let bad = self
-            .cube
-            .as_slice()
-            .iter()
-            .filter(|v| !v.is_finite())
-            .count();
-        if bad > 0 {
-            bail!(
-                "the reconstruction has {bad} non-finite values (NaN or infinite): nothing was \
-                 written to {} (try fewer iterations or another --weight)",
-                self.path.display()
-            );
-        }
+        self.cube
+            .check_finite("the reconstruction")
+            .with_context(|| {
+                format!(
+                    "nothing was written to {} (try fewer iterations or another --weight)",
+                    self.path.display()
+                )
+            })?;
         let rgb = pseudo_rgb(self.cube, self.wavelengths_nm).with_context(|| {
             format!(
                 "the preview of {}; nothing was written",

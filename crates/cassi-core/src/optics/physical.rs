@@ -80,8 +80,9 @@ impl Default for PhysicalSpec {
     }
 }
 
-/// Largest blur σ accepted, detector pixels.
-pub const MAX_BLUR_SIGMA_PX: f64 = 100.0;
+/// Largest blur σ accepted, detector pixels: the one limit the blur model
+/// ([`super::blur`]) also has, so every simulated blur can be fitted.
+pub use super::blur::MAX_SIGMA_PX as MAX_BLUR_SIGMA_PX;
 /// Largest ADC resolution accepted (an f32 measurement holds 24 bits).
 pub const MAX_ADC_BITS: u32 = 24;
 

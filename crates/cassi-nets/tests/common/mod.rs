@@ -5,6 +5,7 @@
 
 pub mod cave;
 pub mod sha256;
+pub mod torch_pickle;
 
 use std::path::PathBuf;
 
