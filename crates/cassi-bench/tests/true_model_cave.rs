@@ -121,7 +121,7 @@ fn the_true_subpixel_model_beats_the_nominal_one_on_cave() {
             let tru = score(&solve(&method, &truth.op, truth.y.as_slice(), shape));
             let old = score(&solve(
                 &method,
-                &OldDiag(&truth.op),
+                &OldDiag(truth.op.cassi()),
                 truth.y.as_slice(),
                 shape,
             ));
@@ -133,7 +133,12 @@ fn the_true_subpixel_model_beats_the_nominal_one_on_cave() {
                 } => {
                     gap.nonnegative = true;
                     let m = Method::GapTv { gap, tv_iterations };
-                    score(&solve(&m, &OldDiag(&truth.op), truth.y.as_slice(), shape))
+                    score(&solve(
+                        &m,
+                        &OldDiag(truth.op.cassi()),
+                        truth.y.as_slice(),
+                        shape,
+                    ))
                 }
                 _ => old,
             };

@@ -16,6 +16,10 @@ pub const MAX_ANGLE_DEG: f64 = 45.0;
 pub const MIN_SLOPE: f64 = 1e-3;
 pub const MAX_SLOPE: f64 = 1e3;
 
+/// The widest optical blur accepted, detector pixels: beyond it a CASSI
+/// image holds no code worth calibrating.
+pub const MAX_BLUR_SIGMA_PX: f64 = 8.0;
+
 /// Rigid placement of the mask relative to its nominal position (DESIGN.md):
 /// a mask point u = (col, row) moves to `R(θ)(u − c) + c + (dx, dy)`, with c the
 /// mask centre ((W−1)/2, (H−1)/2).
@@ -54,11 +58,20 @@ pub enum Parameter {
     ThetaDeg,
     A1,
     AlphaDeg,
+    /// The optical blur's Gaussian σ on the detector (0 = a sharp image).
+    BlurSigmaPx,
 }
 
 impl Parameter {
     /// Every parameter, in the order tables and files list them.
-    pub const ALL: [Parameter; 5] = [Self::Dx, Self::Dy, Self::ThetaDeg, Self::A1, Self::AlphaDeg];
+    pub const ALL: [Parameter; 6] = [
+        Self::Dx,
+        Self::Dy,
+        Self::ThetaDeg,
+        Self::A1,
+        Self::AlphaDeg,
+        Self::BlurSigmaPx,
+    ];
 
     pub fn get(self, m: &Mismatch) -> f64 {
         match self {
@@ -67,6 +80,7 @@ impl Parameter {
             Self::ThetaDeg => m.theta_deg,
             Self::A1 => m.a1,
             Self::AlphaDeg => m.alpha_deg,
+            Self::BlurSigmaPx => m.blur_sigma_px,
         }
     }
 
@@ -77,6 +91,7 @@ impl Parameter {
             Self::ThetaDeg => m.theta_deg = v,
             Self::A1 => m.a1 = v,
             Self::AlphaDeg => m.alpha_deg = v,
+            Self::BlurSigmaPx => m.blur_sigma_px = v,
         }
     }
 
@@ -88,6 +103,7 @@ impl Parameter {
             Self::ThetaDeg => "theta_deg",
             Self::A1 => "a1",
             Self::AlphaDeg => "alpha_deg",
+            Self::BlurSigmaPx => "blur_sigma_px",
         }
     }
 
@@ -99,13 +115,14 @@ impl Parameter {
             Self::ThetaDeg => "θ",
             Self::A1 => "a1",
             Self::AlphaDeg => "α",
+            Self::BlurSigmaPx => "blur",
         }
     }
 
     /// The unit, as printed after a value ("px", "°", "px/band").
     pub fn unit(self) -> &'static str {
         match self {
-            Self::Dx | Self::Dy => "px",
+            Self::Dx | Self::Dy | Self::BlurSigmaPx => "px",
             Self::ThetaDeg | Self::AlphaDeg => "°",
             Self::A1 => "px/band",
         }
@@ -119,16 +136,22 @@ impl Parameter {
     /// Decimals shown for a value (a1 needs more than a shift).
     pub fn decimals(self) -> usize {
         match self {
-            Self::Dx | Self::Dy | Self::ThetaDeg => 3,
+            Self::Dx | Self::Dy | Self::ThetaDeg | Self::BlurSigmaPx => 3,
             Self::A1 => 4,
             Self::AlphaDeg => 2,
         }
     }
 
     /// Whether the parameter is an offset from zero (printed signed) rather
-    /// than a magnitude (a1).
+    /// than a magnitude (a1, the blur width).
     pub fn signed(self) -> bool {
-        !matches!(self, Self::A1)
+        !matches!(self, Self::A1 | Self::BlurSigmaPx)
+    }
+
+    /// Whether files may leave the parameter out (it then takes its nominal
+    /// value): files written before the parameter existed stay readable.
+    pub fn optional_in_files(self) -> bool {
+        matches!(self, Self::BlurSigmaPx)
     }
 
     /// `v` at the parameter's precision, signed when it is an offset.
@@ -154,7 +177,10 @@ impl Parameter {
     }
 }
 
-/// All five mismatch parameters ψ = (dx, dy, θ, a1, α).
+/// The mismatch vector ψ = (dx, dy, θ, a1, α, σ_blur): the mask's pose, the
+/// prism's dispersion and the optical blur of the true instrument against
+/// the nominal model (aligned, dispersion `stride` px/band along the rows,
+/// a sharp image).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Mismatch {
     pub dx: f64,
@@ -162,6 +188,10 @@ pub struct Mismatch {
     pub theta_deg: f64,
     pub a1: f64,
     pub alpha_deg: f64,
+    /// Gaussian σ of the optical blur on the detector, pixels (0 = none);
+    /// absent in files written before blur was modelled.
+    #[serde(default)]
+    pub blur_sigma_px: f64,
 }
 
 impl Mismatch {
@@ -173,6 +203,7 @@ impl Mismatch {
             theta_deg: 0.0,
             a1: stride,
             alpha_deg: 0.0,
+            blur_sigma_px: 0.0,
         }
     }
 
@@ -184,6 +215,7 @@ impl Mismatch {
             theta_deg: 0.3,
             a1: 2.04,
             alpha_deg: 0.5,
+            blur_sigma_px: 0.0,
         }
     }
 
@@ -210,12 +242,32 @@ impl Mismatch {
             theta_deg: self.theta_deg * factor,
             a1: stride + (self.a1 - stride) * factor,
             alpha_deg: self.alpha_deg * factor,
+            blur_sigma_px: self.blur_sigma_px * factor,
         }
     }
 
     pub fn validate(&self) -> Result<()> {
         self.pose().validate()?;
-        self.dispersion().validate()
+        self.dispersion().validate()?;
+        finite("blur_sigma_px", self.blur_sigma_px)?;
+        if !(0.0..=MAX_BLUR_SIGMA_PX).contains(&self.blur_sigma_px) {
+            return Err(CassiError::InvalidParameter {
+                name: "blur_sigma_px",
+                value: self.blur_sigma_px,
+                reason: format!(
+                    "the blur width must lie in [0, {MAX_BLUR_SIGMA_PX}] detector pixels"
+                ),
+            });
+        }
+        Ok(())
+    }
+
+    /// The instrument without its blur (the sharp model's parameters).
+    pub fn sharp(&self) -> Self {
+        Self {
+            blur_sigma_px: 0.0,
+            ..*self
+        }
     }
 }
 
@@ -289,7 +341,7 @@ mod tests {
         }
         assert_eq!(
             Parameter::format_all(&Mismatch::paper()),
-            "dx +1.500 px  dy +1.000 px  θ +0.300°  a1 2.0400 px/band  α +0.50°"
+            "dx +1.500 px  dy +1.000 px  θ +0.300°  a1 2.0400 px/band  α +0.50°  blur 0.000 px"
         );
         assert_eq!(Parameter::ThetaDeg.label(), "θ (°)");
     }
@@ -300,10 +352,16 @@ mod tests {
         let s = serde_json::to_string(&m).unwrap();
         assert_eq!(
             s,
-            r#"{"dx":1.5,"dy":1.0,"theta_deg":0.3,"a1":2.04,"alpha_deg":0.5}"#
+            r#"{"dx":1.5,"dy":1.0,"theta_deg":0.3,"a1":2.04,"alpha_deg":0.5,"blur_sigma_px":0.0}"#
         );
         let back: Mismatch = serde_json::from_str(&s).unwrap();
         assert_eq!(back, m);
+        // files from before the blur was modelled read as a sharp instrument
+        let old: Mismatch = serde_json::from_str(
+            r#"{"dx":1.5,"dy":1.0,"theta_deg":0.3,"a1":2.04,"alpha_deg":0.5}"#,
+        )
+        .unwrap();
+        assert_eq!(old, m);
     }
 
     #[test]
@@ -329,8 +387,24 @@ mod tests {
                 dx: f64::NAN,
                 ..Mismatch::paper()
             },
+            Mismatch {
+                blur_sigma_px: -0.1,
+                ..Mismatch::paper()
+            },
+            Mismatch {
+                blur_sigma_px: 9.0,
+                ..Mismatch::paper()
+            },
         ];
-        let names = ["theta_deg", "a1", "a1", "alpha_deg", "dx"];
+        let names = [
+            "theta_deg",
+            "a1",
+            "a1",
+            "alpha_deg",
+            "dx",
+            "blur_sigma_px",
+            "blur_sigma_px",
+        ];
         for (m, name) in bad.iter().zip(names) {
             let e = m.validate().unwrap_err().to_string();
             assert!(e.contains(name), "{e}");

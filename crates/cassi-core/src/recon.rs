@@ -7,7 +7,7 @@ use serde::{Deserialize, Serialize};
 use crate::cube::{Cube, Frame, Mask, Measurement};
 use crate::denoise::{Denoiser, TvChambolle2d, TvChambolle3d, TvChambolleParams};
 use crate::error::{CassiError, Result};
-use crate::optics::{CassiOperator, DispersionModel};
+use crate::optics::{DispersionModel, ModelOperator};
 use crate::params::Mismatch;
 use crate::solvers::{Admm, AdmmParams, Gap, GapParams, Observer, Solution, Strength};
 
@@ -150,7 +150,8 @@ pub fn fit_width(measurement: &Measurement, cols: usize) -> Frame {
 /// cassi-nets) build one, run a solver on it and call
 /// [`finish`](Self::finish), so the checks and width handling are shared.
 pub struct ModelProblem {
-    pub op: CassiOperator,
+    /// The model's operator (blurred when the parameters carry a blur).
+    pub op: ModelOperator,
     /// The measurement, cropped or zero-padded on the right to the model's
     /// detector width.
     pub y: Frame,
@@ -177,7 +178,7 @@ impl ModelProblem {
                 format!("{} (the mask's rows)", nominal_mask.rows()),
             ));
         }
-        let op = CassiOperator::with_mismatch(nominal_mask, bands, model_params, model)?;
+        let op = ModelOperator::new(nominal_mask, bands, model_params, model)?;
         let (_, det_cols) = op.measurement_shape();
         let width_fitted =
             (measurement.cols() != det_cols).then_some((measurement.cols(), det_cols));

@@ -48,6 +48,7 @@ fn mismatches() -> Vec<(&'static str, Mismatch)> {
                 theta_deg: -0.5,
                 a1: 1.85,
                 alpha_deg: -1.5,
+                blur_sigma_px: 0.0,
             },
         ),
     ]
@@ -284,13 +285,13 @@ fn the_true_model_never_loses_to_the_nominal_one() {
                         "GAP-TV",
                         score(&gap_tv(&nominal.op, &yn, shape)),
                         score(&gap_tv(&truth.op, &yt, shape)),
-                        score(&gap_tv(&OldDiag(&truth.op), &yt, shape)),
+                        score(&gap_tv(&OldDiag(truth.op.cassi()), &yt, shape)),
                     ),
                     (
                         "ADMM-TV",
                         score(&admm_tv(&nominal.op, &yn, shape)),
                         score(&admm_tv(&truth.op, &yt, shape)),
-                        score(&admm_tv(&OldDiag(&truth.op), &yt, shape)),
+                        score(&admm_tv(&OldDiag(truth.op.cassi()), &yt, shape)),
                     ),
                 ];
                 for (method, nom, tru, old) in rows {

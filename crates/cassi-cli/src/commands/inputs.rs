@@ -155,6 +155,8 @@ impl MismatchArgs {
             Parameter::ThetaDeg => self.theta,
             Parameter::A1 => self.a1,
             Parameter::AlphaDeg => self.alpha,
+            // the blur is set by `simulate --blur` (with the physical simulator's other settings)
+            Parameter::BlurSigmaPx => None,
         }
     }
 

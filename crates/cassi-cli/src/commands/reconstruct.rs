@@ -101,7 +101,7 @@ pub fn read_model_file(path: &Path) -> anyhow::Result<(Mismatch, Option<Dispersi
 }
 
 /// The mismatch from a JSON object with exactly the parameters' named
-/// fields.
+/// fields (those [`Parameter::optional_in_files`] may be absent).
 fn named_mismatch(value: &serde_json::Value) -> anyhow::Result<Mismatch> {
     let names = Parameter::ALL.map(|p| p.key()).join(", ");
     let Some(object) = value.as_object() else {
@@ -127,6 +127,7 @@ fn named_mismatch(value: &serde_json::Value) -> anyhow::Result<Mismatch> {
         let v = match object.get(name) {
             Some(serde_json::Value::Number(n)) => n.as_f64().unwrap_or(f64::NAN),
             Some(other) => bail!("{name} must be a number, got {}", json_kind(other)),
+            None if p.optional_in_files() => p.get(&Mismatch::nominal(0.0)),
             None => bail!("{name} is missing (the parameters are {names})"),
         };
         p.set(&mut m, v);

@@ -246,8 +246,12 @@ pub fn run(args: &SimulateArgs, reporter: &Reporter) -> anyhow::Result<()> {
     // Parameters first: a typo should not cost a scene load.
     Instrument::with_bands(1, args.instrument.stride).context("--stride")?;
     let physical = args.physical.spec()?;
+    let mut mismatch = args.mismatch.mismatch(args.instrument.stride)?;
+    // the sidecar's true parameters carry the blur, so `--calibration` with
+    // it gives the oracle (blurred) model
+    mismatch.blur_sigma_px = physical.map_or(0.0, |p| p.blur_sigma_px);
     let spec = SimulationSpec {
-        mismatch: args.mismatch.mismatch(args.instrument.stride)?,
+        mismatch,
         // the physical instrument's S = 1 limit is the subpixel model
         model: if physical.is_some() {
             DispersionModel::Subpixel

@@ -208,6 +208,15 @@ impl CalibrationProblem<'_> {
         params: &[Parameter],
     ) -> Result<(f64, Vec<f64>)> {
         psi.validate()?;
+        // The unrolled forward-mode derivatives are written for the sharp
+        // operator; a blurred model is fitted by the derivative-free stages.
+        if psi.blur_sigma_px != 0.0 || params.contains(&Parameter::BlurSigmaPx) {
+            return Err(crate::error::CassiError::InvalidParameter {
+                name: "blur_sigma_px",
+                value: psi.blur_sigma_px,
+                reason: "exact score gradients are available for the sharp model only".into(),
+            });
+        }
         let dispersion = Dispersion::new(self.bands, psi.dispersion(), self.model)?;
         let warp = warp_mask_with_derivatives(self.nominal_mask, &psi.pose());
         let a = CassiOperator::new(warp.value.clone(), dispersion)?;
@@ -219,6 +228,7 @@ impl CalibrationProblem<'_> {
                     Parameter::Dy => Some(warp.d_dy.clone()),
                     Parameter::ThetaDeg => Some(warp.d_theta_deg.clone()),
                     Parameter::A1 | Parameter::AlphaDeg => None,
+                    Parameter::BlurSigmaPx => unreachable!("refused above"),
                 };
                 OperatorDerivative::new(&a, d_mask, p)
             })
@@ -455,6 +465,7 @@ mod tests {
             theta_deg: 0.3,
             a1: 2.04,
             alpha_deg: 0.5,
+            blur_sigma_px: 0.0,
         };
         let spec = SimulationSpec {
             mismatch: truth,
@@ -485,6 +496,7 @@ mod tests {
         theta_deg: 0.23,
         a1: 2.03,
         alpha_deg: 0.4,
+        blur_sigma_px: 0.0,
     };
 
     fn assert_close(what: &str, got: f64, want: f64) {
@@ -593,7 +605,8 @@ mod tests {
                     inv_phi: ip,
                     line_search: None,
                 };
-                residual_with(&op, &yf, outside, y.as_slice().len(), &norm, &PROXY)
+                let (_, h, w) = op.cube_shape();
+                residual_with(&op, (h, w), &yf, outside, y.as_slice().len(), &norm, &PROXY)
             };
             // the relaxed model bends sharply within ~1e-3 px of t = 0 (Φ is
             // small at some pixels), so the step moves the farthest band by

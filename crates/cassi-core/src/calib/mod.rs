@@ -138,5 +138,6 @@ pub(crate) fn psi(v: &[f64], base: &Mismatch) -> Mismatch {
         theta_deg: v[2],
         a1: v.get(3).copied().unwrap_or(base.a1),
         alpha_deg: v.get(4).copied().unwrap_or(base.alpha_deg),
+        blur_sigma_px: base.blur_sigma_px,
     }
 }

@@ -19,7 +19,7 @@ use super::smooth::{gaussian_taps, smooth_step};
 use crate::cube::{Mask, Measurement};
 use crate::error::{Result, shape_error};
 use crate::linop::LinearOperator;
-use crate::optics::{CassiOperator, DispersionModel};
+use crate::optics::{CassiOperator, DispersionModel, ModelOperator};
 use crate::params::Mismatch;
 
 /// Settings of the proxy reconstruction inside the score.
@@ -68,36 +68,44 @@ impl CalibrationProblem<'_> {
         Ok(())
     }
 
-    /// score(ψ) with the proxy `proxy`.
+    /// score(ψ) with the proxy `proxy` (ψ's blur included).
     pub fn score(&self, psi: &Mismatch, proxy: &ProxyParams) -> Result<f64> {
-        let op = CassiOperator::with_mismatch(self.nominal_mask, self.bands, psi, self.model)?;
+        let op = ModelOperator::new(self.nominal_mask, self.bands, psi, self.model)?;
         Ok(proxy_residual(&op, self.measurement, proxy))
     }
 }
 
 /// The proxy reconstruction's residual for one operator (see the module doc).
-pub fn proxy_residual(op: &CassiOperator, measurement: &Measurement, proxy: &ProxyParams) -> f64 {
+pub fn proxy_residual(op: &ModelOperator, measurement: &Measurement, proxy: &ProxyParams) -> f64 {
     let (y, outside) = fit_to_model(measurement, op.measurement_shape().1);
     let size = measurement.as_slice().len();
-    residual_with(op, &y, outside, size, &StepNorm::new(op), proxy)
+    let (_, h, w) = op.cube_shape();
+    residual_with(
+        op,
+        (h, w),
+        &y,
+        outside,
+        size,
+        &StepNorm::for_model(op),
+        proxy,
+    )
 }
 
-/// [`proxy_residual`] with the fitted measurement `y`, the energy `outside`
-/// the model's columns, the measurement's pixel count and the step's
-/// normaliser given.
+/// [`proxy_residual`] for an operator on `(rows, cols)` band images, with
+/// the fitted measurement `y`, the energy `outside` the model's columns, the
+/// measurement's pixel count and the step's normaliser given.
 pub(crate) fn residual_with(
-    op: &CassiOperator,
+    op: &dyn LinearOperator,
+    (h, w): (usize, usize),
     y: &[f32],
     outside: f64,
     measurement_size: usize,
     norm: &StepNorm,
     proxy: &ProxyParams,
 ) -> f64 {
-    let (rows, det) = op.measurement_shape();
-    let (_, h, w) = op.cube_shape();
     let taps = gaussian_taps(proxy.sigma);
     SCRATCH.with_borrow_mut(|scratch| {
-        scratch.resize(rows * det, op.domain_len());
+        scratch.resize(op.range_len(), op.domain_len());
         let ProxyScratch { r, yh, step, x } = scratch;
         proxy_iterations(op, y, norm, &taps, proxy.iterations, r, yh, step, x, h, w);
         let inside: f64 = y
@@ -140,6 +148,8 @@ pub(crate) fn fit_to_model(measurement: &Measurement, det: usize) -> (Vec<f32>, 
 /// toward unsplit operators (α → 0 with dy compensating); the line search
 /// restores a full step at no extra operator cost. ε̄ = 5 % of the mean Φ
 /// keeps τ bounded where a residual sits on barely-lit detector pixels.
+/// A blurred model couples neighbours whatever its dispersion and gets the
+/// same majoriser and line search.
 /// ε̄ as a fraction of the mean Φ (see [`StepNorm`]).
 pub(crate) const EPS_FRACTION: f32 = 0.05;
 
@@ -158,6 +168,19 @@ impl StepNorm {
                 line_search: None,
             };
         }
+        Self::majorised(op)
+    }
+
+    /// The normaliser of a model operator (see the type's doc).
+    pub(crate) fn for_model(op: &ModelOperator) -> Self {
+        match op {
+            ModelOperator::Sharp(a) => Self::new(a),
+            ModelOperator::Blurred(b) => Self::majorised(b),
+        }
+    }
+
+    /// Φ = A Aᵀ 𝟙 + ε̄ with the line search, for a non-negative `op`.
+    fn majorised(op: &dyn LinearOperator) -> Self {
         let mut back = vec![0.0f32; op.domain_len()];
         op.adjoint(&vec![1.0f32; op.range_len()], &mut back);
         let mut phi = vec![0.0f32; op.range_len()];
@@ -220,7 +243,7 @@ thread_local! {
 /// Runs the unrolled proxy; leaves A x̂ in `yh`.
 #[allow(clippy::too_many_arguments)]
 fn proxy_iterations(
-    op: &CassiOperator,
+    op: &dyn LinearOperator,
     y: &[f32],
     norm: &StepNorm,
     taps: &[f32],

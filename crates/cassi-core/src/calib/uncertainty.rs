@@ -36,6 +36,7 @@ pub(crate) fn curvature_uncertainty(
                     Parameter::Dx | Parameter::Dy | Parameter::ThetaDeg => Some(0.05),
                     Parameter::A1 => subpixel.then_some(0.005),
                     Parameter::AlphaDeg => subpixel.then_some(0.2),
+                    Parameter::BlurSigmaPx => None,
                 };
                 let sigma = step.and_then(|h| axis(h, &|m, d| p.set(m, p.get(m) + d)));
                 (p, sigma)

@@ -17,9 +17,9 @@ use rayon::prelude::*;
 use crate::error::{CassiError, Result};
 use crate::linop::{AatNormaliser, LinearOperator, NonNegativeOperator, row_sum_majoriser};
 
-/// The widest blur accepted, detector pixels: beyond it a CASSI image holds
-/// no code worth calibrating.
-pub const MAX_SIGMA_PX: f64 = 8.0;
+/// The widest blur accepted, detector pixels (one limit for the model, the
+/// simulator and the mismatch vector).
+pub use crate::params::MAX_BLUR_SIGMA_PX as MAX_SIGMA_PX;
 
 /// A separable Gaussian blur of one width on frames of one shape.
 #[derive(Debug, Clone)]

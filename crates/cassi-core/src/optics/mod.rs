@@ -4,6 +4,7 @@
 pub mod blur;
 pub mod dispersion;
 pub mod input_checks;
+pub mod model_operator;
 pub mod noise;
 pub mod operator;
 pub mod physical;
@@ -13,6 +14,7 @@ pub mod warp;
 pub use blur::{Blurred, GaussianBlur};
 pub use dispersion::{Dispersion, DispersionModel, Tap};
 pub use input_checks::{MaskCode, mask_code, validate_measurement, validate_mismatch_for_mask};
+pub use model_operator::ModelOperator;
 pub use noise::NoiseModel;
 pub use operator::{CassiOperator, validate_mask};
 pub use physical::{

@@ -63,7 +63,10 @@ impl CassiOperator {
     }
 
     /// The true operator of an instrument whose mask `nominal_mask` is
-    /// misplaced and whose prism drifted as `mismatch` says.
+    /// misplaced and whose prism drifted as `mismatch` says. A blurred
+    /// `mismatch` is refused (its operator is a
+    /// [`ModelOperator`](super::ModelOperator)): dropping the blur silently
+    /// would fit the wrong instrument.
     pub fn with_mismatch(
         nominal_mask: &Mask,
         bands: usize,
@@ -71,6 +74,13 @@ impl CassiOperator {
         model: DispersionModel,
     ) -> Result<Self> {
         mismatch.validate()?;
+        if mismatch.blur_sigma_px != 0.0 {
+            return Err(CassiError::InvalidParameter {
+                name: "blur_sigma_px",
+                value: mismatch.blur_sigma_px,
+                reason: "the sharp CASSI operator has no blur; build a ModelOperator".into(),
+            });
+        }
         validate_mask(nominal_mask, "nominal mask")?;
         let dispersion = Dispersion::new(bands, mismatch.dispersion(), model)?;
         Self::new(warp_mask(nominal_mask, &mismatch.pose()), dispersion)
@@ -468,6 +478,7 @@ mod tests {
             theta_deg: 0.0,
             a1: 2.0,
             alpha_deg: 0.0,
+            blur_sigma_px: 0.0,
         };
         let op = CassiOperator::with_mismatch(&mask, 3, &m, DispersionModel::Rounded).unwrap();
         assert_eq!(op.mask().get(4, 3), 1.0);

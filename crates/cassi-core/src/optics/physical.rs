@@ -233,6 +233,18 @@ pub fn simulate_physical_clean(
 ) -> Result<Measurement> {
     spec.validate()?;
     mismatch.validate()?;
+    // the blur is the spec's (with its wavelength slope); a ψ that carries
+    // one must agree with it rather than be silently ignored
+    if mismatch.blur_sigma_px != 0.0 && mismatch.blur_sigma_px != spec.blur_sigma_px {
+        return Err(CassiError::InvalidParameter {
+            name: "blur_sigma_px",
+            value: mismatch.blur_sigma_px,
+            reason: format!(
+                "the mismatch's blur differs from the physical spec's σ₀ = {} px",
+                spec.blur_sigma_px
+            ),
+        });
+    }
     validate_mask(nominal_mask, "nominal mask")?;
     let (bands, rows, cols) = scene.shape();
     if (rows, cols) != nominal_mask.shape() {
@@ -590,6 +602,7 @@ mod tests {
             theta_deg,
             a1,
             alpha_deg,
+            blur_sigma_px: 0.0,
         }
     }
 

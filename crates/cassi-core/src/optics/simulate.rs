@@ -3,6 +3,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::dispersion::{Dispersion, DispersionModel};
+use super::model_operator::ModelOperator;
 use super::noise::NoiseModel;
 use super::operator::CassiOperator;
 use crate::cube::{Cube, Frame, Mask, Measurement};
@@ -23,7 +24,7 @@ pub struct SimulationSpec {
 /// y = A_true x (+ noise). The scene must have the mask's rows and cols.
 pub fn simulate(scene: &Cube, nominal_mask: &Mask, spec: &SimulationSpec) -> Result<Measurement> {
     check_inputs(scene, nominal_mask)?;
-    let op = CassiOperator::with_mismatch(nominal_mask, scene.bands(), &spec.mismatch, spec.model)?;
+    let op = ModelOperator::new(nominal_mask, scene.bands(), &spec.mismatch, spec.model)?;
     let clean = op.forward(scene)?;
     match &spec.noise {
         Some(noise) => noise.apply(&clean),
