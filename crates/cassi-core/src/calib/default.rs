@@ -12,14 +12,16 @@ use std::time::Instant;
 
 use serde::{Deserialize, Serialize};
 
+use super::Uncertainty;
 use super::nelder_mead::nelder_mead;
 use super::rounded_dispersion::{rounded_dispersion, rounding_intervals};
 use super::subpixel_tilt::subpixel_tilt;
-use super::uncertainty::curvature_uncertainty;
+use super::texture::TextureFit;
+use super::uncertainty::{TradeOff, curvature_uncertainty, texture_uncertainty};
 use super::{Calibration, CalibrationProblem, ProxyParams, StageReport, init, psi};
 use crate::error::Result;
 use crate::optics::DispersionModel;
-use crate::params::Mismatch;
+use crate::params::{Mismatch, Parameter};
 
 /// Settings of the `default` preset.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -43,6 +45,18 @@ pub struct DefaultPreset {
     pub alpha_range_deg: f64,
     /// How many of the best (a1, α) hypotheses get their pose re-fitted.
     pub dispersion_candidates: usize,
+    /// Finish with the texture fit (`texture.rs`), which also gives the
+    /// uncertainty; without it the result is the proxy's joint refinement
+    /// with curvature standard errors.
+    #[serde(default = "yes")]
+    pub texture_fit: bool,
+    /// Fit the optical blur σ in the texture fit (otherwise σ stays 0).
+    #[serde(default = "yes")]
+    pub fit_blur: bool,
+}
+
+fn yes() -> bool {
+    true
 }
 
 impl Default for DefaultPreset {
@@ -57,6 +71,8 @@ impl Default for DefaultPreset {
             search_iterations: 5,
             alpha_range_deg: 2.0,
             dispersion_candidates: 2,
+            texture_fit: true,
+            fit_blur: true,
         }
     }
 }
@@ -259,9 +275,16 @@ pub fn calibrate_default(
         },
     );
 
+    // Without the texture fit, the subpixel model's α and a1 are refined on
+    // the proxy score (3c, 4). With it they are left to the texture fit: on
+    // measurements of the model's own operator at zero mismatch the proxy
+    // refinement moved a1 to 2.0186 (split taps smooth the model, which the
+    // proxy residual rewards), and the two stages cost 12 of 20 s.
+    let proxy_refines_dispersion =
+        problem.model == DispersionModel::Subpixel && !preset.texture_fit;
     // 3c. subpixel model: α (and the θ it was traded for), then the pose of
     // the best few tilts re-fitted with α free
-    if problem.model == DispersionModel::Subpixel {
+    if proxy_refines_dispersion {
         let t = Instant::now();
         let (tilts, mut evals) =
             subpixel_tilt(&search_model, &best, problem.bands, preset.alpha_range_deg);
@@ -308,61 +331,72 @@ pub fn calibrate_default(
     // at a1 ≈ 2.027 on every CAVE scene for a true 2.04 (measured: RMSE
     // 0.012; 0.008 held in the interval). With few bands the interval is wide
     // (8 bands: every a1 in 1.93…2.07 rounds alike) and a1 moves freely.
-    let t = Instant::now();
-    let base = best;
-    let (a1_lo, a1_hi) = rounding_intervals(
-        problem.bands,
-        base.alpha_deg,
-        base.a1 - preset.a1_span,
-        base.a1 + preset.a1_span,
-    )
-    .into_iter()
-    .find(|&(a, b)| a <= base.a1 && base.a1 <= b)
-    .unwrap_or((base.a1, base.a1));
-    let with_alpha = |v: &[f64], base: &Mismatch| Mismatch {
-        alpha_deg: v.get(3).copied().unwrap_or(base.alpha_deg),
-        a1: v.get(4).map_or(base.a1, |a| a.clamp(a1_lo, a1_hi)),
-        ..psi(&v[..3], base)
-    };
-    let (x0, steps, tol): (Vec<f64>, Vec<f64>, Vec<f64>) = match problem.model {
-        DispersionModel::Rounded => (
-            vec![base.dx, base.dy, base.theta_deg],
-            vec![0.05, 0.05, 0.05],
-            vec![0.002, 0.002, 0.002],
-        ),
-        DispersionModel::Subpixel => (
-            vec![base.dx, base.dy, base.theta_deg, base.alpha_deg, base.a1],
-            vec![0.05, 0.05, 0.05, 0.1, (0.25 * (a1_hi - a1_lo)).max(1e-4)],
-            vec![0.005, 0.005, 0.005, 0.01, 0.0005],
-        ),
-    };
-    let (v, s, n) = nelder_mead(
-        |v| score(&with_alpha(v, &base)),
-        &x0,
-        &steps,
-        match problem.model {
-            DispersionModel::Rounded => preset.max_evaluations / 2,
-            DispersionModel::Subpixel => preset.max_evaluations / 4,
-        },
-        &tol,
-        1e-7,
-    );
-    best = with_alpha(&v, &base);
-    push(
-        &mut stages,
-        StageReport {
-            name: "joint refinement".into(),
-            evaluations: n,
-            seconds: t.elapsed().as_secs_f64(),
-            parameters: best,
-            score: s,
-        },
-    );
+    if problem.model == DispersionModel::Rounded || proxy_refines_dispersion {
+        let t = Instant::now();
+        let base = best;
+        let (a1_lo, a1_hi) = rounding_intervals(
+            problem.bands,
+            base.alpha_deg,
+            base.a1 - preset.a1_span,
+            base.a1 + preset.a1_span,
+        )
+        .into_iter()
+        .find(|&(a, b)| a <= base.a1 && base.a1 <= b)
+        .unwrap_or((base.a1, base.a1));
+        let with_alpha = |v: &[f64], base: &Mismatch| Mismatch {
+            alpha_deg: v.get(3).copied().unwrap_or(base.alpha_deg),
+            a1: v.get(4).map_or(base.a1, |a| a.clamp(a1_lo, a1_hi)),
+            ..psi(&v[..3], base)
+        };
+        let (x0, steps, tol): (Vec<f64>, Vec<f64>, Vec<f64>) = match problem.model {
+            DispersionModel::Rounded => (
+                vec![base.dx, base.dy, base.theta_deg],
+                vec![0.05, 0.05, 0.05],
+                vec![0.002, 0.002, 0.002],
+            ),
+            DispersionModel::Subpixel => (
+                vec![base.dx, base.dy, base.theta_deg, base.alpha_deg, base.a1],
+                vec![0.05, 0.05, 0.05, 0.1, (0.25 * (a1_hi - a1_lo)).max(1e-4)],
+                vec![0.005, 0.005, 0.005, 0.01, 0.0005],
+            ),
+        };
+        let (v, s, n) = nelder_mead(
+            |v| score(&with_alpha(v, &base)),
+            &x0,
+            &steps,
+            match problem.model {
+                DispersionModel::Rounded => preset.max_evaluations / 2,
+                DispersionModel::Subpixel => preset.max_evaluations / 4,
+            },
+            &tol,
+            1e-7,
+        );
+        best = with_alpha(&v, &base);
+        push(
+            &mut stages,
+            StageReport {
+                name: "joint refinement".into(),
+                evaluations: n,
+                seconds: t.elapsed().as_secs_f64(),
+                parameters: best,
+                score: s,
+            },
+        );
+    }
 
-    let (uncertainty, uncertainty_evals) = curvature_uncertainty(problem, &best, s, &proxy);
+    let (uncertainty, trade_offs, uncertainty_evals) = if preset.texture_fit {
+        let (found, stage) = texture_stage(problem, preset, &best, &proxy)?;
+        best = found.0;
+        push(&mut stages, stage);
+        (found.1, found.2, found.3)
+    } else {
+        let (u, n) = curvature_uncertainty(problem, &best, score(&best), &proxy);
+        (u, Vec::new(), n)
+    };
+    let s = score(&best);
     let nominal_score = score(&Mismatch::nominal(preset.stride));
-    // + the uncertainty probes and the nominal score
-    let evaluations = stages.iter().map(|s| s.evaluations).sum::<usize>() + uncertainty_evals + 1;
+    // + the uncertainty probes, the final and the nominal score
+    let evaluations = stages.iter().map(|s| s.evaluations).sum::<usize>() + uncertainty_evals + 2;
     Ok(Calibration {
         preset: "default".into(),
         model: problem.model,
@@ -370,8 +404,108 @@ pub fn calibrate_default(
         score: s,
         nominal_score,
         uncertainty,
+        trade_offs,
         stages,
         seconds: t_all.elapsed().as_secs_f64(),
         evaluations,
     })
+}
+
+/// What the texture stage found: ψ, its standard errors, the trade-offs and
+/// the scores the uncertainty spent.
+type TextureResult = (Mismatch, Uncertainty, Vec<TradeOff>, usize);
+
+/// 5. The texture fit (`texture.rs`) from `start`: σ on a coarse grid, then
+/// Nelder–Mead over the model's identifiable parameters and σ, then the
+/// block-sandwich uncertainty. The proxy stages place the mask within a
+/// fraction of a pixel and settle the dispersion's rounding pattern; on a
+/// blurred instrument their residual leans toward half-pixel shifts, which
+/// this fit does not.
+fn texture_stage(
+    problem: &CalibrationProblem<'_>,
+    preset: &DefaultPreset,
+    start: &Mismatch,
+    proxy: &ProxyParams,
+) -> Result<(TextureResult, StageReport)> {
+    let t = Instant::now();
+    let fit = TextureFit::new(problem, start, proxy)?;
+    let mut evals = 0;
+    let mut best = *start;
+    if preset.fit_blur {
+        let mut s_best = f64::INFINITY;
+        for i in 0..=BLUR_GRID_STEPS {
+            let m = Mismatch {
+                blur_sigma_px: BLUR_GRID_MAX_PX * i as f64 / BLUR_GRID_STEPS as f64,
+                ..*start
+            };
+            evals += 1;
+            let s = fit.score(&m);
+            if s < s_best {
+                s_best = s;
+                best = m;
+            }
+        }
+    }
+    let free: Vec<Parameter> = Parameter::ALL
+        .into_iter()
+        // the rounded model's score is flat in a1 and α within a rounding
+        // pattern: the proxy stages chose it
+        .filter(|&p| {
+            problem.model == DispersionModel::Subpixel
+                || !matches!(p, Parameter::A1 | Parameter::AlphaDeg)
+        })
+        .filter(|&p| preset.fit_blur || p != Parameter::BlurSigmaPx)
+        .collect();
+    let at = |v: &[f64]| {
+        let mut m = best;
+        for (&p, &x) in free.iter().zip(v) {
+            // σ enters as |σ|: the simplex may cross 0 on a sharp instrument
+            p.set(
+                &mut m,
+                if p == Parameter::BlurSigmaPx {
+                    x.abs()
+                } else {
+                    x
+                },
+            );
+        }
+        m
+    };
+    let x0: Vec<f64> = free.iter().map(|p| p.get(&best)).collect();
+    let steps: Vec<f64> = free.iter().map(|&p| texture_step(p)).collect();
+    let tol: Vec<f64> = steps.iter().map(|s| s / 50.0).collect();
+    let (v, s, n) = nelder_mead(
+        |v| fit.score(&at(v)),
+        &x0,
+        &steps,
+        preset.max_evaluations,
+        &tol,
+        1e-9,
+    );
+    evals += n;
+    best = at(&v);
+    let (uncertainty, trade_offs, u_evals) = texture_uncertainty(&fit, &best, &free);
+    let stage = StageReport {
+        name: "texture fit (incl. blur)".into(),
+        evaluations: evals,
+        seconds: t.elapsed().as_secs_f64(),
+        parameters: best,
+        score: s,
+    };
+    Ok(((best, uncertainty, trade_offs, u_evals), stage))
+}
+
+/// The blur widths the texture stage tries before its simplex: 0 … 1.5 px.
+const BLUR_GRID_MAX_PX: f64 = 1.5;
+const BLUR_GRID_STEPS: usize = 10;
+
+/// The texture simplex's initial step per parameter.
+fn texture_step(p: Parameter) -> f64 {
+    match p {
+        Parameter::Dx | Parameter::Dy => 0.1,
+        Parameter::ThetaDeg => 0.05,
+        Parameter::A1 => 0.005,
+        Parameter::AlphaDeg => 0.1,
+        Parameter::BlurSigmaPx => 0.1,
+    }
 }

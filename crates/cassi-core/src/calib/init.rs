@@ -12,8 +12,9 @@ use crate::error::Result;
 use crate::optics::{CassiOperator, DispersionModel};
 use crate::params::Mismatch;
 
-/// `img / G_σ(img) − 1` (0 where the local mean vanishes).
-fn high_pass(img: &Frame) -> Vec<f32> {
+/// `img / G_σ(img) − 1` (0 where the local mean vanishes): the code texture
+/// with the slowly varying scene divided out.
+pub(crate) fn high_pass(img: &Frame) -> Vec<f32> {
     let (rows, cols) = img.shape();
     let mut low = img.as_slice().to_vec();
     smooth_bands(&mut low, rows, cols, &gaussian_taps(2.0));

@@ -16,7 +16,10 @@ mod rounded_dispersion;
 pub mod score;
 pub mod smooth;
 mod subpixel_tilt;
+mod texture;
 mod uncertainty;
+
+pub use uncertainty::{TRADE_OFF_CORRELATION, TradeOff};
 
 use serde::{Deserialize, Serialize};
 
@@ -51,13 +54,18 @@ pub struct Calibration {
     pub score: f64,
     /// Score of the nominal parameters with the final proxy.
     pub nominal_score: f64,
-    /// Curvature-based standard error per parameter (pixels / degrees /
-    /// px-per-band), from a quadratic fit of the score along each axis,
-    /// treating the score as a mean squared residual of N measurement pixels.
-    /// It reflects how sharply the data pin each parameter, not model error.
-    /// `None` where the score is flat along that axis (a1 in the rounded
-    /// model within its rounding interval; α when not estimated).
+    /// Standard error per parameter (pixels / degrees / px-per-band). The
+    /// `default` preset: the block sandwich of its texture fit (spatially
+    /// correlated residuals counted per image block, not per pixel); the
+    /// `paper` preset: the proxy score's curvature, treating it as a mean
+    /// squared residual of N independent pixels (it is not: no coverage).
+    /// Coverage on the physical benchmark:
+    /// `bench/results/calibrate_physical_*.json`. `None` where not estimated.
     pub uncertainty: Uncertainty,
+    /// Pairs of parameters whose estimates are correlated by at least
+    /// [`TRADE_OFF_CORRELATION`]: the data pin their combination, not each.
+    #[serde(default)]
+    pub trade_offs: Vec<TradeOff>,
     pub stages: Vec<StageReport>,
     pub seconds: f64,
     pub evaluations: usize,

@@ -294,6 +294,7 @@ pub fn calibrate_paper(
         score: final_score,
         nominal_score,
         uncertainty,
+        trade_offs: Vec::new(),
         stages,
         seconds: t_all.elapsed().as_secs_f64(),
         evaluations,

@@ -91,6 +91,24 @@ pub fn proxy_residual(op: &ModelOperator, measurement: &Measurement, proxy: &Pro
     )
 }
 
+/// The proxy's reconstruction x̂ (bands × rows × cols) for one operator.
+pub(crate) fn proxy_reconstruction(
+    op: &ModelOperator,
+    measurement: &Measurement,
+    proxy: &ProxyParams,
+) -> Vec<f32> {
+    let (y, _) = fit_to_model(measurement, op.measurement_shape().1);
+    let (_, h, w) = op.cube_shape();
+    let norm = StepNorm::for_model(op);
+    let taps = gaussian_taps(proxy.sigma);
+    SCRATCH.with_borrow_mut(|scratch| {
+        scratch.resize(op.range_len(), op.domain_len());
+        let ProxyScratch { r, yh, step, x } = scratch;
+        proxy_iterations(op, &y, &norm, &taps, proxy.iterations, r, yh, step, x, h, w);
+        x.clone()
+    })
+}
+
 /// [`proxy_residual`] for an operator on `(rows, cols)` band images, with
 /// the fitted measurement `y`, the energy `outside` the model's columns, the
 /// measurement's pixel count and the step's normaliser given.

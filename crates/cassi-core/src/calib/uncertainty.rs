@@ -1,5 +1,7 @@
-//! Per-parameter standard errors from the score's curvature.
+//! Per-parameter standard errors: from the texture fit's block sandwich
+//! (the `default` preset), or from the proxy score's curvature (`paper`).
 
+use super::texture::{TextureFit, block_contributions};
 use super::{CalibrationProblem, ProxyParams, Uncertainty};
 use crate::optics::DispersionModel;
 use crate::params::{Mismatch, Parameter};
@@ -44,4 +46,205 @@ pub(crate) fn curvature_uncertainty(
             .collect(),
     );
     (u, evaluations.get())
+}
+
+/// A pair of parameters the data pin only in combination.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct TradeOff {
+    pub a: Parameter,
+    pub b: Parameter,
+    /// Correlation of the two estimates' errors.
+    pub correlation: f64,
+}
+
+/// |correlation| from which two estimates are reported as trading off.
+pub const TRADE_OFF_CORRELATION: f64 = 0.8;
+
+/// Finite-difference steps of the sandwich, per parameter.
+fn sandwich_step(p: Parameter) -> f64 {
+    match p {
+        Parameter::Dx | Parameter::Dy | Parameter::BlurSigmaPx => 0.02,
+        Parameter::ThetaDeg => 0.01,
+        Parameter::A1 => 0.001,
+        Parameter::AlphaDeg => 0.05,
+    }
+}
+
+/// Standard errors of the texture fit's `free` parameters at `at`, from the
+/// block sandwich H⁻¹ M H⁻¹: H the score's Hessian, M the spread of the
+/// [`BLOCKS_PER_SIDE`](super::texture::BLOCKS_PER_SIDE)² blocks' gradient contributions, so a residual that
+/// is correlated within a block (scene detail, model error) widens the bars
+/// instead of being counted as independent pixels. Also the pairs that trade
+/// off, and the scores spent. `None` everywhere when H is not positive
+/// definite (a flat direction).
+pub(crate) fn texture_uncertainty(
+    fit: &TextureFit<'_>,
+    at: &Mismatch,
+    free: &[Parameter],
+) -> (Uncertainty, Vec<TradeOff>, usize) {
+    let n = free.len();
+    let moved = |steps: &[(usize, f64)]| {
+        let mut m = *at;
+        for &(i, h) in steps {
+            let p = free[i];
+            let v = p.get(&m) + h;
+            p.set(
+                &mut m,
+                if p == Parameter::BlurSigmaPx {
+                    v.abs()
+                } else {
+                    v
+                },
+            );
+        }
+        m
+    };
+    let mut evaluations = 0;
+    let mut contributions = |m: &Mismatch| -> Option<Vec<f64>> {
+        evaluations += 1;
+        fit.block_terms(m).ok().map(|t| block_contributions(&t))
+    };
+    let none = |free: &[Parameter]| Uncertainty(free.iter().map(|&p| (p, None)).collect());
+    let Some(c0) = contributions(at) else {
+        return (none(free), Vec::new(), evaluations);
+    };
+    let f0: f64 = c0.iter().sum();
+    let blocks = c0.len();
+    let mut hess = vec![0.0f64; n * n];
+    // g[b][i]: block b's gradient along parameter i
+    let mut g = vec![vec![0.0f64; n]; blocks];
+    let mut plus_minus = Vec::with_capacity(n);
+    for i in 0..n {
+        let h = sandwich_step(free[i]);
+        let (Some(cp), Some(cm)) = (
+            contributions(&moved(&[(i, h)])),
+            contributions(&moved(&[(i, -h)])),
+        ) else {
+            return (none(free), Vec::new(), evaluations);
+        };
+        let (fp, fm): (f64, f64) = (cp.iter().sum(), cm.iter().sum());
+        hess[i * n + i] = (fp + fm - 2.0 * f0) / (h * h);
+        for b in 0..blocks {
+            g[b][i] = (cp[b] - cm[b]) / (2.0 * h);
+        }
+        plus_minus.push(h);
+    }
+    for i in 0..n {
+        for j in 0..i {
+            let (hi, hj) = (plus_minus[i], plus_minus[j]);
+            let mut f = |si: f64, sj: f64| {
+                contributions(&moved(&[(i, si * hi), (j, sj * hj)])).map(|c| c.iter().sum::<f64>())
+            };
+            let (Some(pp), Some(pm), Some(mp), Some(mm)) =
+                (f(1.0, 1.0), f(1.0, -1.0), f(-1.0, 1.0), f(-1.0, -1.0))
+            else {
+                return (none(free), Vec::new(), evaluations);
+            };
+            let v = (pp - pm - mp + mm) / (4.0 * hi * hj);
+            hess[i * n + j] = v;
+            hess[j * n + i] = v;
+        }
+    }
+    // M = B/(B−1) Σ_b (g_b − ḡ)(g_b − ḡ)ᵀ
+    let mean: Vec<f64> = (0..n)
+        .map(|i| g.iter().map(|gb| gb[i]).sum::<f64>() / blocks as f64)
+        .collect();
+    let mut meat = vec![0.0f64; n * n];
+    for gb in &g {
+        for i in 0..n {
+            for j in 0..n {
+                meat[i * n + j] += (gb[i] - mean[i]) * (gb[j] - mean[j]);
+            }
+        }
+    }
+    let scale = blocks as f64 / (blocks as f64 - 1.0).max(1.0);
+    meat.iter_mut().for_each(|v| *v *= scale);
+    let Some(inv) = invert_positive_definite(&hess, n) else {
+        return (none(free), Vec::new(), evaluations);
+    };
+    let cov = product(&product(&inv, &meat, n), &inv, n);
+    let std: Vec<f64> = (0..n).map(|i| cov[i * n + i].max(0.0).sqrt()).collect();
+    let mut trade_offs = Vec::new();
+    for i in 0..n {
+        for j in 0..i {
+            if std[i] > 0.0 && std[j] > 0.0 {
+                let correlation = cov[i * n + j] / (std[i] * std[j]);
+                if correlation.abs() >= TRADE_OFF_CORRELATION {
+                    trade_offs.push(TradeOff {
+                        a: free[j],
+                        b: free[i],
+                        correlation,
+                    });
+                }
+            }
+        }
+    }
+    let u = Uncertainty(free.iter().zip(&std).map(|(&p, &s)| (p, Some(s))).collect());
+    (u, trade_offs, evaluations)
+}
+
+fn product(a: &[f64], b: &[f64], n: usize) -> Vec<f64> {
+    let mut out = vec![0.0; n * n];
+    for i in 0..n {
+        for k in 0..n {
+            let aik = a[i * n + k];
+            for j in 0..n {
+                out[i * n + j] += aik * b[k * n + j];
+            }
+        }
+    }
+    out
+}
+
+/// The inverse of a symmetric positive definite n × n matrix (Cholesky);
+/// `None` when it is not positive definite.
+fn invert_positive_definite(a: &[f64], n: usize) -> Option<Vec<f64>> {
+    let mut l = vec![0.0f64; n * n];
+    for j in 0..n {
+        let d = a[j * n + j] - (0..j).map(|k| l[j * n + k] * l[j * n + k]).sum::<f64>();
+        if !(d > 0.0) {
+            return None;
+        }
+        let d = d.sqrt();
+        l[j * n + j] = d;
+        for i in j + 1..n {
+            let v = a[i * n + j] - (0..j).map(|k| l[i * n + k] * l[j * n + k]).sum::<f64>();
+            l[i * n + j] = v / d;
+        }
+    }
+    // columns of A⁻¹ by forward and back substitution
+    let mut inv = vec![0.0f64; n * n];
+    for c in 0..n {
+        let mut z = vec![0.0f64; n];
+        for i in 0..n {
+            let rhs = if i == c { 1.0 } else { 0.0 };
+            z[i] = (rhs - (0..i).map(|k| l[i * n + k] * z[k]).sum::<f64>()) / l[i * n + i];
+        }
+        for i in (0..n).rev() {
+            z[i] = (z[i] - (i + 1..n).map(|k| l[k * n + i] * z[k]).sum::<f64>()) / l[i * n + i];
+        }
+        for i in 0..n {
+            inv[i * n + c] = z[i];
+        }
+    }
+    Some(inv)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_cholesky_inverse_inverts_and_refuses_indefinite_matrices() {
+        let a = [4.0, 1.0, 0.5, 1.0, 3.0, 0.2, 0.5, 0.2, 2.0];
+        let inv = invert_positive_definite(&a, 3).unwrap();
+        let id = product(&a, &inv, 3);
+        for i in 0..3 {
+            for j in 0..3 {
+                let want = if i == j { 1.0 } else { 0.0 };
+                assert!((id[i * 3 + j] - want).abs() < 1e-12);
+            }
+        }
+        assert!(invert_positive_definite(&[1.0, 2.0, 2.0, 1.0], 2).is_none());
+    }
 }
