@@ -1,10 +1,10 @@
 //! Self-calibration on small synthetic problems: the score is minimal at the
 //! truth, and the `default` preset recovers known parameters.
 
-use cassi_core::Mismatch;
 use cassi_core::calib::{CalibrationProblem, DefaultPreset, ProxyParams, calibrate_default};
 use cassi_core::optics::{DispersionModel, SimulationSpec, simulate};
 use cassi_core::synth::{SceneSpec, random_binary_mask, synthetic_scene};
+use cassi_core::{Mismatch, Parameter};
 
 fn setup(
     size: usize,
@@ -182,13 +182,25 @@ fn default_preset_recovers_a_known_mask_misalignment() {
                 assert!((e.alpha_deg - truth.alpha_deg).abs() < 0.5, "{e:?}");
             }
         }
+        // a sharp instrument is reported sharp
+        assert!(e.blur_sigma_px < 0.05, "{e:?}");
         assert!(cal.score < cal.nominal_score / 2.0);
-        // the subpixel model adds the tilt stage
+        // the texture fit replaces the subpixel model's proxy refinements
+        // (tilt, joint); the rounded model keeps its joint refinement
         let stages = if model == DispersionModel::Subpixel {
-            6
-        } else {
             5
+        } else {
+            6
         };
         assert_eq!(cal.stages.len(), stages);
+        assert!(
+            Parameter::ALL
+                .iter()
+                .filter(|&&p| model == DispersionModel::Subpixel
+                    || !matches!(p, Parameter::A1 | Parameter::AlphaDeg))
+                .all(|&p| cal.uncertainty.get(p).is_some_and(|u| u > 0.0)),
+            "{:?}",
+            cal.uncertainty
+        );
     }
 }

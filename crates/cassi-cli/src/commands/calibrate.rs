@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 
 use cassi_core::Parameter;
-use cassi_core::calib::{CalibrationProblem, Preset, StageReport, calibrate};
+use cassi_core::calib::{Calibration, CalibrationProblem, Preset, StageReport, calibrate};
 use cassi_core::optics::{DispersionModel, warp_mask};
 use clap::Args;
 
@@ -22,8 +22,10 @@ pub struct CalibrateArgs {
     /// paper's Algorithm 1: grids, then Adam through the unrolled proxy).
     #[arg(long, default_value = "default", value_parser = cassi_core::calib::PRESET_NAMES)]
     pub preset: String,
-    /// Dispersion model of candidate instruments (`subpixel` also estimates α).
-    #[arg(long, default_value = "rounded")]
+    /// Dispersion model of candidate instruments: `subpixel` (continuous a1
+    /// and α, the default for real instruments) or `rounded` (whole-pixel
+    /// band offsets, the reference code's model).
+    #[arg(long, default_value = "subpixel")]
     pub model: DispersionModel,
     /// Output calibration JSON (for `cassi reconstruct --calibration`).
     #[arg(long, short)]
@@ -80,9 +82,10 @@ pub fn run(args: &CalibrateArgs, reporter: &Reporter) -> anyhow::Result<()> {
     interrupt::check()?;
     staging.commit()?;
     reporter.say(&format!(
-        "calibrated: {}\n\
+        "calibrated: {}\n{}\
          residual score {:.4e} (nominal model {:.4e}), {} evaluations, {:.1} s → {}",
         Parameter::format_all(&cal.parameters),
+        uncertainty_lines(&cal),
         cal.score,
         cal.nominal_score,
         cal.evaluations,
@@ -91,6 +94,34 @@ pub fn run(args: &CalibrateArgs, reporter: &Reporter) -> anyhow::Result<()> {
     ));
     reporter.emit(&serde_json::to_value(&cal)?);
     Ok(())
+}
+
+/// One line per estimated parameter with its standard error, then the pairs
+/// that trade off.
+fn uncertainty_lines(cal: &Calibration) -> String {
+    let mut out = String::new();
+    for p in Parameter::ALL {
+        if let Some(u) = cal.uncertainty.get(p) {
+            out += &format!(
+                "  {:<5} {} ± {:.prec$} {}\n",
+                p.name(),
+                p.format(p.get(&cal.parameters)),
+                u,
+                p.unit(),
+                prec = p.decimals()
+            );
+        }
+    }
+    for t in &cal.trade_offs {
+        out += &format!(
+            "  {} and {} trade off (error correlation {:+.2}): the data pin their combination \
+             better than either\n",
+            t.a.name(),
+            t.b.name(),
+            t.correlation
+        );
+    }
+    out
 }
 
 fn check_output_json(path: &std::path::Path) -> anyhow::Result<()> {
