@@ -79,6 +79,8 @@ fn oversampled_simulation_has_the_fixed_detector_and_a_full_sidecar() {
     );
     assert_eq!(sidecar["measurement"]["shape"], serde_json::json!([32, 40]));
     assert_eq!(sidecar["simulation"]["mismatch"]["dx"], 0.4);
+    // the true parameters carry the blur σ₀, so the sidecar is the oracle model
+    assert_eq!(sidecar["simulation"]["mismatch"]["blur_sigma_px"], 0.5);
     assert_eq!(sidecar["simulation"]["noise"]["read_noise"], 3.0);
     assert_eq!(sidecar["simulation"]["model"], "subpixel");
 
@@ -115,6 +117,43 @@ fn oversampled_simulation_has_the_fixed_detector_and_a_full_sidecar() {
     )
     .unwrap();
     assert_eq!(y, want);
+
+    // the sidecar as a model: reconstruct uses the blurred operator, which
+    // explains the measurement better than the same parameters without blur
+    let residual = |calibration: &PathBuf, name: &str| {
+        let out = dir.join(name);
+        ok(&cassi(&[
+            "reconstruct",
+            s(&meas),
+            "--mask",
+            s(&dir.join("mask.npy")),
+            "--calibration",
+            s(calibration),
+            "--iterations",
+            "30",
+            "-o",
+            s(&out),
+        ]));
+        let report: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(out.with_extension("json")).unwrap()).unwrap();
+        report["relative_residual"].as_f64().unwrap()
+    };
+    cassi_io::save_frame(
+        dir.join("mask.npy"),
+        &random_binary_mask(32, 32, 0.5, 2).unwrap(),
+        "mask",
+    )
+    .unwrap();
+    let blurred = residual(&dir.join("phys.json"), "oracle.npy");
+    let mut sharp_sidecar = sidecar.clone();
+    sharp_sidecar["simulation"]["mismatch"]["blur_sigma_px"] = serde_json::json!(0.0);
+    let sharp_path = dir.join("sharp_model.json");
+    std::fs::write(&sharp_path, serde_json::to_vec(&sharp_sidecar).unwrap()).unwrap();
+    let sharp = residual(&sharp_path, "sharp.npy");
+    assert!(
+        blurred < sharp,
+        "blurred model residual {blurred} vs sharp {sharp}"
+    );
 
     // not the discrete measurement of the same instrument
     let discrete = dir.join("discrete.npy");

@@ -56,11 +56,13 @@ pub struct Calibration {
     pub nominal_score: f64,
     /// Standard error per parameter (pixels / degrees / px-per-band). The
     /// `default` preset: the block sandwich of its texture fit (spatially
-    /// correlated residuals counted per image block, not per pixel); the
-    /// `paper` preset: the proxy score's curvature, treating it as a mean
-    /// squared residual of N independent pixels (it is not: no coverage).
-    /// Coverage on the physical benchmark:
-    /// `bench/results/calibrate_physical_*.json`. `None` where not estimated.
+    /// correlated residuals counted per image block, not per pixel) with a
+    /// model-error floor in quadrature, set on the physical benchmark's
+    /// tuning half for ≥ 68 % / 95 % coverage at 1σ / 2σ and checked on the
+    /// held-out half (`bench/results/calibrate_physical_held_out.json`).
+    /// The `paper` preset: the proxy score's curvature, treating it as a
+    /// mean squared residual of N independent pixels (it is not; it does
+    /// not cover). `None` where not estimated.
     pub uncertainty: Uncertainty,
     /// Pairs of parameters whose estimates are correlated by at least
     /// [`TRADE_OFF_CORRELATION`]: the data pin their combination, not each.
