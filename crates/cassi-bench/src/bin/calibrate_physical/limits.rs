@@ -1,0 +1,376 @@
+//! `--limits`: where the blind calibration stands against what the data
+//! allow. Per case, two measurements with the TRUE scene known:
+//!
+//! * the oracle-scene fit: ψ minimising f(ψ) = min_s ‖y − s·A_ψ x‖² / N
+//!   (A_ψ the subpixel [`ModelOperator`] with ψ's blur, its output cropped
+//!   or zero-padded to the detector; s in closed form), Nelder–Mead over all
+//!   six parameters (σ as |σ|) from the blind estimate, restarted at its
+//!   best point while a restart still lowers f. The physical
+//!   simulator integrates a bilinearly interpolated scene over pixel areas,
+//!   so the scene it effectively sees is slightly smoother than `x`: that
+//!   model error is part of this limit and is left in;
+//! * the Cramér–Rao bound at the noise level: the Fisher matrix of the
+//!   scene-known model at the true ψ (central differences; one-sided for σ
+//!   below its step), with the scale s as a nuisance parameter, under the
+//!   simulator's noise (Poisson at `photon_peak` e⁻ on the clean maximum,
+//!   Gaussian read noise in e⁻); CRB = sqrt(diag(F⁻¹)) of the six ψ rows.
+
+use std::time::Instant;
+
+use cassi_core::calib::nelder_mead::nelder_mead;
+use cassi_core::linop::LinearOperator;
+use cassi_core::optics::{DispersionModel, ModelOperator};
+use cassi_core::{Cube, Mask, Measurement, Mismatch, Parameter};
+use serde_json::{Value, json};
+
+use super::{per_parameter, tolerance};
+
+/// Nelder–Mead's initial steps per parameter (Parameter::ALL order).
+const ORACLE_STEPS: [f64; 6] = [0.1, 0.1, 0.05, 0.005, 0.1, 0.1];
+const ORACLE_MAX_EVALS: usize = 400;
+const ORACLE_F_TOL: f64 = 1e-10;
+/// Restarts (fresh simplex at the best point, same steps) after the first
+/// leg, until a leg improves f by less than ORACLE_RESTART_GAIN (relative).
+const ORACLE_MAX_RESTARTS: usize = 2;
+const ORACLE_RESTART_GAIN: f64 = 1e-6;
+/// Central-difference steps of the Jacobian (Parameter::ALL order).
+const CRB_STEPS: [f64; 6] = [0.01, 0.01, 0.01, 0.0005, 0.01, 0.01];
+
+/// The detector's noise, as the simulator applies it (noise.rs).
+#[derive(Debug, Clone, Copy)]
+pub struct DetectorNoise {
+    pub photon_peak: f64,
+    pub read_noise_e: f64,
+}
+
+/// The scene-known forward model ψ ↦ A_ψ x on the detector's grid.
+struct SceneKnown<'a> {
+    mask: &'a Mask,
+    scene: &'a Cube,
+    rows: usize,
+    cols: usize,
+}
+
+impl SceneKnown<'_> {
+    /// A_ψ x cropped / zero-padded to rows × cols, or `None` for a ψ the
+    /// operator rejects.
+    fn model(&self, psi: &Mismatch) -> Option<Vec<f64>> {
+        let op = ModelOperator::new(
+            self.mask,
+            self.scene.bands(),
+            psi,
+            DispersionModel::Subpixel,
+        )
+        .ok()?;
+        let (mr, mc) = op.measurement_shape();
+        let mut full = vec![0.0f32; mr * mc];
+        op.apply(self.scene.as_slice(), &mut full);
+        let mut out = vec![0.0f64; self.rows * self.cols];
+        for r in 0..mr.min(self.rows) {
+            for c in 0..mc.min(self.cols) {
+                out[r * self.cols + c] = full[r * mc + c] as f64;
+            }
+        }
+        Some(out)
+    }
+}
+
+fn psi_of(x: &[f64]) -> Mismatch {
+    let mut psi = Mismatch::nominal(2.0);
+    for (&p, &v) in Parameter::ALL.iter().zip(x) {
+        p.set(&mut psi, v);
+    }
+    psi.blur_sigma_px = psi.blur_sigma_px.abs();
+    psi
+}
+
+fn vector_of(psi: &Mismatch) -> Vec<f64> {
+    Parameter::ALL.iter().map(|p| p.get(psi)).collect()
+}
+
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+/// min_s ‖y − s·m‖² / N and the optimal s.
+fn scaled_residual(y: &[f64], m: &[f64]) -> (f64, f64) {
+    let (ym, mm) = (dot(y, m), dot(m, m));
+    let s = if mm > 0.0 { ym / mm } else { 0.0 };
+    let r = dot(y, y) - s * ym;
+    (r.max(0.0) / y.len() as f64, s)
+}
+
+fn as_f64(y: &Measurement) -> Vec<f64> {
+    y.as_slice().iter().map(|&v| v as f64).collect()
+}
+
+/// The oracle-scene objective at ψ (∞ where the operator rejects ψ).
+fn objective(model: &SceneKnown, y: &[f64], psi: &Mismatch) -> f64 {
+    model
+        .model(psi)
+        .map_or(f64::INFINITY, |m| scaled_residual(y, &m).0)
+}
+
+/// The oracle-scene fit from `start`; its JSON record against `truth`.
+fn oracle_fit(model: &SceneKnown, y: &[f64], start: &Mismatch, truth: &Mismatch) -> Value {
+    let t = Instant::now();
+    let x_tol: Vec<f64> = ORACLE_STEPS.iter().map(|s| s * 1e-3).collect();
+    let leg = |x0: &[f64]| {
+        nelder_mead(
+            |x| objective(model, y, &psi_of(x)),
+            x0,
+            &ORACLE_STEPS,
+            ORACLE_MAX_EVALS,
+            &x_tol,
+            ORACLE_F_TOL,
+        )
+    };
+    let (mut x, mut f, mut evals) = leg(&vector_of(start));
+    let mut legs = 1;
+    while legs <= ORACLE_MAX_RESTARTS {
+        let (xn, fnew, en) = leg(&x);
+        evals += en;
+        legs += 1;
+        let gain = (f - fnew) / f.abs().max(f64::MIN_POSITIVE);
+        if fnew < f {
+            (x, f) = (xn, fnew);
+        }
+        if gain < ORACLE_RESTART_GAIN {
+            break;
+        }
+    }
+    let est = psi_of(&x);
+    let err = |p: Parameter| p.get(&est) - p.get(truth);
+    json!({
+        "estimate": per_parameter(|p| json!(p.get(&est))),
+        "error": per_parameter(|p| json!(err(p))),
+        "within_tolerance": per_parameter(|p| json!(err(p).abs() <= tolerance(p))),
+        "all_within_tolerance": Parameter::ALL.iter().all(|&p| err(p).abs() <= tolerance(p)),
+        "objective": f,
+        "objective_at_truth": objective(model, y, truth),
+        "objective_at_start": objective(model, y, start),
+        "evaluations": evals,
+        "nelder_mead_legs": legs,
+        "seconds": t.elapsed().as_secs_f64(),
+    })
+}
+
+/// ∂m/∂p at ψ by central differences (one-sided for σ below its step).
+fn derivative(model: &SceneKnown, psi: &Mismatch, p: Parameter, h: f64) -> Option<Vec<f64>> {
+    let at = |v: f64| {
+        let mut q = *psi;
+        p.set(&mut q, v);
+        model.model(&q)
+    };
+    let v = p.get(psi);
+    let (lo, hi) = if p == Parameter::BlurSigmaPx && v < h {
+        (v, v + h)
+    } else {
+        (v - h, v + h)
+    };
+    let (a, b) = (at(lo)?, at(hi)?);
+    Some(a.iter().zip(&b).map(|(a, b)| (b - a) / (hi - lo)).collect())
+}
+
+/// The inverse of a symmetric positive-definite matrix (Gauss–Jordan with
+/// partial pivoting); `None` when singular.
+fn invert(mut a: Vec<Vec<f64>>) -> Option<Vec<Vec<f64>>> {
+    let n = a.len();
+    let mut inv: Vec<Vec<f64>> = (0..n)
+        .map(|i| (0..n).map(|j| f64::from(i == j)).collect())
+        .collect();
+    for col in 0..n {
+        let piv = (col..n).max_by(|&i, &j| a[i][col].abs().total_cmp(&a[j][col].abs()))?;
+        if a[piv][col].abs() < 1e-300 {
+            return None;
+        }
+        a.swap(col, piv);
+        inv.swap(col, piv);
+        let d = a[col][col];
+        for j in 0..n {
+            a[col][j] /= d;
+            inv[col][j] /= d;
+        }
+        for i in (0..n).filter(|&i| i != col) {
+            let f = a[i][col];
+            for j in 0..n {
+                a[i][j] -= f * a[col][j];
+                inv[i][j] -= f * inv[col][j];
+            }
+        }
+    }
+    Some(inv)
+}
+
+/// The CRB per parameter at `truth` for the clean measurement `clean`
+/// under `noise`; the scale s is a seventh (nuisance) parameter.
+fn crb(model: &SceneKnown, clean: &[f64], truth: &Mismatch, noise: DetectorNoise) -> Value {
+    let Some(m0) = model.model(truth) else {
+        return json!(null);
+    };
+    let (_, s) = scaled_residual(clean, &m0);
+    let mut columns: Vec<Vec<f64>> = Vec::new();
+    for (&p, &h) in Parameter::ALL.iter().zip(&CRB_STEPS) {
+        let Some(d) = derivative(model, truth, p, h) else {
+            return json!(null);
+        };
+        columns.push(d.into_iter().map(|v| s * v).collect());
+    }
+    columns.push(m0);
+    let peak = clean.iter().copied().fold(0.0f64, f64::max);
+    let k = noise.photon_peak / peak;
+    let read2 = noise.read_noise_e * noise.read_noise_e;
+    let weight: Vec<f64> = clean
+        .iter()
+        .map(|&c| k * k / (c.max(0.0) * k + read2))
+        .collect();
+    let n = columns.len();
+    let fisher: Vec<Vec<f64>> = (0..n)
+        .map(|a| {
+            (0..n)
+                .map(|b| {
+                    (0..weight.len())
+                        .map(|i| columns[a][i] * columns[b][i] * weight[i])
+                        .sum()
+                })
+                .collect()
+        })
+        .collect();
+    let Some(inv) = invert(fisher) else {
+        return json!(null);
+    };
+    per_parameter(|p| {
+        let i = Parameter::ALL.iter().position(|&q| q == p).unwrap_or(0);
+        let v = inv[i][i];
+        json!((v > 0.0).then(|| v.sqrt()))
+    })
+}
+
+/// Both limit measurements of one case: `y` its (noisy) measurement,
+/// `clean` the same without noise, `blind` the blind calibration's ψ.
+#[allow(clippy::too_many_arguments)]
+pub fn measure(
+    y: &Measurement,
+    clean: &Measurement,
+    scene: &Cube,
+    mask: &Mask,
+    blind: &Mismatch,
+    truth: &Mismatch,
+    noise: DetectorNoise,
+) -> Value {
+    let (rows, cols) = y.shape();
+    let model = SceneKnown {
+        mask,
+        scene,
+        rows,
+        cols,
+    };
+    let oracle = oracle_fit(&model, &as_f64(y), blind, truth);
+    let t = Instant::now();
+    let bound = crb(&model, &as_f64(clean), truth, noise);
+    json!({ "oracle_scene": oracle, "crb": bound, "crb_seconds": t.elapsed().as_secs_f64() })
+}
+
+/// The one-line report of a case's limits.
+pub fn describe(limits: &Value) -> String {
+    let o = &limits["oracle_scene"];
+    let cell = |group: &Value, p: Parameter| {
+        group[p.key()]
+            .as_f64()
+            .map_or("–".into(), |v| format!("{v:+.4}"))
+    };
+    let line = |label: &str, group: &Value| {
+        let cells: Vec<String> = Parameter::ALL
+            .iter()
+            .map(|&p| format!("{} {}", p.name(), cell(group, p)))
+            .collect();
+        format!("  {label:<7}{}", cells.join("  "))
+    };
+    format!(
+        "{}  | f {:.4e} (truth {:.4e}), {} evals in {} legs, {:.1} s\n{}",
+        line("oracle", &o["error"]),
+        o["objective"].as_f64().unwrap_or(f64::NAN),
+        o["objective_at_truth"].as_f64().unwrap_or(f64::NAN),
+        o["evaluations"],
+        o["nelder_mead_legs"],
+        o["seconds"].as_f64().unwrap_or(f64::NAN),
+        line("CRB", &limits["crb"]),
+    )
+}
+
+// ---------------------------------------------------------------- summary
+
+fn rmse(v: &[f64]) -> Option<f64> {
+    (!v.is_empty()).then(|| (v.iter().map(|e| e * e).sum::<f64>() / v.len() as f64).sqrt())
+}
+
+fn median(mut v: Vec<f64>) -> Option<f64> {
+    v.sort_by(f64::total_cmp);
+    (!v.is_empty()).then(|| v[v.len() / 2])
+}
+
+/// Blind vs scene-known vs noise bound per parameter over `rows` (None
+/// when no row has limits).
+pub fn summarise(rows: &[&Value]) -> Option<Value> {
+    let with: Vec<&Value> = rows
+        .iter()
+        .copied()
+        .filter(|r| r.get("limits").is_some())
+        .collect();
+    if with.is_empty() {
+        return None;
+    }
+    let collect = |f: &dyn Fn(&Value) -> Option<f64>| with.iter().filter_map(|r| f(r)).collect();
+    let all_within = with
+        .iter()
+        .filter(|r| r["limits"]["oracle_scene"]["all_within_tolerance"] == true)
+        .count();
+    Some(json!({
+        "n": with.len(),
+        "oracle_all_within_tolerance": all_within as f64 / with.len() as f64,
+        "parameters": per_parameter(|p| {
+            let blind: Vec<f64> = collect(&|r| r["error"][p.key()].as_f64());
+            let oracle: Vec<f64> =
+                collect(&|r| r["limits"]["oracle_scene"]["error"][p.key()].as_f64());
+            let bound: Vec<f64> = collect(&|r| r["limits"]["crb"][p.key()].as_f64());
+            let within = oracle.iter().filter(|e| e.abs() <= tolerance(p)).count();
+            json!({
+                "blind_rmse": rmse(&blind),
+                "oracle_scene_rmse": rmse(&oracle),
+                "oracle_scene_max_abs_error": oracle.iter().fold(0.0f64, |a, e| a.max(e.abs())),
+                "oracle_scene_within_tolerance": within as f64 / oracle.len().max(1) as f64,
+                "median_crb": median(bound.clone()),
+                "max_crb": bound.iter().copied().reduce(f64::max),
+                "tolerance": tolerance(p),
+            })
+        }),
+    }))
+}
+
+/// The summary table's limit line: blind RMSE / oracle-scene RMSE / median CRB.
+pub fn print(limits: &Value) {
+    let p = &limits["parameters"];
+    let num = |v: &Value| v.as_f64().map_or("–".into(), |x| format!("{x:.4}"));
+    let cells: Vec<String> = Parameter::ALL
+        .iter()
+        .map(|q| {
+            let c = &p[q.key()];
+            format!(
+                "{} {}/{}/{}",
+                q.name(),
+                num(&c["blind_rmse"]),
+                num(&c["oracle_scene_rmse"]),
+                num(&c["median_crb"])
+            )
+        })
+        .collect();
+    eprintln!(
+        "{:<23} limits (blind RMSE / scene-known RMSE / median CRB): {} | scene-known all-within {:.0}%",
+        "",
+        cells.join("  "),
+        100.0
+            * limits["oracle_all_within_tolerance"]
+                .as_f64()
+                .unwrap_or(f64::NAN)
+    );
+}
