@@ -415,7 +415,7 @@ pub fn calibrate_default(
 /// the scores the uncertainty spent.
 type TextureResult = (Mismatch, Uncertainty, Vec<TradeOff>, usize);
 
-/// 5. The texture fit (`texture.rs`) from `start`: σ on a coarse grid, then
+/// Stage 5, the texture fit (`texture.rs`) from `start`: σ on a coarse grid, then
 /// Nelder–Mead over the model's identifiable parameters and σ, then the
 /// block-sandwich uncertainty. The proxy stages place the mask within a
 /// fraction of a pixel and settle the dispersion's rounding pattern; on a
