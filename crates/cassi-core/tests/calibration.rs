@@ -186,18 +186,19 @@ fn default_preset_recovers_a_known_mask_misalignment() {
         assert!(e.blur_sigma_px < 0.05, "{e:?}");
         assert!(cal.score < cal.nominal_score / 2.0);
         // the texture fit replaces the subpixel model's proxy refinements
-        // (tilt, joint); the rounded model keeps its joint refinement
-        let stages = if model == DispersionModel::Subpixel {
-            5
-        } else {
-            6
+        // (tilt, joint); the rounded model keeps its joint refinement and
+        // does not fit the blur
+        assert_eq!(cal.stages.len(), 5);
+        let stated = |p: &Parameter| match model {
+            DispersionModel::Subpixel => true,
+            DispersionModel::Rounded => {
+                matches!(p, Parameter::Dx | Parameter::Dy | Parameter::ThetaDeg)
+            }
         };
-        assert_eq!(cal.stages.len(), stages);
         assert!(
             Parameter::ALL
                 .iter()
-                .filter(|&&p| model == DispersionModel::Subpixel
-                    || !matches!(p, Parameter::A1 | Parameter::AlphaDeg))
+                .filter(|p| stated(p))
                 .all(|&p| cal.uncertainty.get(p).is_some_and(|u| u > 0.0)),
             "{:?}",
             cal.uncertainty

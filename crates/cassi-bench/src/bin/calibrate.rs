@@ -46,7 +46,7 @@ fn main() -> anyhow::Result<()> {
     );
     let mut rng = cassi_core::Rng::new(random.unwrap_or(0));
     let mut rows = Vec::new();
-    let mut sq = [0.0f64; 5];
+    let mut sq = [0.0f64; Parameter::ALL.len()];
     let mut n_recovered = 0;
     for (i, path) in scenes.iter().enumerate() {
         let scene = cassi_io::load_cube(path, None, cassi_io::CubeLayout::Auto)?;

@@ -45,9 +45,10 @@ pub struct DefaultPreset {
     pub alpha_range_deg: f64,
     /// How many of the best (a1, α) hypotheses get their pose re-fitted.
     pub dispersion_candidates: usize,
-    /// Finish with the texture fit (`texture.rs`), which also gives the
-    /// uncertainty; without it the result is the proxy's joint refinement
-    /// with curvature standard errors.
+    /// Finish the subpixel model with the texture fit (`texture.rs`), which
+    /// also gives the uncertainty; without it (and always for the rounded
+    /// model) the result is the proxy's joint refinement with curvature
+    /// standard errors.
     #[serde(default = "yes")]
     pub texture_fit: bool,
     /// Fit the optical blur σ in the texture fit (otherwise σ stays 0).
@@ -280,8 +281,13 @@ pub fn calibrate_default(
     // measurements of the model's own operator at zero mismatch the proxy
     // refinement moved a1 to 2.0186 (split taps smooth the model, which the
     // proxy residual rewards), and the two stages cost 12 of 20 s.
-    let proxy_refines_dispersion =
-        problem.model == DispersionModel::Subpixel && !preset.texture_fit;
+    // The texture fit serves the subpixel model only: the rounded model's a1
+    // is a rounding interval and it has no blur, and on its own measurements
+    // (the inverse-crime benchmark) the texture stage moved dx by 0.17–0.35 px
+    // and invented a blur of up to 0.24 px where the proxy stages end within
+    // 0.04 px.
+    let texture = preset.texture_fit && problem.model == DispersionModel::Subpixel;
+    let proxy_refines_dispersion = problem.model == DispersionModel::Subpixel && !texture;
     // 3c. subpixel model: α (and the θ it was traded for), then the pose of
     // the best few tilts re-fitted with α free
     if proxy_refines_dispersion {
@@ -384,7 +390,7 @@ pub fn calibrate_default(
         );
     }
 
-    let (uncertainty, trade_offs, uncertainty_evals) = if preset.texture_fit {
+    let (uncertainty, trade_offs, uncertainty_evals) = if texture {
         let (found, stage) = texture_stage(problem, preset, &best, &proxy)?;
         best = found.0;
         push(&mut stages, stage);
