@@ -16,24 +16,23 @@ fn scratch(name: &str) -> PathBuf {
     common::scratch("cli-tests", name)
 }
 
-#[test]
-fn demo_writes_measurement_sidecar_and_previews() {
-    let dir = scratch("demo");
-    let out = cassi(&["demo", "--out", s(&dir), "--json"]);
+/// Runs `cassi demo` with `extra` flags into a fresh folder; its JSON report.
+fn run_demo(name: &str, extra: &[&str]) -> (PathBuf, serde_json::Value) {
+    let dir = scratch(name);
+    let mut args = vec!["demo", "--out", s(&dir), "--json"];
+    args.extend_from_slice(extra);
+    let out = cassi(&args);
     assert!(
         out.status.success(),
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    let report: serde_json::Value =
-        serde_json::from_slice(&out.stdout).expect("--json prints one JSON object");
-    assert_eq!(
-        report["simulation"]["measurement"]["shape"],
-        serde_json::json!([256, 311])
-    );
-    assert!(report["measurement_snr_db"].as_f64().unwrap() > 30.0);
-    // the four scenarios: the true model reconstructs clearly better than
-    // the nominal one, and self-calibration closes (nearly all of) the gap
+    let report = serde_json::from_slice(&out.stdout).expect("--json prints one JSON object");
+    (dir, report)
+}
+
+/// PSNR of each scenario: (ideal noisy, assumed, corrected, oracle).
+fn demo_psnr(report: &serde_json::Value) -> (f64, f64, f64, f64) {
     let scenarios = report["scenarios"].as_array().expect("scenarios listed");
     let psnr = |name: &str| {
         scenarios
@@ -42,12 +41,88 @@ fn demo_writes_measurement_sidecar_and_previews() {
             .and_then(|o| o["metrics"]["psnr"].as_f64())
             .unwrap_or_else(|| panic!("no {name} in {scenarios:?}"))
     };
-    let (ideal, assumed, corrected, oracle) = (
+    (
         psnr("ideal-noisy"),
         psnr("assumed"),
         psnr("corrected"),
         psnr("oracle"),
+    )
+}
+
+#[test]
+fn demo_calibrates_a_physical_instrument_with_covering_error_bars() {
+    // the default demo: a 4× oversampled, blurred instrument on a sensor of
+    // the nominal width, which no operator the calibration fits made
+    let (dir, report) = run_demo("demo", &[]);
+    assert_eq!(
+        report["simulation"]["measurement"]["shape"],
+        serde_json::json!([256, 310])
     );
+    assert_eq!(report["simulation"]["physical"]["oversample"], 4);
+    assert!(report["measurement_snr_db"].as_f64().unwrap() > 30.0);
+    // the true model (blur included) reconstructs clearly better than the
+    // nominal one, and self-calibration closes nearly all of the gap
+    let (_, assumed, corrected, oracle) = demo_psnr(&report);
+    assert!(
+        oracle > assumed + 3.0,
+        "oracle {oracle} dB vs nominal {assumed} dB"
+    );
+    assert!(
+        corrected > oracle - 0.5,
+        "calibrated {corrected} dB vs oracle {oracle} dB"
+    );
+    assert!(report["recovery_ratio"].as_f64().unwrap() > 0.9);
+    // every parameter, the blur included, is estimated with a standard
+    // error, and the truth lies within two of them
+    let cal = &report["calibration"];
+    let truth = &report["simulation"]["simulation"]["mismatch"];
+    assert_eq!(truth["blur_sigma_px"], 0.5);
+    for key in ["dx", "dy", "theta_deg", "a1", "alpha_deg", "blur_sigma_px"] {
+        let est = cal["parameters"][key].as_f64().unwrap();
+        let t = truth[key].as_f64().unwrap();
+        let sigma = cal["uncertainty"][key]
+            .as_f64()
+            .unwrap_or_else(|| panic!("no standard error for {key}: {cal}"));
+        assert!(
+            (est - t).abs() <= 2.0 * sigma,
+            "{key}: estimate {est}, truth {t}, stated σ {sigma}"
+        );
+    }
+    // and the pose is within a third of a pixel regardless of what it states
+    for key in ["dx", "dy"] {
+        let err = cal["parameters"][key].as_f64().unwrap() - truth[key].as_f64().unwrap();
+        assert!(err.abs() < 0.3, "{key} off by {err}");
+    }
+    for f in [
+        "calibration.json",
+        "recon_ideal_rgb.png",
+        "recon_assumed_rgb.png",
+        "recon_corrected_rgb.png",
+        "recon_oracle_rgb.png",
+        "report.md",
+        "figures/qualitative.png",
+        "figures/psnr_by_method.png",
+        "measurement.npy",
+        "measurement.json",
+        "measurement.png",
+        "scene.npy",
+        "mask.npy",
+        "scene_rgb.png",
+        "mask.png",
+    ] {
+        assert!(dir.join(f).is_file(), "missing {f}");
+    }
+}
+
+#[test]
+fn demo_on_the_rounded_operator_recovers_the_paper_mismatch() {
+    // the inverse-crime variant: the rounded operator makes the snapshot
+    let (dir, report) = run_demo("demo-rounded", &["--instrument", "rounded"]);
+    assert_eq!(
+        report["simulation"]["measurement"]["shape"],
+        serde_json::json!([256, 311])
+    );
+    let (ideal, assumed, corrected, oracle) = demo_psnr(&report);
     assert!(
         oracle > assumed + 3.0,
         "oracle {oracle} dB vs nominal {assumed} dB"
@@ -69,33 +144,11 @@ fn demo_writes_measurement_sidecar_and_previews() {
         (est["theta_deg"].as_f64().unwrap() - 0.3).abs() < 0.1,
         "{est}"
     );
-    assert!(dir.join("calibration.json").is_file());
-    for f in [
-        "recon_ideal_rgb.png",
-        "recon_assumed_rgb.png",
-        "recon_corrected_rgb.png",
-        "recon_oracle_rgb.png",
-        "report.md",
-        "figures/qualitative.png",
-        "figures/psnr_by_method.png",
-    ] {
-        assert!(dir.join(f).is_file(), "missing {f}");
-    }
-    for f in [
-        "measurement.npy",
-        "measurement.json",
-        "measurement.png",
-        "scene.npy",
-        "mask.npy",
-        "scene_rgb.png",
-        "mask.png",
-    ] {
-        assert!(dir.join(f).is_file(), "missing {f}");
-    }
     let sidecar: serde_json::Value =
         serde_json::from_slice(&std::fs::read(dir.join("measurement.json")).unwrap()).unwrap();
     assert_eq!(sidecar["simulation"]["mismatch"]["theta_deg"], 0.3);
     assert_eq!(sidecar["simulation"]["model"], "rounded");
+    assert!(sidecar["physical"].is_null());
 }
 
 #[test]

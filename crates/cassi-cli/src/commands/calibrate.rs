@@ -112,6 +112,12 @@ fn uncertainty_lines(cal: &Calibration) -> String {
             );
         }
     }
+    out + &trade_off_lines(cal)
+}
+
+/// One line per pair of parameters that trade off.
+pub(crate) fn trade_off_lines(cal: &Calibration) -> String {
+    let mut out = String::new();
     for t in &cal.trade_offs {
         out += &format!(
             "  {} and {} trade off (error correlation {:+.2}): the data pin their combination \
