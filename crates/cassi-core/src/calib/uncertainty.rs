@@ -64,8 +64,8 @@ pub const TRADE_OFF_CORRELATION: f64 = 0.8;
 /// sandwich's standard error. The sandwich sees the scatter of the fit, not
 /// its bias: on the physical benchmark's tuning half (CAVE scenes 1–5,
 /// seeds 14000+, 4× oversampled instrument, blur 0–0.8 px, 2·10⁴ e⁻;
-/// `cargo run --release -p cassi-bench --bin calibrate_physical -- --half
-/// tuning`, 25 cases) it covered 0 % of the dx errors at 1σ. Each floor is
+/// `cargo run --release -p cassi-bench --bin calibrate -- --half tuning
+/// --no-recon --no-limits --no-inverse-crime`, 25 cases) it covered 0 % of the dx errors at 1σ. Each floor is
 /// the smallest that makes the stated σ cover ≥ 68 % of those cases at 1σ
 /// and ≥ 95 % at 2σ; coverage is then reported on the held-out half
 /// (`bench/results/calibrate_physical_held_out.json`).

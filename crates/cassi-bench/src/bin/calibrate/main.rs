@@ -29,11 +29,16 @@
 //! true scene known (the oracle-scene fit), and the Cramér–Rao bound of the
 //! scene-known model at the true ψ and the simulator's noise level.
 //!
-//! Run: `cargo run --release -p cassi-bench --bin calibrate_physical --
+//! Run: `cargo run --release -p cassi-bench --bin calibrate --
 //! [--half tuning|held-out|both] [--scenes N] [--cases K] [--no-aligned]
-//! [--inverse-crime] [--model rounded|subpixel] [--preset NAME] [--recon]
-//! [--limits] [--out PATH] [--verbose]`. Writes
-//! `bench/results/calibrate_physical_<half>.json` unless `--out` says.
+//! [--no-inverse-crime] [--model rounded|subpixel] [--preset NAME]
+//! [--no-recon] [--no-limits] [--out PATH] [--verbose]`; without flags it
+//! reproduces the README's held-out table (every scene of the held-out
+//! half, 2 random cases and 3 aligned-blur cases each, the inverse-crime
+//! row, GAP-TV recovery and the limits). Writes
+//! `bench/results/calibrate_physical_<half>.json` unless `--out` says. The
+//! benchmark on measurements of the discrete operators themselves is
+//! `calibrate_discrete`.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -120,15 +125,15 @@ struct Args {
     verbose: bool,
 }
 
-const USAGE: &str = "calibrate_physical [--half tuning|held-out|both] [--scenes N] [--cases K] \
-                     [--no-aligned] [--inverse-crime] [--model rounded|subpixel] [--preset NAME] \
-                     [--recon] [--limits] [--out PATH] [--verbose]";
+const USAGE: &str = "calibrate [--half tuning|held-out|both] [--scenes N] [--cases K] \
+                     [--no-aligned] [--no-inverse-crime] [--model rounded|subpixel] \
+                     [--preset NAME] [--no-recon] [--no-limits] [--out PATH] [--verbose]";
 
 fn parse_args(argv: &[String]) -> Result<Args> {
     let mut half_name = "held-out".to_string();
     let (mut scenes, mut cases) = (None, 2usize);
-    let (mut aligned, mut inverse_crime, mut recon, mut verbose) = (true, false, false, false);
-    let mut limits = false;
+    let (mut aligned, mut inverse_crime, mut recon, mut verbose) = (true, true, true, false);
+    let mut limits = true;
     let mut model = DispersionModel::Subpixel;
     let mut preset_name = "default".to_string();
     let mut out = None;
@@ -160,6 +165,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
             }
             "--no-aligned" => aligned = false,
             "--inverse-crime" => inverse_crime = true,
+            "--no-inverse-crime" => inverse_crime = false,
             "--model" => {
                 model = value()?
                     .parse()
@@ -167,7 +173,9 @@ fn parse_args(argv: &[String]) -> Result<Args> {
             }
             "--preset" => preset_name = value()?,
             "--recon" => recon = true,
+            "--no-recon" => recon = false,
             "--limits" => limits = true,
+            "--no-limits" => limits = false,
             "--out" => out = Some(PathBuf::from(value()?)),
             "--verbose" => verbose = true,
             "-h" | "--help" => bail!("usage: {USAGE}"),
