@@ -32,7 +32,9 @@
 //! Run: `cargo run --release -p cassi-bench --bin calibrate --
 //! [--half tuning|held-out|both] [--scenes N] [--cases K] [--no-aligned]
 //! [--no-inverse-crime] [--model rounded|subpixel] [--preset NAME]
-//! [--no-recon] [--no-limits] [--out PATH] [--verbose]`; without flags it
+//! [--no-texture] [--no-recon] [--no-limits] [--out PATH] [--verbose]`
+//! (`--no-texture`: the default preset without its texture fit, as it was
+//! before issue #14 — the "before" row); without flags it
 //! reproduces the README's held-out table (every scene of the held-out
 //! half, 2 random cases and 3 aligned-blur cases each, the inverse-crime
 //! row, GAP-TV recovery and the limits). Writes
@@ -127,7 +129,8 @@ struct Args {
 
 const USAGE: &str = "calibrate [--half tuning|held-out|both] [--scenes N] [--cases K] \
                      [--no-aligned] [--no-inverse-crime] [--model rounded|subpixel] \
-                     [--preset NAME] [--no-recon] [--no-limits] [--out PATH] [--verbose]";
+                     [--preset NAME] [--no-texture] [--no-recon] [--no-limits] [--out PATH] \
+                     [--verbose]";
 
 fn parse_args(argv: &[String]) -> Result<Args> {
     let mut half_name = "held-out".to_string();
@@ -136,6 +139,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
     let mut limits = true;
     let mut model = DispersionModel::Subpixel;
     let mut preset_name = "default".to_string();
+    let mut texture = true;
     let mut out = None;
     let mut it = argv.iter();
     while let Some(flag) = it.next() {
@@ -172,6 +176,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
                     .map_err(|e: String| anyhow!("--model: {e}"))?
             }
             "--preset" => preset_name = value()?,
+            "--no-texture" => texture = false,
             "--recon" => recon = true,
             "--no-recon" => recon = false,
             "--limits" => limits = true,
@@ -192,8 +197,20 @@ fn parse_args(argv: &[String]) -> Result<Args> {
         cases > 0 || aligned,
         "--cases 0 with --no-aligned leaves no case to run"
     );
-    let preset = Preset::by_name(&preset_name, STRIDE)
+    let mut preset = Preset::by_name(&preset_name, STRIDE)
         .map_err(|e| anyhow!("--preset: {e} (presets: {PRESET_NAMES:?})"))?;
+    // the default preset as it was before the texture fit (proxy tilt and
+    // joint refinement, curvature uncertainty, no blur): the "before" row
+    if !texture {
+        match &mut preset {
+            Preset::Default(d) => {
+                d.texture_fit = false;
+                d.fit_blur = false;
+            }
+            Preset::Paper(_) => bail!("--no-texture applies to the default preset"),
+        }
+        preset_name += " (no texture fit)";
+    }
     let out = out.unwrap_or_else(|| {
         Path::new(env!("CARGO_MANIFEST_DIR"))
             .join("../../bench/results")
