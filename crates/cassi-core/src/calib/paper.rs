@@ -16,16 +16,18 @@
 //! The proxy's per-stage settings are those of the reference code
 //! (seed-code notes §6).
 
-use std::time::Instant;
-
 use serde::{Deserialize, Serialize};
 
-use super::adam::{AdamSettings, adam};
+use super::adam::{self, AdamSettings};
 use super::gradient::Parameter;
+use super::grid::{self, linspace};
+use super::objective::Objective;
+use super::stages::{Scored, StageRunner, lowest};
 use super::uncertainty::curvature_uncertainty;
 use super::{Calibration, CalibrationProblem, ProxyParams, StageReport};
 use crate::error::Result;
 use crate::params::Mismatch;
+use crate::params::Parameter::{A1, AlphaDeg, Dx, Dy, ThetaDeg};
 
 /// One gradient stage: which parameters, their initial learning rates, the
 /// schedule and the proxy it differentiates.
@@ -113,17 +115,18 @@ impl Default for PaperPreset {
     }
 }
 
-/// `n` evenly spaced values over [lo, hi] (just `lo` when n = 1).
-fn linspace(lo: f64, hi: f64, n: usize) -> Vec<f64> {
-    (0..n)
-        .map(|i| {
-            if n == 1 {
-                lo
-            } else {
-                lo + (hi - lo) * i as f64 / (n - 1) as f64
-            }
-        })
-        .collect()
+/// The pose the grids search.
+const POSE: [Parameter; 3] = [Dx, Dy, ThetaDeg];
+
+/// `objective` held in the search box: |dx|, |dy| ≤ `shift_bound` px, the
+/// angles within ±`theta_bound`°.
+fn in_box(objective: Objective<'_>, shift_bound: f64, theta_bound: f64) -> Objective<'_> {
+    let (sb, tb) = (shift_bound, theta_bound);
+    objective
+        .within(Dx, -sb, sb)
+        .within(Dy, -sb, sb)
+        .within(ThetaDeg, -tb, tb)
+        .within(AlphaDeg, -tb, tb)
 }
 
 /// Runs the `paper` preset. `on_stage` sees each stage as it finishes.
@@ -133,46 +136,29 @@ pub fn calibrate_paper(
     on_stage: &mut dyn FnMut(&StageReport),
 ) -> Result<Calibration> {
     problem.validate()?;
-    let t_all = Instant::now();
-    let mut stages: Vec<StageReport> = Vec::new();
-    let mut push = |r: StageReport| {
-        on_stage(&r);
-        stages.push(r);
-    };
+    let mut run = StageRunner::new(on_stage);
     let nominal = Mismatch::nominal(preset.stride);
     let (sb, tb) = (preset.shift_bound, preset.theta_bound);
-    let pose = |dx: f64, dy: f64, theta_deg: f64| Mismatch {
-        dx: dx.clamp(-sb, sb),
-        dy: dy.clamp(-sb, sb),
-        theta_deg: theta_deg.clamp(-tb, tb),
-        ..nominal
-    };
     let score = |m: &Mismatch, p: &ProxyParams| problem.score(m, p).unwrap_or(f64::INFINITY);
 
     // 0. coarse grid
-    let t = Instant::now();
+    let stage = run.start();
+    let coarse_score = |m: &Mismatch| score(m, &preset.coarse_proxy);
     let [nx, ny, nt] = preset.coarse;
-    let mut coarse: Vec<(f64, Mismatch)> = Vec::with_capacity(nx * ny * nt);
-    for &dx in &linspace(-sb, sb, nx) {
-        for &dy in &linspace(-sb, sb, ny) {
-            for &th in &linspace(-tb, tb, nt) {
-                let m = pose(dx, dy, th);
-                coarse.push((score(&m, &preset.coarse_proxy), m));
-            }
-        }
-    }
+    let axes = [
+        linspace(-sb, sb, nx),
+        linspace(-sb, sb, ny),
+        linspace(-tb, tb, nt),
+    ];
+    let objective = in_box(stage.objective(&coarse_score, nominal, &POSE), sb, tb);
+    let mut coarse = grid::scan(&objective, &grid::product(&axes));
     // stable: ties keep grid order
-    coarse.sort_by(|a, b| a.0.total_cmp(&b.0));
-    push(StageReport {
-        name: "0 coarse grid".into(),
-        evaluations: coarse.len(),
-        seconds: t.elapsed().as_secs_f64(),
-        parameters: coarse[0].1,
-        score: coarse[0].0,
-    });
+    coarse.sort_by(|a, b| a.score.total_cmp(&b.score));
+    run.finish(stage, "0 coarse grid", coarse[0]);
 
     // 1. fine grids around the best coarse candidates, ± one coarse step
-    let t = Instant::now();
+    let stage = run.start();
+    let fine_score = |m: &Mismatch| score(m, &preset.fine_proxy);
     let step = |n: usize, bound: f64| {
         if n > 1 {
             2.0 * bound / (n - 1) as f64
@@ -182,111 +168,78 @@ pub fn calibrate_paper(
     };
     let (sx, sy, st) = (step(nx, sb), step(ny, sb), step(nt, tb));
     let [fx, fy, ft] = preset.fine;
-    let mut grid_best = (f64::INFINITY, nominal);
-    let mut evals = 0;
-    for (_, c) in coarse.iter().take(preset.refine_top) {
-        for &ox in &linspace(-sx, sx, fx) {
-            for &oy in &linspace(-sy, sy, fy) {
-                for &ot in &linspace(-st, st, ft) {
-                    let m = pose(c.dx + ox, c.dy + oy, c.theta_deg + ot);
-                    let s = score(&m, &preset.fine_proxy);
-                    evals += 1;
-                    if s < grid_best.0 {
-                        grid_best = (s, m);
-                    }
-                }
-            }
-        }
+    let objective = in_box(stage.objective(&fine_score, nominal, &POSE), sb, tb);
+    let mut fine = Vec::new();
+    for c in coarse.iter().take(preset.refine_top) {
+        let c = c.parameters;
+        let around = |centre: f64, half: f64, n: usize| -> Vec<f64> {
+            linspace(-half, half, n)
+                .into_iter()
+                .map(|o| centre + o)
+                .collect()
+        };
+        let axes = [
+            around(c.dx, sx, fx),
+            around(c.dy, sy, fy),
+            around(c.theta_deg, st, ft),
+        ];
+        fine.extend(grid::scan(&objective, &grid::product(&axes)));
     }
-    push(StageReport {
-        name: "1 fine grids".into(),
-        evaluations: evals,
-        seconds: t.elapsed().as_secs_f64(),
-        parameters: grid_best.1,
-        score: grid_best.0,
-    });
+    let grid_best = lowest(&fine).unwrap_or(Scored::infinite(nominal));
+    run.finish(stage, "1 fine grids", grid_best);
 
     // 2. Adam stages, each from the previous one's last iterate
-    let mut current = grid_best.1;
-    for stage in &preset.gradient_stages {
-        let t = Instant::now();
-        let params = &stage.parameters;
-        let at = |v: &[f64]| {
-            let mut m = current;
-            for (p, &x) in params.iter().zip(v) {
-                p.set(&mut m, x);
-            }
-            m
+    let mut current = grid_best.parameters;
+    for gradient_stage in &preset.gradient_stages {
+        let stage = run.start();
+        let proxy = &gradient_stage.proxy;
+        let score_and_gradient = |m: &Mismatch, params: &[Parameter]| {
+            problem
+                .score_and_gradient(m, proxy, params)
+                .unwrap_or((f64::INFINITY, vec![0.0; params.len()]))
         };
-        let x0: Vec<f64> = params.iter().map(|p| p.get(&current)).collect();
-        let (x, last) = adam(
-            &x0,
-            &stage.adam,
-            |v| {
-                problem
-                    .score_and_gradient(&at(v), &stage.proxy, params)
-                    .unwrap_or((f64::INFINITY, vec![0.0; params.len()]))
-            },
-            |v| {
-                for (p, x) in params.iter().zip(v.iter_mut()) {
-                    let bound = match p {
-                        Parameter::Dx | Parameter::Dy => sb,
-                        _ => tb,
-                    };
-                    *x = x.clamp(-bound, bound);
-                }
-            },
+        let objective = in_box(
+            stage.differentiable(&score_and_gradient, current, &gradient_stage.parameters),
+            sb,
+            tb,
         );
-        current = at(&x);
-        push(StageReport {
-            name: stage.name.clone(),
-            evaluations: stage.adam.steps,
-            seconds: t.elapsed().as_secs_f64(),
-            parameters: current,
-            score: last,
-        });
+        let found = adam::minimise(&objective, &gradient_stage.adam);
+        current = run.finish(stage, gradient_stage.name.clone(), found);
     }
 
     // 3. grid-best vs gradient-best (the gradient result only if strictly lower)
-    let t = Instant::now();
-    let s_grid = score(&grid_best.1, &preset.selection_proxy);
-    let s_grad = score(&current, &preset.selection_proxy);
-    let (mut best, selected) = if s_grad < s_grid {
+    let stage = run.start();
+    let selection_score = |m: &Mismatch| score(m, &preset.selection_proxy);
+    let s_grid = stage.score(&selection_score, &grid_best.parameters);
+    let s_grad = stage.score(&selection_score, &current);
+    let (best, selected) = if s_grad < s_grid {
         (current, "gradient")
     } else {
-        (grid_best.1, "grid")
+        (grid_best.parameters, "grid")
     };
-    push(StageReport {
-        name: format!("3 selection ({selected})"),
-        evaluations: 2,
-        seconds: t.elapsed().as_secs_f64(),
+    let found = Scored {
         parameters: best,
         score: s_grid.min(s_grad),
-    });
+    };
+    let best = run.finish(stage, format!("3 selection ({selected})"), found);
 
     // 4. a1
-    let t = Instant::now();
-    let mut best_a1 = (f64::INFINITY, best.a1);
-    for a1 in linspace(preset.a1_range.0, preset.a1_range.1, preset.a1_count) {
-        let s = score(&Mismatch { a1, ..best }, &preset.a1_proxy);
-        if s < best_a1.0 {
-            best_a1 = (s, a1);
-        }
-    }
-    best.a1 = best_a1.1;
-    push(StageReport {
-        name: "4 dispersion a1".into(),
-        evaluations: preset.a1_count,
-        seconds: t.elapsed().as_secs_f64(),
-        parameters: best,
-        score: best_a1.0,
-    });
+    let stage = run.start();
+    let a1_score = |m: &Mismatch| score(m, &preset.a1_proxy);
+    let a1s: Vec<Vec<f64>> = linspace(preset.a1_range.0, preset.a1_range.1, preset.a1_count)
+        .into_iter()
+        .map(|a1| vec![a1])
+        .collect();
+    let scored = grid::scan(&stage.objective(&a1_score, best, &[A1]), &a1s);
+    let found = lowest(&scored).unwrap_or(Scored::infinite(best));
+    let best = run.finish(stage, "4 dispersion a1", found);
 
     let final_score = score(&best, &preset.selection_proxy);
     let (uncertainty, uncertainty_evals) =
         curvature_uncertainty(problem, &best, final_score, &preset.selection_proxy);
     let nominal_score = score(&nominal, &preset.selection_proxy);
-    let evaluations = stages.iter().map(|s| s.evaluations).sum::<usize>() + uncertainty_evals + 2;
+    let evaluations = run.evaluations() + uncertainty_evals + 2;
+    let seconds = run.seconds();
     Ok(Calibration {
         preset: "paper".into(),
         model: problem.model,
@@ -295,8 +248,8 @@ pub fn calibrate_paper(
         nominal_score,
         uncertainty,
         trade_offs: Vec::new(),
-        stages,
-        seconds: t_all.elapsed().as_secs_f64(),
+        stages: run.into_reports(),
+        seconds,
         evaluations,
     })
 }
