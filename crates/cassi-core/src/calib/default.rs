@@ -80,6 +80,117 @@ impl Default for DefaultPreset {
 /// The mask pose: what stages 2 and 3b move.
 const POSE: [Parameter; 3] = [Dx, Dy, ThetaDeg];
 
+/// Runs the `default` preset. `on_stage` sees each stage as it finishes.
+pub fn calibrate_default(
+    problem: &CalibrationProblem<'_>,
+    preset: &DefaultPreset,
+    on_stage: &mut dyn FnMut(&StageReport),
+) -> Result<Calibration> {
+    problem.validate()?;
+    let mut run = StageRunner::new(on_stage);
+    let scores = Scores::new(problem, preset);
+    let mut best = correlation(&mut run, &scores)?;
+    best = pose_from_starts(&mut run, &scores, best)?;
+    let hypotheses = dispersion(&mut run, &scores, best);
+    best = refit_per_dispersion(&mut run, &scores, &hypotheses, best);
+    // Without the texture fit, the subpixel model's α and a1 are refined on
+    // the proxy score (3c, 4). With it they are left to the texture fit: on
+    // measurements of the model's own operator at zero mismatch the proxy
+    // refinement moved a1 to 2.0186 (split taps smooth the model, which the
+    // proxy residual rewards), and the two stages cost 12 of 20 s.
+    // The texture fit serves the subpixel model only: the rounded model's a1
+    // is a rounding interval and it has no blur, and on its own measurements
+    // (the inverse-crime benchmark) the texture stage moved dx by 0.17–0.35 px
+    // and invented a blur of up to 0.24 px where the proxy stages end within
+    // 0.04 px.
+    let texture = preset.texture_fit && problem.model == DispersionModel::Subpixel;
+    let proxy_refines_dispersion = problem.model == DispersionModel::Subpixel && !texture;
+    if proxy_refines_dispersion {
+        best = subpixel_tilt_stage(&mut run, &scores, best);
+    }
+    if problem.model == DispersionModel::Rounded || proxy_refines_dispersion {
+        best = joint_refinement(&mut run, &scores, best);
+    }
+    let (uncertainty, trade_offs, uncertainty_evals) = if texture {
+        let found = texture_stage(&mut run, problem, preset, &best, &preset.proxy)?;
+        best = found.0;
+        (found.1, found.2, found.3)
+    } else {
+        let (u, n) = curvature_uncertainty(problem, &best, scores.score(&best), &preset.proxy);
+        (u, Vec::new(), n)
+    };
+    let score = scores.score(&best);
+    let nominal_score = scores.score(&Mismatch::nominal(preset.stride));
+    // + the uncertainty probes, the final and the nominal score
+    let evaluations = run.evaluations() + uncertainty_evals + 2;
+    let seconds = run.seconds();
+    Ok(Calibration {
+        preset: "default".into(),
+        model: problem.model,
+        parameters: best,
+        score,
+        nominal_score,
+        uncertainty,
+        trade_offs,
+        stages: run.into_reports(),
+        seconds,
+        evaluations,
+    })
+}
+
+/// The scores the stages minimise, and the preset's settings.
+struct Scores<'a> {
+    problem: &'a CalibrationProblem<'a>,
+    /// The problem with the rounded model (see [`Scores::search`]).
+    front: CalibrationProblem<'a>,
+    preset: &'a DefaultPreset,
+    /// `preset.proxy` with the search stages' iterations.
+    search_proxy: ProxyParams,
+}
+
+impl<'a> Scores<'a> {
+    fn new(problem: &'a CalibrationProblem<'a>, preset: &'a DefaultPreset) -> Self {
+        Self {
+            problem,
+            front: CalibrationProblem {
+                model: DispersionModel::Rounded,
+                ..*problem
+            },
+            preset,
+            search_proxy: ProxyParams {
+                iterations: preset.search_iterations,
+                ..preset.proxy
+            },
+        }
+    }
+
+    /// The final proxy on the problem's model (∞ for an invalid ψ).
+    fn score(&self, m: &Mismatch) -> f64 {
+        self.problem
+            .score(m, &self.preset.proxy)
+            .unwrap_or(f64::INFINITY)
+    }
+
+    /// The search proxy on the rounded model. Stages 1–3 score with the
+    /// rounded model whatever the problem's: at the nominal a1 = 2, α = 0
+    /// both models are the same operator, and its exact rounding patterns
+    /// resolve the a1/dx coupling globally (the subpixel model's own a1 grid
+    /// ended 0/10 on the paper mismatch, dx RMSE 0.53 px, against 10/10
+    /// without global failures for this front end).
+    fn search(&self, m: &Mismatch) -> f64 {
+        self.front
+            .score(m, &self.search_proxy)
+            .unwrap_or(f64::INFINITY)
+    }
+
+    /// The search proxy on the problem's model.
+    fn search_model(&self, m: &Mismatch) -> f64 {
+        self.problem
+            .score(m, &self.search_proxy)
+            .unwrap_or(f64::INFINITY)
+    }
+}
+
 /// Nelder–Mead over (dx, dy, θ) from `start` (initial steps `shift_step` px
 /// and `theta_step`°, tolerance `tol` on each, `ftol` on the score), counted
 /// on `stage`.
@@ -103,33 +214,10 @@ fn refine_pose(
     )
 }
 
-/// Runs the `default` preset. `on_stage` sees each stage as it finishes.
-pub fn calibrate_default(
-    problem: &CalibrationProblem<'_>,
-    preset: &DefaultPreset,
-    on_stage: &mut dyn FnMut(&StageReport),
-) -> Result<Calibration> {
-    problem.validate()?;
-    let mut run = StageRunner::new(on_stage);
-    let proxy = preset.proxy;
-    let score = |m: &Mismatch| problem.score(m, &proxy).unwrap_or(f64::INFINITY);
-    let search_proxy = ProxyParams {
-        iterations: preset.search_iterations,
-        ..proxy
-    };
-    // Stages 1–3 score with the rounded model whatever the problem's: at the
-    // nominal a1 = 2, α = 0 both models are the same operator, and its exact
-    // rounding patterns resolve the a1/dx coupling globally (the subpixel
-    // model's own a1 grid ended 0/10 on the paper mismatch, dx RMSE 0.53 px,
-    // against 10/10 without global failures for this front end).
-    let front = CalibrationProblem {
-        model: DispersionModel::Rounded,
-        ..*problem
-    };
-    let search = |m: &Mismatch| front.score(m, &search_proxy).unwrap_or(f64::INFINITY);
-    let search_model = |m: &Mismatch| problem.score(m, &search_proxy).unwrap_or(f64::INFINITY);
-
-    // 1. global shift estimate
+/// Stage 1, the global shift estimate: the correlation pose fit (`init.rs`) at the
+/// nominal dispersion.
+fn correlation(run: &mut StageRunner<'_>, scores: &Scores<'_>) -> Result<Mismatch> {
+    let (problem, preset) = (scores.problem, scores.preset);
     let stage = run.start();
     let (dx0, dy0, theta0) = init::correlation_pose(
         problem.measurement,
@@ -145,12 +233,20 @@ pub fn calibrate_default(
         ..Mismatch::nominal(preset.stride)
     };
     let found = Scored {
-        score: stage.score(&score, &start),
+        score: stage.score(&|m| scores.score(m), &start),
         parameters: start,
     };
-    let mut best = run.finish(stage, "correlation", found);
+    Ok(run.finish(stage, "correlation", found))
+}
 
-    // 2. (dx, dy, θ) from three rotation starts
+/// Stage 2: (dx, dy, θ) from several rotation starts.
+fn pose_from_starts(
+    run: &mut StageRunner<'_>,
+    scores: &Scores<'_>,
+    best: Mismatch,
+) -> Result<Mismatch> {
+    let (problem, preset) = (scores.problem, scores.preset);
+    let search = |m: &Mismatch| scores.search(m);
     let stage = run.start();
     // θ starts: around the correlation fit and at fixed angles (the fit can
     // miss on scenes with little texture)
@@ -189,18 +285,25 @@ pub fn calibrate_default(
         })
         .collect();
     let found = lowest(&refined).unwrap_or(Scored::infinite(best));
-    best = run.finish(stage, "refine dx, dy, θ", found);
+    Ok(run.finish(stage, "refine dx, dy, θ", found))
+}
 
-    // 3. dispersion hypotheses
+/// Stage 3: dispersion hypotheses (`rounded_dispersion.rs`), best first.
+fn dispersion(
+    run: &mut StageRunner<'_>,
+    scores: &Scores<'_>,
+    best: Mismatch,
+) -> Vec<(f64, Mismatch)> {
+    let preset = scores.preset;
     let stage = run.start();
     let range = (
         preset.stride - preset.a1_span,
         preset.stride + preset.a1_span,
     );
     let hypotheses = rounded_dispersion(
-        &|m| stage.score(&search, m),
+        &|m| stage.score(&|m| scores.search(m), m),
         &best,
-        problem.bands,
+        scores.problem.bands,
         range,
         preset.alpha_range_deg,
     );
@@ -210,17 +313,26 @@ pub fn calibrate_default(
             parameters,
             score,
         });
-    best = run.finish(stage, "dispersion a1, α", found);
+    run.finish(stage, "dispersion a1, α", found);
+    hypotheses
+}
 
-    // 3b. the hypotheses' mask shifts are whole-pixel guesses: where stage 2
-    // settled between two band groups (a1 near a rounding break, oil_painting
-    // at a1 = 2.038 in random seed 1), the right dispersion scores no better
-    // than the nominal one until (dx, dy, θ) move. Re-fit the pose of the best
-    // few distinct dispersions before choosing.
+/// Stage 3b: the hypotheses' mask shifts are whole-pixel guesses: where stage 2
+/// settled between two band groups (a1 near a rounding break, oil_painting
+/// at a1 = 2.038 in random seed 1), the right dispersion scores no better
+/// than the nominal one until (dx, dy, θ) move. Re-fit the pose of the best
+/// few distinct dispersions before choosing.
+fn refit_per_dispersion(
+    run: &mut StageRunner<'_>,
+    scores: &Scores<'_>,
+    hypotheses: &[(f64, Mismatch)],
+    best: Mismatch,
+) -> Mismatch {
+    let preset = scores.preset;
     let stage = run.start();
     let mut refined = Vec::new();
     let mut seen: Vec<(f64, f64)> = Vec::new();
-    for (_, h) in &hypotheses {
+    for (_, h) in hypotheses {
         if seen.len() == preset.dispersion_candidates {
             break;
         }
@@ -233,7 +345,7 @@ pub fn calibrate_default(
         seen.push((h.a1, h.alpha_deg));
         refined.push(refine_pose(
             &stage,
-            &search,
+            &|m| scores.search(m),
             h,
             0.2,
             0.1,
@@ -243,113 +355,80 @@ pub fn calibrate_default(
         ));
     }
     let found = lowest(&refined).unwrap_or(Scored::infinite(best));
-    best = run.finish(stage, "re-fit pose per dispersion", found);
+    run.finish(stage, "re-fit pose per dispersion", found)
+}
 
-    // Without the texture fit, the subpixel model's α and a1 are refined on
-    // the proxy score (3c, 4). With it they are left to the texture fit: on
-    // measurements of the model's own operator at zero mismatch the proxy
-    // refinement moved a1 to 2.0186 (split taps smooth the model, which the
-    // proxy residual rewards), and the two stages cost 12 of 20 s.
-    // The texture fit serves the subpixel model only: the rounded model's a1
-    // is a rounding interval and it has no blur, and on its own measurements
-    // (the inverse-crime benchmark) the texture stage moved dx by 0.17–0.35 px
-    // and invented a blur of up to 0.24 px where the proxy stages end within
-    // 0.04 px.
-    let texture = preset.texture_fit && problem.model == DispersionModel::Subpixel;
-    let proxy_refines_dispersion = problem.model == DispersionModel::Subpixel && !texture;
-    // 3c. subpixel model: α (and the θ it was traded for), then the pose of
-    // the best few tilts re-fitted with α free
-    if proxy_refines_dispersion {
-        let stage = run.start();
-        let tilts = subpixel_tilt(
-            &|m| stage.score(&search_model, m),
-            &best,
-            problem.bands,
-            preset.alpha_range_deg,
-        );
-        // (dy, θ, α): the rows and the tilt; dx and a1 stay as the rounded
-        // front end placed them (see the joint refinement)
-        let refined: Vec<Scored> = tilts
-            .iter()
-            .take(preset.dispersion_candidates)
-            .map(|(_, h)| {
-                nelder_mead::minimise(
-                    &stage.objective(&search_model, *h, &[Dy, ThetaDeg, AlphaDeg]),
-                    &[0.1, 0.1, 0.2],
-                    preset.max_evaluations / 8,
-                    &[0.01, 0.01, 0.02],
-                    1e-5,
-                )
-            })
-            .collect();
-        let found = lowest(&refined).unwrap_or(Scored::infinite(best));
-        best = run.finish(stage, "tilt α, θ (subpixel)", found);
-    }
+/// Stage 3c, subpixel model: α (and the θ it was traded for, `subpixel_tilt.rs`),
+/// then the pose of the best few tilts re-fitted with α free.
+fn subpixel_tilt_stage(run: &mut StageRunner<'_>, scores: &Scores<'_>, best: Mismatch) -> Mismatch {
+    let preset = scores.preset;
+    let search_model = |m: &Mismatch| scores.search_model(m);
+    let stage = run.start();
+    let tilts = subpixel_tilt(
+        &|m| stage.score(&search_model, m),
+        &best,
+        scores.problem.bands,
+        preset.alpha_range_deg,
+    );
+    // (dy, θ, α): the rows and the tilt; dx and a1 stay as the rounded
+    // front end placed them (see the joint refinement)
+    let refined: Vec<Scored> = tilts
+        .iter()
+        .take(preset.dispersion_candidates)
+        .map(|(_, h)| {
+            nelder_mead::minimise(
+                &stage.objective(&search_model, *h, &[Dy, ThetaDeg, AlphaDeg]),
+                &[0.1, 0.1, 0.2],
+                preset.max_evaluations / 8,
+                &[0.01, 0.01, 0.02],
+                1e-5,
+            )
+        })
+        .collect();
+    let found = lowest(&refined).unwrap_or(Scored::infinite(best));
+    run.finish(stage, "tilt α, θ (subpixel)", found)
+}
 
-    // 4. joint refinement. For the subpixel model α and a1 join the simplex,
-    // a1 held inside the rounding interval the front end chose: the subpixel
-    // score is nearly flat along the (dx, a1) ridge that keeps one band's
-    // code in place (≤ 1 % over ±0.2 px, ±0.015) and, free, its minimum sat
-    // at a1 ≈ 2.027 on every CAVE scene for a true 2.04 (measured: RMSE
-    // 0.012; 0.008 held in the interval). With few bands the interval is wide
-    // (8 bands: every a1 in 1.93…2.07 rounds alike) and a1 moves freely.
-    if problem.model == DispersionModel::Rounded || proxy_refines_dispersion {
-        let stage = run.start();
-        let (a1_lo, a1_hi) = rounding_intervals(
-            problem.bands,
-            best.alpha_deg,
-            best.a1 - preset.a1_span,
-            best.a1 + preset.a1_span,
-        )
-        .into_iter()
-        .find(|&(a, b)| a <= best.a1 && best.a1 <= b)
-        .unwrap_or((best.a1, best.a1));
-        let (free, steps, tol, max_evaluations) = match problem.model {
-            DispersionModel::Rounded => (
-                vec![Dx, Dy, ThetaDeg],
-                vec![0.05, 0.05, 0.05],
-                vec![0.002, 0.002, 0.002],
-                preset.max_evaluations / 2,
-            ),
-            DispersionModel::Subpixel => (
-                vec![Dx, Dy, ThetaDeg, AlphaDeg, A1],
-                vec![0.05, 0.05, 0.05, 0.1, (0.25 * (a1_hi - a1_lo)).max(1e-4)],
-                vec![0.005, 0.005, 0.005, 0.01, 0.0005],
-                preset.max_evaluations / 4,
-            ),
-        };
-        let objective = stage
-            .objective(&score, best, &free)
-            .within(A1, a1_lo, a1_hi);
-        let found = nelder_mead::minimise(&objective, &steps, max_evaluations, &tol, 1e-7);
-        best = run.finish(stage, "joint refinement", found);
-    }
-
-    let (uncertainty, trade_offs, uncertainty_evals) = if texture {
-        let found = texture_stage(&mut run, problem, preset, &best, &proxy)?;
-        best = found.0;
-        (found.1, found.2, found.3)
-    } else {
-        let (u, n) = curvature_uncertainty(problem, &best, score(&best), &proxy);
-        (u, Vec::new(), n)
+/// Stage 4, joint refinement on the final proxy. For the subpixel model α and a1
+/// join the simplex, a1 held inside the rounding interval the front end
+/// chose: the subpixel score is nearly flat along the (dx, a1) ridge that
+/// keeps one band's code in place (≤ 1 % over ±0.2 px, ±0.015) and, free,
+/// its minimum sat at a1 ≈ 2.027 on every CAVE scene for a true 2.04
+/// (measured: RMSE 0.012; 0.008 held in the interval). With few bands the
+/// interval is wide (8 bands: every a1 in 1.93…2.07 rounds alike) and a1
+/// moves freely.
+fn joint_refinement(run: &mut StageRunner<'_>, scores: &Scores<'_>, best: Mismatch) -> Mismatch {
+    let (problem, preset) = (scores.problem, scores.preset);
+    let stage = run.start();
+    let (a1_lo, a1_hi) = rounding_intervals(
+        problem.bands,
+        best.alpha_deg,
+        best.a1 - preset.a1_span,
+        best.a1 + preset.a1_span,
+    )
+    .into_iter()
+    .find(|&(a, b)| a <= best.a1 && best.a1 <= b)
+    .unwrap_or((best.a1, best.a1));
+    let (free, steps, tol, max_evaluations) = match problem.model {
+        DispersionModel::Rounded => (
+            vec![Dx, Dy, ThetaDeg],
+            vec![0.05, 0.05, 0.05],
+            vec![0.002, 0.002, 0.002],
+            preset.max_evaluations / 2,
+        ),
+        DispersionModel::Subpixel => (
+            vec![Dx, Dy, ThetaDeg, AlphaDeg, A1],
+            vec![0.05, 0.05, 0.05, 0.1, (0.25 * (a1_hi - a1_lo)).max(1e-4)],
+            vec![0.005, 0.005, 0.005, 0.01, 0.0005],
+            preset.max_evaluations / 4,
+        ),
     };
-    let s = score(&best);
-    let nominal_score = score(&Mismatch::nominal(preset.stride));
-    // + the uncertainty probes, the final and the nominal score
-    let evaluations = run.evaluations() + uncertainty_evals + 2;
-    let seconds = run.seconds();
-    Ok(Calibration {
-        preset: "default".into(),
-        model: problem.model,
-        parameters: best,
-        score: s,
-        nominal_score,
-        uncertainty,
-        trade_offs,
-        stages: run.into_reports(),
-        seconds,
-        evaluations,
-    })
+    let score = |m: &Mismatch| scores.score(m);
+    let objective = stage
+        .objective(&score, best, &free)
+        .within(A1, a1_lo, a1_hi);
+    let found = nelder_mead::minimise(&objective, &steps, max_evaluations, &tol, 1e-7);
+    run.finish(stage, "joint refinement", found)
 }
 
 /// What the texture stage found: ψ, its standard errors, the trade-offs and

@@ -137,107 +137,23 @@ pub fn calibrate_paper(
 ) -> Result<Calibration> {
     problem.validate()?;
     let mut run = StageRunner::new(on_stage);
-    let nominal = Mismatch::nominal(preset.stride);
-    let (sb, tb) = (preset.shift_bound, preset.theta_bound);
-    let score = |m: &Mismatch, p: &ProxyParams| problem.score(m, p).unwrap_or(f64::INFINITY);
+    let coarse = coarse_grid(&mut run, problem, preset);
+    let grid_best = fine_grids(&mut run, problem, preset, &coarse);
+    let gradient_best = gradient_stages(&mut run, problem, preset, grid_best.parameters);
+    let best = selection(
+        &mut run,
+        problem,
+        preset,
+        grid_best.parameters,
+        gradient_best,
+    );
+    let best = a1_sweep(&mut run, problem, preset, best);
 
-    // 0. coarse grid
-    let stage = run.start();
-    let coarse_score = |m: &Mismatch| score(m, &preset.coarse_proxy);
-    let [nx, ny, nt] = preset.coarse;
-    let axes = [
-        linspace(-sb, sb, nx),
-        linspace(-sb, sb, ny),
-        linspace(-tb, tb, nt),
-    ];
-    let objective = in_box(stage.objective(&coarse_score, nominal, &POSE), sb, tb);
-    let mut coarse = grid::scan(&objective, &grid::product(&axes));
-    // stable: ties keep grid order
-    coarse.sort_by(|a, b| a.score.total_cmp(&b.score));
-    run.finish(stage, "0 coarse grid", coarse[0]);
-
-    // 1. fine grids around the best coarse candidates, ± one coarse step
-    let stage = run.start();
-    let fine_score = |m: &Mismatch| score(m, &preset.fine_proxy);
-    let step = |n: usize, bound: f64| {
-        if n > 1 {
-            2.0 * bound / (n - 1) as f64
-        } else {
-            0.0
-        }
-    };
-    let (sx, sy, st) = (step(nx, sb), step(ny, sb), step(nt, tb));
-    let [fx, fy, ft] = preset.fine;
-    let objective = in_box(stage.objective(&fine_score, nominal, &POSE), sb, tb);
-    let mut fine = Vec::new();
-    for c in coarse.iter().take(preset.refine_top) {
-        let c = c.parameters;
-        let around = |centre: f64, half: f64, n: usize| -> Vec<f64> {
-            linspace(-half, half, n)
-                .into_iter()
-                .map(|o| centre + o)
-                .collect()
-        };
-        let axes = [
-            around(c.dx, sx, fx),
-            around(c.dy, sy, fy),
-            around(c.theta_deg, st, ft),
-        ];
-        fine.extend(grid::scan(&objective, &grid::product(&axes)));
-    }
-    let grid_best = lowest(&fine).unwrap_or(Scored::infinite(nominal));
-    run.finish(stage, "1 fine grids", grid_best);
-
-    // 2. Adam stages, each from the previous one's last iterate
-    let mut current = grid_best.parameters;
-    for gradient_stage in &preset.gradient_stages {
-        let stage = run.start();
-        let proxy = &gradient_stage.proxy;
-        let score_and_gradient = |m: &Mismatch, params: &[Parameter]| {
-            problem
-                .score_and_gradient(m, proxy, params)
-                .unwrap_or((f64::INFINITY, vec![0.0; params.len()]))
-        };
-        let objective = in_box(
-            stage.differentiable(&score_and_gradient, current, &gradient_stage.parameters),
-            sb,
-            tb,
-        );
-        let found = adam::minimise(&objective, &gradient_stage.adam);
-        current = run.finish(stage, gradient_stage.name.clone(), found);
-    }
-
-    // 3. grid-best vs gradient-best (the gradient result only if strictly lower)
-    let stage = run.start();
-    let selection_score = |m: &Mismatch| score(m, &preset.selection_proxy);
-    let s_grid = stage.score(&selection_score, &grid_best.parameters);
-    let s_grad = stage.score(&selection_score, &current);
-    let (best, selected) = if s_grad < s_grid {
-        (current, "gradient")
-    } else {
-        (grid_best.parameters, "grid")
-    };
-    let found = Scored {
-        parameters: best,
-        score: s_grid.min(s_grad),
-    };
-    let best = run.finish(stage, format!("3 selection ({selected})"), found);
-
-    // 4. a1
-    let stage = run.start();
-    let a1_score = |m: &Mismatch| score(m, &preset.a1_proxy);
-    let a1s: Vec<Vec<f64>> = linspace(preset.a1_range.0, preset.a1_range.1, preset.a1_count)
-        .into_iter()
-        .map(|a1| vec![a1])
-        .collect();
-    let scored = grid::scan(&stage.objective(&a1_score, best, &[A1]), &a1s);
-    let found = lowest(&scored).unwrap_or(Scored::infinite(best));
-    let best = run.finish(stage, "4 dispersion a1", found);
-
-    let final_score = score(&best, &preset.selection_proxy);
+    let score = proxy_score(problem, &preset.selection_proxy);
+    let final_score = score(&best);
     let (uncertainty, uncertainty_evals) =
         curvature_uncertainty(problem, &best, final_score, &preset.selection_proxy);
-    let nominal_score = score(&nominal, &preset.selection_proxy);
+    let nominal_score = score(&Mismatch::nominal(preset.stride));
     let evaluations = run.evaluations() + uncertainty_evals + 2;
     let seconds = run.seconds();
     Ok(Calibration {
@@ -252,4 +168,149 @@ pub fn calibrate_paper(
         seconds,
         evaluations,
     })
+}
+
+/// The proxy score with `proxy` (∞ for an invalid ψ).
+fn proxy_score<'a>(
+    problem: &'a CalibrationProblem<'a>,
+    proxy: &'a ProxyParams,
+) -> impl Fn(&Mismatch) -> f64 + 'a {
+    move |m| problem.score(m, proxy).unwrap_or(f64::INFINITY)
+}
+
+/// Stage 0, the coarse grid: every candidate, best first.
+fn coarse_grid(
+    run: &mut StageRunner<'_>,
+    problem: &CalibrationProblem<'_>,
+    preset: &PaperPreset,
+) -> Vec<Scored> {
+    let (sb, tb) = (preset.shift_bound, preset.theta_bound);
+    let stage = run.start();
+    let score = proxy_score(problem, &preset.coarse_proxy);
+    let [nx, ny, nt] = preset.coarse;
+    let axes = [
+        linspace(-sb, sb, nx),
+        linspace(-sb, sb, ny),
+        linspace(-tb, tb, nt),
+    ];
+    let nominal = Mismatch::nominal(preset.stride);
+    let objective = in_box(stage.objective(&score, nominal, &POSE), sb, tb);
+    let mut coarse = grid::scan(&objective, &grid::product(&axes));
+    // stable: ties keep grid order
+    coarse.sort_by(|a, b| a.score.total_cmp(&b.score));
+    run.finish(stage, "0 coarse grid", coarse[0]);
+    coarse
+}
+
+/// Stage 1, fine grids around the best coarse candidates, ± one coarse step.
+fn fine_grids(
+    run: &mut StageRunner<'_>,
+    problem: &CalibrationProblem<'_>,
+    preset: &PaperPreset,
+    coarse: &[Scored],
+) -> Scored {
+    let (sb, tb) = (preset.shift_bound, preset.theta_bound);
+    let stage = run.start();
+    let score = proxy_score(problem, &preset.fine_proxy);
+    let step = |n: usize, bound: f64| {
+        if n > 1 {
+            2.0 * bound / (n - 1) as f64
+        } else {
+            0.0
+        }
+    };
+    let [nx, ny, nt] = preset.coarse;
+    let (sx, sy, st) = (step(nx, sb), step(ny, sb), step(nt, tb));
+    let [fx, fy, ft] = preset.fine;
+    let nominal = Mismatch::nominal(preset.stride);
+    let objective = in_box(stage.objective(&score, nominal, &POSE), sb, tb);
+    let around = |centre: f64, half: f64, n: usize| -> Vec<f64> {
+        linspace(-half, half, n)
+            .into_iter()
+            .map(|o| centre + o)
+            .collect()
+    };
+    let mut fine = Vec::new();
+    for c in coarse.iter().take(preset.refine_top) {
+        let c = c.parameters;
+        let axes = [
+            around(c.dx, sx, fx),
+            around(c.dy, sy, fy),
+            around(c.theta_deg, st, ft),
+        ];
+        fine.extend(grid::scan(&objective, &grid::product(&axes)));
+    }
+    let grid_best = lowest(&fine).unwrap_or(Scored::infinite(nominal));
+    run.finish(stage, "1 fine grids", grid_best);
+    grid_best
+}
+
+/// Stage 2, the Adam stages, each from the previous one's last iterate.
+fn gradient_stages(
+    run: &mut StageRunner<'_>,
+    problem: &CalibrationProblem<'_>,
+    preset: &PaperPreset,
+    start: Mismatch,
+) -> Mismatch {
+    let mut current = start;
+    for gradient_stage in &preset.gradient_stages {
+        let stage = run.start();
+        let proxy = &gradient_stage.proxy;
+        let score_and_gradient = |m: &Mismatch, params: &[Parameter]| {
+            problem
+                .score_and_gradient(m, proxy, params)
+                .unwrap_or((f64::INFINITY, vec![0.0; params.len()]))
+        };
+        let objective = in_box(
+            stage.differentiable(&score_and_gradient, current, &gradient_stage.parameters),
+            preset.shift_bound,
+            preset.theta_bound,
+        );
+        let found = adam::minimise(&objective, &gradient_stage.adam);
+        current = run.finish(stage, gradient_stage.name.clone(), found);
+    }
+    current
+}
+
+/// Stage 3, grid-best vs gradient-best (the gradient result only if
+/// strictly lower).
+fn selection(
+    run: &mut StageRunner<'_>,
+    problem: &CalibrationProblem<'_>,
+    preset: &PaperPreset,
+    grid_best: Mismatch,
+    gradient_best: Mismatch,
+) -> Mismatch {
+    let stage = run.start();
+    let score = proxy_score(problem, &preset.selection_proxy);
+    let s_grid = stage.score(&score, &grid_best);
+    let s_grad = stage.score(&score, &gradient_best);
+    let (best, selected) = if s_grad < s_grid {
+        (gradient_best, "gradient")
+    } else {
+        (grid_best, "grid")
+    };
+    let found = Scored {
+        parameters: best,
+        score: s_grid.min(s_grad),
+    };
+    run.finish(stage, format!("3 selection ({selected})"), found)
+}
+
+/// Stage 4, a1 over its candidates with the selected pose.
+fn a1_sweep(
+    run: &mut StageRunner<'_>,
+    problem: &CalibrationProblem<'_>,
+    preset: &PaperPreset,
+    best: Mismatch,
+) -> Mismatch {
+    let stage = run.start();
+    let score = proxy_score(problem, &preset.a1_proxy);
+    let a1s: Vec<Vec<f64>> = linspace(preset.a1_range.0, preset.a1_range.1, preset.a1_count)
+        .into_iter()
+        .map(|a1| vec![a1])
+        .collect();
+    let scored = grid::scan(&stage.objective(&score, best, &[A1]), &a1s);
+    let found = lowest(&scored).unwrap_or(Scored::infinite(best));
+    run.finish(stage, "4 dispersion a1", found)
 }
