@@ -4,6 +4,9 @@
 
 use serde::{Deserialize, Serialize};
 
+use super::objective::Objective;
+use super::stages::Scored;
+
 /// One Adam run.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct AdamSettings {
@@ -74,6 +77,22 @@ pub fn adam(
         project(&mut x);
     }
     (x, last)
+}
+
+/// [`adam`] over a differentiable `objective`'s free parameters from its
+/// base, projected onto its bounds after every step: the last iterate's ψ
+/// and the score at the last evaluated point.
+pub(crate) fn minimise(objective: &Objective, settings: &AdamSettings) -> Scored {
+    let (x, score) = adam(
+        &objective.start(),
+        settings,
+        |v| objective.value_and_gradient(v),
+        |v| objective.project(v),
+    );
+    Scored {
+        parameters: objective.psi(&x),
+        score,
+    }
 }
 
 #[cfg(test)]

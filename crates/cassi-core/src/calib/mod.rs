@@ -3,18 +3,23 @@
 //! the residual of a short proxy reconstruction (paper §3.3, Eq. 3).
 //!
 //! Presets: `default` (ours, [`calibrate_default`]) and `paper` (the paper's
-//! Algorithm 1, [`calibrate_paper`]). Each stage reports its evaluations,
-//! time and best ψ.
+//! Algorithm 1, [`calibrate_paper`]), each a short recipe of stages over
+//! the stage runner (`stages.rs`), which reports every stage's evaluations,
+//! time and best ψ. The searches (Nelder–Mead, Adam, the grids) minimise an
+//! `Objective` (`objective.rs`): a score over a subset of ψ's parameters.
 
-pub mod adam;
+pub(crate) mod adam;
 mod default;
-pub mod gradient;
-pub mod init;
-pub mod nelder_mead;
+pub(crate) mod gradient;
+mod grid;
+pub(crate) mod init;
+pub(crate) mod nelder_mead;
+mod objective;
 mod paper;
 mod rounded_dispersion;
-pub mod score;
-pub mod smooth;
+pub(crate) mod score;
+pub(crate) mod smooth;
+mod stages;
 mod subpixel_tilt;
 mod texture;
 mod uncertainty;
@@ -23,8 +28,10 @@ pub use uncertainty::{TRADE_OFF_CORRELATION, TradeOff};
 
 use serde::{Deserialize, Serialize};
 
+pub use adam::AdamSettings;
 pub use default::{DefaultPreset, calibrate_default};
 pub use gradient::Parameter;
+pub use nelder_mead::nelder_mead;
 pub use paper::{GradientStage, PaperPreset, calibrate_paper};
 pub use score::{CalibrationProblem, ProxyParams};
 
@@ -137,17 +144,5 @@ pub fn calibrate(
     match preset {
         Preset::Default(p) => calibrate_default(problem, p, on_stage),
         Preset::Paper(p) => calibrate_paper(problem, p, on_stage),
-    }
-}
-
-/// ψ from a search vector (dx, dy, θ[, a1[, α]]), the rest from `base`.
-pub(crate) fn psi(v: &[f64], base: &Mismatch) -> Mismatch {
-    Mismatch {
-        dx: v[0],
-        dy: v[1],
-        theta_deg: v[2],
-        a1: v.get(3).copied().unwrap_or(base.a1),
-        alpha_deg: v.get(4).copied().unwrap_or(base.alpha_deg),
-        blur_sigma_px: base.blur_sigma_px,
     }
 }

@@ -1,6 +1,32 @@
 //! A small Nelder–Mead simplex minimiser (standard coefficients), enough for
 //! the handful of calibration parameters; counts its evaluations.
 
+use super::objective::Objective;
+use super::stages::Scored;
+
+/// [`nelder_mead`] over `objective`'s free parameters from its base: the
+/// best ψ found and its score.
+pub(crate) fn minimise(
+    objective: &Objective,
+    steps: &[f64],
+    max_evals: usize,
+    x_tol: &[f64],
+    f_tol: f64,
+) -> Scored {
+    let (v, score, _) = nelder_mead(
+        |v| objective.value(v),
+        &objective.start(),
+        steps,
+        max_evals,
+        x_tol,
+        f_tol,
+    );
+    Scored {
+        parameters: objective.psi(&v),
+        score,
+    }
+}
+
 /// Minimises `f` from `x0` with initial steps `steps` per coordinate; stops
 /// after `max_evals` evaluations or when the simplex's values span less
 /// than `f_tol` (relative) and its extent less than `x_tol` in every

@@ -16,16 +16,18 @@
 //! The proxy's per-stage settings are those of the reference code
 //! (seed-code notes §6).
 
-use std::time::Instant;
-
 use serde::{Deserialize, Serialize};
 
-use super::adam::{AdamSettings, adam};
+use super::adam::{self, AdamSettings};
 use super::gradient::Parameter;
+use super::grid::{self, linspace};
+use super::objective::Objective;
+use super::stages::{Scored, StageRunner, lowest};
 use super::uncertainty::curvature_uncertainty;
 use super::{Calibration, CalibrationProblem, ProxyParams, StageReport};
 use crate::error::Result;
 use crate::params::Mismatch;
+use crate::params::Parameter::{A1, AlphaDeg, Dx, Dy, ThetaDeg};
 
 /// One gradient stage: which parameters, their initial learning rates, the
 /// schedule and the proxy it differentiates.
@@ -113,17 +115,18 @@ impl Default for PaperPreset {
     }
 }
 
-/// `n` evenly spaced values over [lo, hi] (just `lo` when n = 1).
-fn linspace(lo: f64, hi: f64, n: usize) -> Vec<f64> {
-    (0..n)
-        .map(|i| {
-            if n == 1 {
-                lo
-            } else {
-                lo + (hi - lo) * i as f64 / (n - 1) as f64
-            }
-        })
-        .collect()
+/// The pose the grids search.
+const POSE: [Parameter; 3] = [Dx, Dy, ThetaDeg];
+
+/// `objective` held in the search box: |dx|, |dy| ≤ `shift_bound` px, the
+/// angles within ±`theta_bound`°.
+fn in_box(objective: Objective<'_>, shift_bound: f64, theta_bound: f64) -> Objective<'_> {
+    let (sb, tb) = (shift_bound, theta_bound);
+    objective
+        .within(Dx, -sb, sb)
+        .within(Dy, -sb, sb)
+        .within(ThetaDeg, -tb, tb)
+        .within(AlphaDeg, -tb, tb)
 }
 
 /// Runs the `paper` preset. `on_stage` sees each stage as it finishes.
@@ -133,160 +136,26 @@ pub fn calibrate_paper(
     on_stage: &mut dyn FnMut(&StageReport),
 ) -> Result<Calibration> {
     problem.validate()?;
-    let t_all = Instant::now();
-    let mut stages: Vec<StageReport> = Vec::new();
-    let mut push = |r: StageReport| {
-        on_stage(&r);
-        stages.push(r);
-    };
-    let nominal = Mismatch::nominal(preset.stride);
-    let (sb, tb) = (preset.shift_bound, preset.theta_bound);
-    let pose = |dx: f64, dy: f64, theta_deg: f64| Mismatch {
-        dx: dx.clamp(-sb, sb),
-        dy: dy.clamp(-sb, sb),
-        theta_deg: theta_deg.clamp(-tb, tb),
-        ..nominal
-    };
-    let score = |m: &Mismatch, p: &ProxyParams| problem.score(m, p).unwrap_or(f64::INFINITY);
+    let mut run = StageRunner::new(on_stage);
+    let coarse = coarse_grid(&mut run, problem, preset);
+    let grid_best = fine_grids(&mut run, problem, preset, &coarse);
+    let gradient_best = gradient_stages(&mut run, problem, preset, grid_best.parameters);
+    let best = selection(
+        &mut run,
+        problem,
+        preset,
+        grid_best.parameters,
+        gradient_best,
+    );
+    let best = a1_sweep(&mut run, problem, preset, best);
 
-    // 0. coarse grid
-    let t = Instant::now();
-    let [nx, ny, nt] = preset.coarse;
-    let mut coarse: Vec<(f64, Mismatch)> = Vec::with_capacity(nx * ny * nt);
-    for &dx in &linspace(-sb, sb, nx) {
-        for &dy in &linspace(-sb, sb, ny) {
-            for &th in &linspace(-tb, tb, nt) {
-                let m = pose(dx, dy, th);
-                coarse.push((score(&m, &preset.coarse_proxy), m));
-            }
-        }
-    }
-    // stable: ties keep grid order
-    coarse.sort_by(|a, b| a.0.total_cmp(&b.0));
-    push(StageReport {
-        name: "0 coarse grid".into(),
-        evaluations: coarse.len(),
-        seconds: t.elapsed().as_secs_f64(),
-        parameters: coarse[0].1,
-        score: coarse[0].0,
-    });
-
-    // 1. fine grids around the best coarse candidates, ± one coarse step
-    let t = Instant::now();
-    let step = |n: usize, bound: f64| {
-        if n > 1 {
-            2.0 * bound / (n - 1) as f64
-        } else {
-            0.0
-        }
-    };
-    let (sx, sy, st) = (step(nx, sb), step(ny, sb), step(nt, tb));
-    let [fx, fy, ft] = preset.fine;
-    let mut grid_best = (f64::INFINITY, nominal);
-    let mut evals = 0;
-    for (_, c) in coarse.iter().take(preset.refine_top) {
-        for &ox in &linspace(-sx, sx, fx) {
-            for &oy in &linspace(-sy, sy, fy) {
-                for &ot in &linspace(-st, st, ft) {
-                    let m = pose(c.dx + ox, c.dy + oy, c.theta_deg + ot);
-                    let s = score(&m, &preset.fine_proxy);
-                    evals += 1;
-                    if s < grid_best.0 {
-                        grid_best = (s, m);
-                    }
-                }
-            }
-        }
-    }
-    push(StageReport {
-        name: "1 fine grids".into(),
-        evaluations: evals,
-        seconds: t.elapsed().as_secs_f64(),
-        parameters: grid_best.1,
-        score: grid_best.0,
-    });
-
-    // 2. Adam stages, each from the previous one's last iterate
-    let mut current = grid_best.1;
-    for stage in &preset.gradient_stages {
-        let t = Instant::now();
-        let params = &stage.parameters;
-        let at = |v: &[f64]| {
-            let mut m = current;
-            for (p, &x) in params.iter().zip(v) {
-                p.set(&mut m, x);
-            }
-            m
-        };
-        let x0: Vec<f64> = params.iter().map(|p| p.get(&current)).collect();
-        let (x, last) = adam(
-            &x0,
-            &stage.adam,
-            |v| {
-                problem
-                    .score_and_gradient(&at(v), &stage.proxy, params)
-                    .unwrap_or((f64::INFINITY, vec![0.0; params.len()]))
-            },
-            |v| {
-                for (p, x) in params.iter().zip(v.iter_mut()) {
-                    let bound = match p {
-                        Parameter::Dx | Parameter::Dy => sb,
-                        _ => tb,
-                    };
-                    *x = x.clamp(-bound, bound);
-                }
-            },
-        );
-        current = at(&x);
-        push(StageReport {
-            name: stage.name.clone(),
-            evaluations: stage.adam.steps,
-            seconds: t.elapsed().as_secs_f64(),
-            parameters: current,
-            score: last,
-        });
-    }
-
-    // 3. grid-best vs gradient-best (the gradient result only if strictly lower)
-    let t = Instant::now();
-    let s_grid = score(&grid_best.1, &preset.selection_proxy);
-    let s_grad = score(&current, &preset.selection_proxy);
-    let (mut best, selected) = if s_grad < s_grid {
-        (current, "gradient")
-    } else {
-        (grid_best.1, "grid")
-    };
-    push(StageReport {
-        name: format!("3 selection ({selected})"),
-        evaluations: 2,
-        seconds: t.elapsed().as_secs_f64(),
-        parameters: best,
-        score: s_grid.min(s_grad),
-    });
-
-    // 4. a1
-    let t = Instant::now();
-    let mut best_a1 = (f64::INFINITY, best.a1);
-    for a1 in linspace(preset.a1_range.0, preset.a1_range.1, preset.a1_count) {
-        let s = score(&Mismatch { a1, ..best }, &preset.a1_proxy);
-        if s < best_a1.0 {
-            best_a1 = (s, a1);
-        }
-    }
-    best.a1 = best_a1.1;
-    push(StageReport {
-        name: "4 dispersion a1".into(),
-        evaluations: preset.a1_count,
-        seconds: t.elapsed().as_secs_f64(),
-        parameters: best,
-        score: best_a1.0,
-    });
-
-    let final_score = score(&best, &preset.selection_proxy);
+    let score = proxy_score(problem, &preset.selection_proxy);
+    let final_score = score(&best);
     let (uncertainty, uncertainty_evals) =
         curvature_uncertainty(problem, &best, final_score, &preset.selection_proxy);
-    let nominal_score = score(&nominal, &preset.selection_proxy);
-    let evaluations = stages.iter().map(|s| s.evaluations).sum::<usize>() + uncertainty_evals + 2;
+    let nominal_score = score(&Mismatch::nominal(preset.stride));
+    let evaluations = run.evaluations() + uncertainty_evals + 2;
+    let seconds = run.seconds();
     Ok(Calibration {
         preset: "paper".into(),
         model: problem.model,
@@ -295,8 +164,153 @@ pub fn calibrate_paper(
         nominal_score,
         uncertainty,
         trade_offs: Vec::new(),
-        stages,
-        seconds: t_all.elapsed().as_secs_f64(),
+        stages: run.into_reports(),
+        seconds,
         evaluations,
     })
+}
+
+/// The proxy score with `proxy` (∞ for an invalid ψ).
+fn proxy_score<'a>(
+    problem: &'a CalibrationProblem<'a>,
+    proxy: &'a ProxyParams,
+) -> impl Fn(&Mismatch) -> f64 + 'a {
+    move |m| problem.score(m, proxy).unwrap_or(f64::INFINITY)
+}
+
+/// Stage 0, the coarse grid: every candidate, best first.
+fn coarse_grid(
+    run: &mut StageRunner<'_>,
+    problem: &CalibrationProblem<'_>,
+    preset: &PaperPreset,
+) -> Vec<Scored> {
+    let (sb, tb) = (preset.shift_bound, preset.theta_bound);
+    let stage = run.start();
+    let score = proxy_score(problem, &preset.coarse_proxy);
+    let [nx, ny, nt] = preset.coarse;
+    let axes = [
+        linspace(-sb, sb, nx),
+        linspace(-sb, sb, ny),
+        linspace(-tb, tb, nt),
+    ];
+    let nominal = Mismatch::nominal(preset.stride);
+    let objective = in_box(stage.objective(&score, nominal, &POSE), sb, tb);
+    let mut coarse = grid::scan(&objective, &grid::product(&axes));
+    // stable: ties keep grid order
+    coarse.sort_by(|a, b| a.score.total_cmp(&b.score));
+    run.finish(stage, "0 coarse grid", coarse[0]);
+    coarse
+}
+
+/// Stage 1, fine grids around the best coarse candidates, ± one coarse step.
+fn fine_grids(
+    run: &mut StageRunner<'_>,
+    problem: &CalibrationProblem<'_>,
+    preset: &PaperPreset,
+    coarse: &[Scored],
+) -> Scored {
+    let (sb, tb) = (preset.shift_bound, preset.theta_bound);
+    let stage = run.start();
+    let score = proxy_score(problem, &preset.fine_proxy);
+    let step = |n: usize, bound: f64| {
+        if n > 1 {
+            2.0 * bound / (n - 1) as f64
+        } else {
+            0.0
+        }
+    };
+    let [nx, ny, nt] = preset.coarse;
+    let (sx, sy, st) = (step(nx, sb), step(ny, sb), step(nt, tb));
+    let [fx, fy, ft] = preset.fine;
+    let nominal = Mismatch::nominal(preset.stride);
+    let objective = in_box(stage.objective(&score, nominal, &POSE), sb, tb);
+    let around = |centre: f64, half: f64, n: usize| -> Vec<f64> {
+        linspace(-half, half, n)
+            .into_iter()
+            .map(|o| centre + o)
+            .collect()
+    };
+    let mut fine = Vec::new();
+    for c in coarse.iter().take(preset.refine_top) {
+        let c = c.parameters;
+        let axes = [
+            around(c.dx, sx, fx),
+            around(c.dy, sy, fy),
+            around(c.theta_deg, st, ft),
+        ];
+        fine.extend(grid::scan(&objective, &grid::product(&axes)));
+    }
+    let grid_best = lowest(&fine).unwrap_or(Scored::infinite(nominal));
+    run.finish(stage, "1 fine grids", grid_best);
+    grid_best
+}
+
+/// Stage 2, the Adam stages, each from the previous one's last iterate.
+fn gradient_stages(
+    run: &mut StageRunner<'_>,
+    problem: &CalibrationProblem<'_>,
+    preset: &PaperPreset,
+    start: Mismatch,
+) -> Mismatch {
+    let mut current = start;
+    for gradient_stage in &preset.gradient_stages {
+        let stage = run.start();
+        let proxy = &gradient_stage.proxy;
+        let score_and_gradient = |m: &Mismatch, params: &[Parameter]| {
+            problem
+                .score_and_gradient(m, proxy, params)
+                .unwrap_or((f64::INFINITY, vec![0.0; params.len()]))
+        };
+        let objective = in_box(
+            stage.differentiable(&score_and_gradient, current, &gradient_stage.parameters),
+            preset.shift_bound,
+            preset.theta_bound,
+        );
+        let found = adam::minimise(&objective, &gradient_stage.adam);
+        current = run.finish(stage, gradient_stage.name.clone(), found);
+    }
+    current
+}
+
+/// Stage 3, grid-best vs gradient-best (the gradient result only if
+/// strictly lower).
+fn selection(
+    run: &mut StageRunner<'_>,
+    problem: &CalibrationProblem<'_>,
+    preset: &PaperPreset,
+    grid_best: Mismatch,
+    gradient_best: Mismatch,
+) -> Mismatch {
+    let stage = run.start();
+    let score = proxy_score(problem, &preset.selection_proxy);
+    let s_grid = stage.score(&score, &grid_best);
+    let s_grad = stage.score(&score, &gradient_best);
+    let (best, selected) = if s_grad < s_grid {
+        (gradient_best, "gradient")
+    } else {
+        (grid_best, "grid")
+    };
+    let found = Scored {
+        parameters: best,
+        score: s_grid.min(s_grad),
+    };
+    run.finish(stage, format!("3 selection ({selected})"), found)
+}
+
+/// Stage 4, a1 over its candidates with the selected pose.
+fn a1_sweep(
+    run: &mut StageRunner<'_>,
+    problem: &CalibrationProblem<'_>,
+    preset: &PaperPreset,
+    best: Mismatch,
+) -> Mismatch {
+    let stage = run.start();
+    let score = proxy_score(problem, &preset.a1_proxy);
+    let a1s: Vec<Vec<f64>> = linspace(preset.a1_range.0, preset.a1_range.1, preset.a1_count)
+        .into_iter()
+        .map(|a1| vec![a1])
+        .collect();
+    let scored = grid::scan(&stage.objective(&score, best, &[A1]), &a1s);
+    let found = lowest(&scored).unwrap_or(Scored::infinite(best));
+    run.finish(stage, "4 dispersion a1", found)
 }

@@ -16,13 +16,13 @@ use crate::params::Mismatch;
 /// measured compromise; 1: θ absorbed all of α's band-to-band tilt).
 const THETA_PER_ALPHA: [f64; 3] = [0.0, 0.5, 1.0];
 
-/// Every scored hypothesis as (score, ψ), best first, and the count.
+/// Every scored hypothesis as (score, ψ), best first (one evaluation each).
 pub(crate) fn subpixel_tilt(
     search: &dyn Fn(&Mismatch) -> f64,
     from: &Mismatch,
     bands: usize,
     alpha_range_deg: f64,
-) -> (Vec<(f64, Mismatch)>, usize) {
+) -> Vec<(f64, Mismatch)> {
     let mid = 0.5 * bands.saturating_sub(1) as f64;
     let row_mid = |m: &Mismatch| m.dy + m.a1 * mid * m.alpha_deg.to_radians().sin();
     let n = (alpha_range_deg / 0.25).round() as i64;
@@ -47,8 +47,7 @@ pub(crate) fn subpixel_tilt(
         }
     }
     scored.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let evals = scored.len();
-    (scored, evals)
+    scored
 }
 
 #[cfg(test)]
@@ -66,9 +65,14 @@ mod tests {
             ..Mismatch::nominal(2.0)
         };
         let truth = (0.5, 0.3);
-        let search = |m: &Mismatch| (m.alpha_deg - truth.0).abs() + (m.theta_deg - truth.1).abs();
-        let (scored, evals) = subpixel_tilt(&search, &from, 28, 1.0);
-        assert_eq!(evals, scored.len());
+        let calls = std::cell::Cell::new(0);
+        let search = |m: &Mismatch| {
+            calls.set(calls.get() + 1);
+            (m.alpha_deg - truth.0).abs() + (m.theta_deg - truth.1).abs()
+        };
+        let scored = subpixel_tilt(&search, &from, 28, 1.0);
+        // one evaluation per returned hypothesis
+        assert_eq!(calls.get(), scored.len());
         let best = scored[0].1;
         assert!(
             (best.alpha_deg - 0.5).abs() < 1e-12 && (best.theta_deg - 0.3).abs() < 1e-12,
@@ -79,6 +83,6 @@ mod tests {
         assert!((row(&best) - row(&from)).abs() < 1e-12);
         assert!(best.dy < from.dy);
         // every α of the ±1° grid is tried (9 angles), with 3 θ moves each but one
-        assert_eq!(evals, 1 + 8 * 3);
+        assert_eq!(scored.len(), 1 + 8 * 3);
     }
 }

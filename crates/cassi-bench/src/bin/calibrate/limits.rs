@@ -17,7 +17,7 @@
 
 use std::time::Instant;
 
-use cassi_core::calib::nelder_mead::nelder_mead;
+use cassi_core::calib::nelder_mead;
 use cassi_core::linop::LinearOperator;
 use cassi_core::optics::{DispersionModel, ModelOperator};
 use cassi_core::{Cube, Mask, Measurement, Mismatch, Parameter};
