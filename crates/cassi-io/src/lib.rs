@@ -23,6 +23,8 @@
 //! No reader panics on malformed input, and every allocation is bounded by
 //! the data actually present (a lying header cannot trigger a huge one).
 
+#![forbid(unsafe_code)]
+
 mod array;
 mod atomic;
 mod decode;
