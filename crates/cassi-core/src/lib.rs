@@ -5,6 +5,8 @@
 //! cols) f32 with band 0 the shortest wavelength; dispersion moves band k
 //! toward larger column index; angles are degrees at every public boundary.
 
+#![deny(clippy::undocumented_unsafe_blocks)]
+
 pub mod calib;
 pub mod color;
 pub mod cube;
