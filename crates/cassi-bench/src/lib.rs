@@ -17,13 +17,10 @@ pub fn median(mut v: Vec<f64>) -> f64 {
     }
 }
 
-/// `../shared/data` beside the workspace, or $CASSI_SHARED_DATA.
+/// `../shared/data` beside the workspace, or $CASSI_SHARED_DATA (the
+/// binaries' default; tests use `cassi_io::shared_data::for_test`).
 pub fn shared_data() -> std::path::PathBuf {
-    std::env::var_os("CASSI_SHARED_DATA")
-        .map(Into::into)
-        .unwrap_or_else(|| {
-            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data")
-        })
+    cassi_io::shared_data::default_dir()
 }
 
 /// The CAVE scenes (`scenes/*.npy` under `data`), sorted by name; an error

@@ -2,9 +2,9 @@
 //! (`bench/gap_tv_reference.py`, same settings) on the 10 CAVE scenes with the
 //! TSA mask: per scene and on average within 0.05 dB. The reference PSNRs are
 //! the ones the benchmark recorded in `bench/results/gap_tv_reference.json`.
-//! Skips itself when `../shared/data` is absent.
+//! Skips itself when `../shared/data` is absent (fails instead under
+//! `CASSI_REQUIRE_SHARED_DATA=1`).
 
-use cassi_bench::shared_data;
 use cassi_core::Mismatch;
 use cassi_core::metrics::psnr;
 use cassi_core::optics::{CassiOperator, DispersionModel};
@@ -13,14 +13,9 @@ use cassi_core::solvers::{Silent, Strength};
 
 #[test]
 fn gap_tv_matches_the_numpy_reference_on_cave() {
-    let data = shared_data();
-    if !data.join("scenes").is_dir() {
-        eprintln!(
-            "note: {} not found; skipping the reference comparison",
-            data.display()
-        );
+    let Some(data) = cassi_io::shared_data::for_test(&["scenes"]) else {
         return;
-    }
+    };
     let reference: serde_json::Value = serde_json::from_str(
         &std::fs::read_to_string(concat!(
             env!("CARGO_MANIFEST_DIR"),

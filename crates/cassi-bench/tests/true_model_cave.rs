@@ -5,9 +5,9 @@
 //! exact) beside them: without the x ≥ 0 projection inside the iterations
 //! (the gap-tv default now) old GAP-TV diverges to NaN here; with it (the
 //! old default) it lost to the nominal model. Three scenes by default; CASSI_TRUE_MODEL_SCENES=all
-//! runs the 10. Skips itself when `../shared/data` is absent.
+//! runs the 10. Skips itself when `../shared/data` is absent
+//! (fails instead under `CASSI_REQUIRE_SHARED_DATA=1`).
 
-use cassi_bench::shared_data;
 use cassi_core::denoise::{TvChambolle2d, TvChambolleParams};
 use cassi_core::linop::{AatNormaliser, LinearOperator, NormaliserKind};
 use cassi_core::metrics::psnr;
@@ -76,11 +76,9 @@ fn solve(
 
 #[test]
 fn the_true_subpixel_model_beats_the_nominal_one_on_cave() {
-    let data = shared_data();
-    if !data.join("scenes").is_dir() {
-        eprintln!("note: {} not found; skipping", data.display());
+    let Some(data) = cassi_io::shared_data::for_test(&["scenes"]) else {
         return;
-    }
+    };
     let all = std::env::var("CASSI_TRUE_MODEL_SCENES").is_ok_and(|v| v == "all");
     let mut scenes: Vec<_> = std::fs::read_dir(data.join("scenes"))
         .unwrap()

@@ -1,6 +1,8 @@
 //! `cassi`: the command line. Each subcommand parses its arguments, calls the
 //! library, and writes files; no science happens here.
 
+#![forbid(unsafe_code)]
+
 mod commands;
 mod interrupt;
 mod report;

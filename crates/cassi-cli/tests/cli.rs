@@ -793,18 +793,11 @@ fn eval_runs_learned_methods_in_every_scenario() {
     assert!(report.contains("Learned methods"), "{report}");
 }
 
-/// ../shared/data (or $CASSI_SHARED_DATA) when it holds the network files.
+/// ../shared/data (or $CASSI_SHARED_DATA) when it holds the network files;
+/// `None` after a note (see `cassi_io::shared_data`).
 #[cfg(feature = "nets")]
 fn shared_data() -> Option<PathBuf> {
-    let data = std::env::var_os("CASSI_SHARED_DATA")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data"));
-    if data.join("nets").is_dir() {
-        Some(data)
-    } else {
-        eprintln!("note: no shared data directory (set CASSI_SHARED_DATA); skipping");
-        None
-    }
+    cassi_io::shared_data::for_test(&["nets"])
 }
 
 /// With `--features nets`: the official MST-S weights on the reference
@@ -812,13 +805,7 @@ fn shared_data() -> Option<PathBuf> {
 #[cfg(feature = "nets")]
 #[test]
 fn mst_s_reconstructs_the_reference_measurement() {
-    let data = std::env::var_os("CASSI_SHARED_DATA")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data"));
-    if !data.join("nets").is_dir() {
-        eprintln!("note: no shared data directory (set CASSI_SHARED_DATA); skipping");
-        return;
-    }
+    let Some(data) = shared_data() else { return };
     let dir = scratch("nets-mst-s");
     let out = dir.join("cube.npy");
     let common = data.join("nets/common");

@@ -1,9 +1,11 @@
 //! Science layer of cassi: data types, the CASSI optics model, metrics and
 //! synthetic data. No file I/O and no printing happen here.
 //!
-//! Conventions (DESIGN.md, each pinned by a test): cubes are (bands, rows,
+//! Conventions (docs/CONVENTIONS.md, each pinned by a test): cubes are (bands, rows,
 //! cols) f32 with band 0 the shortest wavelength; dispersion moves band k
 //! toward larger column index; angles are degrees at every public boundary.
+
+#![deny(clippy::undocumented_unsafe_blocks)]
 
 pub mod calib;
 pub mod color;

@@ -20,7 +20,8 @@ pub const MAX_SLOPE: f64 = 1e3;
 /// image holds no code worth calibrating.
 pub const MAX_BLUR_SIGMA_PX: f64 = 8.0;
 
-/// Rigid placement of the mask relative to its nominal position (DESIGN.md):
+/// Rigid placement of the mask relative to its nominal position
+/// (docs/CONVENTIONS.md):
 /// a mask point u = (col, row) moves to `R(θ)(u − c) + c + (dx, dy)`, with c the
 /// mask centre ((W−1)/2, (H−1)/2).
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]

@@ -46,7 +46,10 @@ macro_rules! kernel {
         fn $name(simd: Simd, $($a: $t),*) -> $r {
             #[cfg(target_arch = "x86_64")]
             if simd.avx {
-                // SAFETY: `simd.avx` is set only when the CPU reports AVX.
+                // SAFETY: `$avx` only needs the CPU to have AVX, and
+                // `simd.avx` is true only when `Simd::detect` found AVX at
+                // run time (the one other constructor, a test, passes
+                // detect's answer or false).
                 return unsafe { $avx($($a),*) };
             }
             let _ = simd;

@@ -4,6 +4,8 @@
 //! (`cassi eval`) is a thin layer over it. Learned methods (MST-S/L, HDNet,
 //! PnP-HSICNN) run with the `nets` feature.
 
+#![forbid(unsafe_code)]
+
 pub mod figures;
 pub mod learned;
 pub mod method;

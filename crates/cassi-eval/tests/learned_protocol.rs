@@ -3,28 +3,16 @@
 //! calibrated one in III and the true one in IV, so on a measurement made
 //! through a moved mask IV beats II by a wide margin and III comes close
 //! to IV. The weights are read once, when loaded. Skips without
-//! ../shared/data.
+//! ../shared/data (fails under `CASSI_REQUIRE_SHARED_DATA=1`).
 #![cfg(feature = "nets")]
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use cassi_core::calib::Preset;
 use cassi_core::optics::{DispersionModel, NoiseModel};
 use cassi_core::{Cube, Mismatch};
 use cassi_eval::method::{LearnedMethod, StudyMethod};
 use cassi_eval::protocol::{Scenario, Study, run_scene};
-
-fn shared_data() -> Option<PathBuf> {
-    let dir = std::env::var_os("CASSI_SHARED_DATA")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data"));
-    if dir.join("nets").is_dir() {
-        Some(dir)
-    } else {
-        eprintln!("note: no shared data directory (set CASSI_SHARED_DATA); skipping");
-        None
-    }
-}
 
 /// MST-S loaded from a copy of `weights` that is deleted right after: the
 /// study must run on the model loaded here, not read the file again.
@@ -38,7 +26,9 @@ fn loaded_from_a_copy(weights: &Path) -> LearnedMethod {
 
 #[test]
 fn mst_s_is_guided_by_each_scenarios_mask() {
-    let Some(data) = shared_data() else { return };
+    let Some(data) = cassi_io::shared_data::for_test(&["nets"]) else {
+        return;
+    };
     let common = data.join("nets/common");
     let scene: Cube =
         cassi_io::load_cube(common.join("cube.npy"), None, cassi_io::CubeLayout::Auto)

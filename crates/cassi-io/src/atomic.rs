@@ -80,25 +80,32 @@ pub(crate) fn temp_pid(name: &str) -> Option<u32> {
     None
 }
 
-/// Whether a process with this id exists (conservatively true when unknown).
+/// Whether a process with this id exists (conservatively true when unknown,
+/// so a temporary is never removed from under a running process).
+///
+/// Where procfs is mounted (Linux), `/proc/<pid>` exists exactly when
+/// `kill(pid, 0)` would find the process: zombies and other users'
+/// processes included (but `hidepid=2` hides the latter, so their
+/// temporaries count as stale; removing them still needs write permission
+/// on the folder). Elsewhere on Unix, `ps -p <pid>` (POSIX) answers; on
+/// other systems, or when `ps` cannot run, the process counts as alive.
 fn process_alive(pid: u32) -> bool {
-    #[cfg(unix)]
-    {
-        let Ok(pid) = i32::try_from(pid) else {
-            return false;
-        };
-        if pid <= 0 {
-            return true;
-        }
-        // SAFETY: kill with signal 0 only checks that the process exists.
-        let r = unsafe { libc::kill(pid, 0) };
-        r == 0 || std::io::Error::last_os_error().raw_os_error() != Some(libc::ESRCH)
+    if pid == 0 {
+        return true;
     }
-    #[cfg(not(unix))]
-    {
-        let _ = pid;
-        true
+    if Path::new("/proc/self").exists() {
+        return Path::new("/proc").join(pid.to_string()).exists();
     }
+    if cfg!(unix) {
+        let ps = std::process::Command::new("ps")
+            .args(["-p", &pid.to_string()])
+            .stdin(std::process::Stdio::null())
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::null())
+            .status();
+        return ps.map_or(true, |s| s.success());
+    }
+    true
 }
 
 /// Removes the stale temporaries in `dir` (see the module documentation for
@@ -275,6 +282,19 @@ mod tests {
         ] {
             assert_eq!(temp_pid(not), None, "{not}");
         }
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn a_reaped_child_is_dead_this_process_and_init_alive() {
+        let mut child = std::process::Command::new("true").spawn().unwrap();
+        let pid = child.id();
+        child.wait().unwrap();
+        assert!(!process_alive(pid), "{pid}");
+        assert!(process_alive(std::process::id()));
+        assert!(process_alive(1));
+        assert!(!process_alive(2_000_000_000));
+        assert!(!process_alive(u32::MAX));
     }
 
     #[test]

@@ -8,6 +8,8 @@
 //! * [`describe`] lists what a file holds (`cassi info`).
 //! * [`write_frame_png16`], [`write_band_pngs`], [`write_rgb_png`] write PNGs;
 //!   [`write_atomic`] writes any bytes atomically.
+//! * [`shared_data::for_test`] finds the public test data outside the
+//!   repository (or fails the test when CI requires it).
 //! * [`OutputSet`] checks a command's outputs against its inputs before any
 //!   work and commits them together (all or none).
 //!
@@ -20,6 +22,8 @@
 //! Every error is an [`IoError`] whose message starts with the file path.
 //! No reader panics on malformed input, and every allocation is bounded by
 //! the data actually present (a lying header cannot trigger a huge one).
+
+#![forbid(unsafe_code)]
 
 mod array;
 mod atomic;
@@ -34,6 +38,7 @@ mod npy;
 mod open;
 mod output_set;
 mod png;
+pub mod shared_data;
 
 pub use atomic::{remove_stale_temporaries, remove_temporaries_for_exit};
 pub use describe::{FileSummary, Stats, VariableSummary, describe};

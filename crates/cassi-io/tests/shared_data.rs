@@ -1,19 +1,11 @@
 //! Loads every public benchmark file of `../shared/data` (masks, real
 //! measurements, CAVE scenes) when that directory exists. It is not part of
-//! the repository: without it this test prints a note and passes.
-//! Location: `$CASSI_SHARED_DATA`, else `<crate>/../../../shared/data`.
+//! the repository: without it this test prints a note and passes (fails
+//! under `CASSI_REQUIRE_SHARED_DATA=1`; see `cassi_io::shared_data`).
 
 use std::path::PathBuf;
 
-use cassi_io::{CubeLayout, describe, load_cube, load_frame};
-
-fn shared_data() -> Option<PathBuf> {
-    let dir = match std::env::var_os("CASSI_SHARED_DATA") {
-        Some(d) => PathBuf::from(d),
-        None => PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data"),
-    };
-    dir.is_dir().then_some(dir)
-}
+use cassi_io::{CubeLayout, describe, load_cube, load_frame, shared_data};
 
 fn files(dir: PathBuf, ext: &str) -> Vec<PathBuf> {
     let mut v: Vec<PathBuf> = std::fs::read_dir(&dir)
@@ -29,8 +21,7 @@ fn files(dir: PathBuf, ext: &str) -> Vec<PathBuf> {
 
 #[test]
 fn loads_all_shared_benchmark_files() {
-    let Some(data) = shared_data() else {
-        eprintln!("note: no shared data directory (set CASSI_SHARED_DATA); skipping");
+    let Some(data) = shared_data::for_test(&["masks", "real", "scenes"]) else {
         return;
     };
     let mut loaded = 0;

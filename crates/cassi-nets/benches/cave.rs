@@ -16,10 +16,11 @@ use common::cave::{gap_tv_and_network, scenes, tsa_mask};
 const THREADS: usize = 2;
 
 fn main() {
-    let Some(data) = common::shared_data().filter(|d| d.join("scenes").is_dir()) else {
+    let data = cassi_io::shared_data::default_dir();
+    if !data.join("scenes").is_dir() {
         eprintln!("no shared data with scenes (set CASSI_SHARED_DATA): nothing to run");
         return;
-    };
+    }
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(THREADS)
         .build()

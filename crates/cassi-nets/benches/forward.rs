@@ -55,10 +55,11 @@ fn time(mut f: impl FnMut()) -> (f64, Vec<f64>) {
 }
 
 fn main() {
-    let Some(data) = common::shared_data().filter(|d| d.join("nets").is_dir()) else {
+    let data = cassi_io::shared_data::default_dir();
+    if !data.join("nets").is_dir() {
         eprintln!("no ../shared/data/nets (set CASSI_SHARED_DATA): nothing to time");
         return;
-    };
+    }
     let only: Vec<String> = std::env::args()
         .skip(1)
         .filter(|a| !a.starts_with('-'))

@@ -21,6 +21,8 @@
 //! Heavy numerics (gemm, rayon) live in this crate only; the core build of
 //! cassi does not depend on it.
 
+#![deny(clippy::undocumented_unsafe_blocks)]
+
 mod buffer_pool;
 pub mod checkpoint;
 mod denoiser;

@@ -11,7 +11,7 @@ use common::{mst_inputs, nets_dir};
 
 #[test]
 fn repeated_forward_passes_reuse_the_same_buffers() {
-    let Some(nets) = nets_dir("repeated_forward_passes_reuse_the_same_buffers") else {
+    let Some(nets) = nets_dir() else {
         return;
     };
     release_cached_buffers();

@@ -9,7 +9,6 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use cassi_nets::{DType, HsiSdecnn, Mst, MstConfig, NetError, TensorMap};
-use common::shared_data;
 use common::torch_pickle::{c_strides, pickle_int, pickle_str};
 
 /// A fresh scratch directory for one test, removed on drop.
@@ -144,8 +143,7 @@ fn load_err(path: &Path) -> String {
 
 #[test]
 fn official_mst_s_pth_holds_the_same_tensors_as_its_safetensors_copy() {
-    let Some(data) = shared_data() else {
-        eprintln!("note: no shared data directory (set CASSI_SHARED_DATA); skipping");
+    let Some(data) = cassi_io::shared_data::for_test(&[]) else {
         return;
     };
     let pth = TensorMap::load(data.join("weights/mst_s.pth")).unwrap_or_else(|e| panic!("{e}"));

@@ -11,7 +11,7 @@ use common::{check, mst_inputs, nets_dir, npy};
 
 #[test]
 fn hdnet_matches_pytorch() {
-    let Some(nets) = nets_dir("hdnet_matches_pytorch") else {
+    let Some(nets) = nets_dir() else {
         return;
     };
     let net = HdNet::load(nets.join("hdnet/hdnet_seed0.safetensors")).unwrap();
@@ -29,7 +29,7 @@ fn hdnet_matches_pytorch() {
 
 #[test]
 fn hdnet_stress_variant_matches_pytorch() {
-    let Some(nets) = nets_dir("hdnet_stress_variant_matches_pytorch") else {
+    let Some(nets) = nets_dir() else {
         return;
     };
     let d = nets.join("hdnet");

@@ -8,7 +8,7 @@ use common::{check, nets_dir, npy};
 
 #[test]
 fn hsi_sdecnn_matches_pytorch() {
-    let Some(nets) = nets_dir("hsi_sdecnn_matches_pytorch") else {
+    let Some(nets) = nets_dir() else {
         return;
     };
     let d = nets.join("hsi_sdecnn");
@@ -31,7 +31,7 @@ fn hsi_sdecnn_matches_pytorch() {
 fn cube_denoiser_denoises_each_band_from_its_stack() {
     use cassi_core::{Cube, Denoiser};
     use cassi_nets::HsiSdecnnDenoiser;
-    let Some(nets) = nets_dir("cube_denoiser_denoises_each_band_from_its_stack") else {
+    let Some(nets) = nets_dir() else {
         return;
     };
     let d = nets.join("hsi_sdecnn");

@@ -6,7 +6,6 @@
 mod common;
 
 use common::cave::{gap_tv_and_network, scenes, tsa_mask};
-use common::shared_data;
 
 /// Measured first (`cargo bench -p cassi-nets --bench cave`,
 /// bench/results/nets_cave.json): MST-S leads GAP-TV by 12.75 dB on
@@ -19,8 +18,7 @@ const MEAN_MARGIN_DB: f64 = 7.5;
 
 #[test]
 fn mst_s_beats_gap_tv_by_a_wide_margin_on_cave() {
-    let Some(data) = shared_data().filter(|d| d.join("scenes").is_dir()) else {
-        eprintln!("note: no shared data directory with scenes; skipping");
+    let Some(data) = cassi_io::shared_data::for_test(&["scenes"]) else {
         return;
     };
     let mask = tsa_mask(&data);

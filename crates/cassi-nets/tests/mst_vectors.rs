@@ -11,7 +11,7 @@ use common::{check, mst_inputs, nets_dir, npy, top_rows};
 
 #[test]
 fn mst_s_matches_pytorch_output_and_activations() {
-    let Some(nets) = nets_dir("mst_s_matches_pytorch_output_and_activations") else {
+    let Some(nets) = nets_dir() else {
         return;
     };
     let d = nets.join("mst_s");
@@ -55,7 +55,7 @@ fn mst_s_matches_pytorch_output_and_activations() {
 
 #[test]
 fn mst_l_matches_pytorch() {
-    let Some(nets) = nets_dir("mst_l_matches_pytorch") else {
+    let Some(nets) = nets_dir() else {
         return;
     };
     let net = Mst::load(nets.join("mst_l/mst_l_seed0.safetensors"), MstConfig::LARGE).unwrap();
@@ -75,7 +75,7 @@ fn mst_l_matches_pytorch() {
 /// mask in, cube out — the same numbers as the tensor API.
 #[test]
 fn reconstructor_runs_mst_s_from_the_official_pth() {
-    let Some(nets) = nets_dir("reconstructor_runs_mst_s_from_the_official_pth") else {
+    let Some(nets) = nets_dir() else {
         return;
     };
     let weights = nets.join("../weights/mst_s.pth");

@@ -38,7 +38,7 @@ fn load(nets: &std::path::Path, params: PnpHsicnnParams) -> PnpHsicnn {
 
 #[test]
 fn the_papers_124_iterations_run_the_papers_schedule() {
-    let Some(nets) = nets_dir("the_papers_124_iterations_run_the_papers_schedule") else {
+    let Some(nets) = nets_dir() else {
         return;
     };
     let (_, mask, y) = case(10, 9);
@@ -72,7 +72,7 @@ fn the_papers_124_iterations_run_the_papers_schedule() {
 
 #[test]
 fn tv_only_is_gap_tv_and_the_network_stages_change_the_result() {
-    let Some(nets) = nets_dir("tv_only_is_gap_tv_and_the_network_stages_change_the_result") else {
+    let Some(nets) = nets_dir() else {
         return;
     };
     let (_, mask, y) = case(16, 8);
@@ -158,7 +158,7 @@ fn tv_only_is_gap_tv_and_the_network_stages_change_the_result() {
 
 #[test]
 fn bad_settings_and_shapes_are_errors() {
-    let Some(nets) = nets_dir("bad_settings_and_shapes_are_errors") else {
+    let Some(nets) = nets_dir() else {
         return;
     };
     let (_, mask, y) = case(8, 4);

@@ -9,7 +9,7 @@ use common::{mst_inputs, nets_dir, npy};
 
 #[test]
 fn h_and_phi_match_the_reference_bit_for_bit() {
-    let Some(nets) = nets_dir("h_and_phi_match_the_reference_bit_for_bit") else {
+    let Some(nets) = nets_dir() else {
         return;
     };
     let y = npy(nets.join("common/y.npy"));

@@ -11,6 +11,7 @@
 
 // The case tables below are tuples: clearer than one-off structs.
 #![allow(clippy::type_complexity)]
+#![deny(clippy::undocumented_unsafe_blocks)]
 
 #[path = "../hostile/files.rs"]
 mod files;

@@ -96,6 +96,9 @@ pub fn spawn(bin: &Path, spec: &Spec, scratch: &Path, mem_cap: u64) -> std::io::
     for (k, v) in &spec.env {
         cmd.env(k, v);
     }
+    // SAFETY: the hook runs in the forked child before exec, where only
+    // async-signal-safe calls are allowed: it allocates nothing (the limit is
+    // a stack value built from a copied u64) and calls only setrlimit.
     unsafe {
         cmd.pre_exec(move || {
             let lim = libc::rlimit {
@@ -123,7 +126,11 @@ impl Running {
     /// Reaps the child if it has exited; sends the planned signal / the timeout's SIGKILL.
     pub fn poll(&mut self) -> Option<Outcome> {
         let mut status: libc::c_int = 0;
+        // SAFETY: `rusage` is a C struct of integers, for which all-zero
+        // bytes are a valid value.
         let mut ru: libc::rusage = unsafe { std::mem::zeroed() };
+        // SAFETY: both pointers are to live, writable locals of the types
+        // wait4 expects.
         let r = unsafe { libc::wait4(self.pid, &mut status, libc::WNOHANG, &mut ru) };
         let el = self.start.elapsed();
         if r == self.pid {
@@ -152,10 +159,14 @@ impl Running {
             && self.sent.is_none()
             && el >= at
         {
+            // SAFETY: kill takes no pointers; `self.pid` is our child and not
+            // yet reaped (a reaped one returned above), so it names no other
+            // process.
             unsafe { libc::kill(self.pid, sig) };
             self.sent = Some(sig);
         }
         if el > self.spec_timeout && !self.hung {
+            // SAFETY: as for the planned signal above.
             unsafe { libc::kill(self.pid, libc::SIGKILL) };
             self.hung = true;
         }

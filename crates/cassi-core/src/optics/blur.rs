@@ -1,5 +1,5 @@
 //! Optical blur on the detector: a separable Gaussian of σ detector pixels
-//! applied to the dispersed image (DESIGN.md's physical instrument), its
+//! applied to the dispersed image (docs/CONVENTIONS.md, the physical simulator), its
 //! adjoint, and its exact derivative in σ — so the blur width can be a model
 //! parameter that calibration fits.
 //!

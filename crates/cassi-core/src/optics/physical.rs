@@ -1,7 +1,7 @@
 //! The physical instrument: a CASSI snapshot simulated on a grid S times
-//! finer than the detector (DESIGN.md, "Physical instrument (oversampled
-//! simulation)"), for measurements that no operator of ours reproduces
-//! exactly (no inverse crime).
+//! finer than the detector (docs/CONVENTIONS.md, "The physical simulator"),
+//! for measurements that no operator of ours reproduces exactly (no inverse
+//! crime).
 //!
 //! Conventions, all in detector pixel coordinates (col, row):
 //! - fine pixel (fr, fc) has its centre at ((fc − (S−1)/2)/S, (fr − (S−1)/2)/S);

@@ -1,7 +1,7 @@
 //! Mask misalignment W(m; dx, dy, θ): bilinear resampling of the mask after a
 //! rigid motion about its centre, with exact derivatives for calibration.
 //!
-//! Convention (DESIGN.md): a mask point u = (col, row) moves to
+//! Convention (docs/CONVENTIONS.md): a mask point u = (col, row) moves to
 //! `R(θ)(u − c) + c + (dx, dy)`, c = ((W−1)/2, (H−1)/2),
 //! `R(θ) = [[cos θ, −sin θ], [sin θ, cos θ]]` on (col, row). So the warped mask
 //! at detector-side pixel p samples the nominal mask at

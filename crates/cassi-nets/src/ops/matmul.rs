@@ -47,9 +47,12 @@ pub(crate) struct SharedOut {
     ptr: *mut f32,
     len: usize,
 }
-// SAFETY: users only write disjoint element sets from different threads,
-// and the borrow of the underlying slice outlives every use (see `new`).
+// SAFETY: the pointer is reached only through the `unsafe` `slice_mut` and
+// `matmul_into`, whose callers promise that threads write disjoint elements
+// while the underlying slice is alive; moving the handle to another thread
+// changes neither.
 unsafe impl Send for SharedOut {}
+// SAFETY: `&SharedOut` gives no access by itself (see `Send` above).
 unsafe impl Sync for SharedOut {}
 
 impl SharedOut {
@@ -104,8 +107,10 @@ pub(crate) unsafe fn matmul_into(
         offset + (m - 1) * out_rs + (n - 1) * out_cs < out.len,
         "output out of bounds"
     );
-    // SAFETY: all three views were bounds-checked above; gemm reads/writes
-    // exactly those elements.
+    // SAFETY: `a` and `b` lie inside their slices (`check`), the output's
+    // last element is inside `out` (asserted), and gemm reads and writes
+    // only the elements of these strided views; exclusivity and liveness
+    // of the output are this function's contract with its caller.
     unsafe {
         gemm::gemm(
             m,

@@ -128,7 +128,8 @@ impl MixWeights {
             matmul(w, x, out);
             out.par_chunks_mut(n).enumerate().for_each(finish_row);
         } else {
-            // SAFETY: `out` is exclusively borrowed and holds out_ch × n.
+            // SAFETY: `out` is exclusively borrowed for the call, single
+            // threaded, and `matmul_into` bounds-checks out_ch × n against it.
             unsafe { matmul_into(w, x, SharedOut::new(out), 0, (n, 1), false) };
             out.chunks_mut(n).enumerate().for_each(finish_row);
         }
@@ -149,8 +150,9 @@ impl MixWeights {
         let task = |t: usize| {
             let p0 = t * chunk;
             let p1 = (p0 + chunk).min(n);
-            // SAFETY: the CPU has AVX2 and FMA (checked by the caller);
-            // tasks write disjoint pixel ranges [p0, p1) of every row.
+            // SAFETY: `apply` calls this only after detecting AVX2 and FMA
+            // at run time; tasks write disjoint pixel ranges [p0, p1) of
+            // every row, and `out` stays borrowed until they finish.
             unsafe { self.columns(x, n, p0, p1, bias, act, shared) };
         };
         if parallel {

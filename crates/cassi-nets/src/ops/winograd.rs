@@ -74,7 +74,9 @@ impl WinogradWeights {
             .for_each(|blk| {
                 let ty0 = blk * rows_per_block;
                 let ty1 = (ty0 + rows_per_block).min(th);
-                // SAFETY: a block writes only output rows 2·ty0 .. 2·ty1.
+                // SAFETY: blocks take disjoint tile rows ty0..ty1, so each
+                // writes its own output rows 2·ty0 .. 2·ty1 (in every
+                // channel); `out` stays borrowed until for_each returns.
                 unsafe { self.block(x, ty0, ty1, tw, shared) };
             });
         out
@@ -117,11 +119,13 @@ impl WinogradWeights {
         for o in 0..co {
             for ty in ty0..ty1 {
                 let t0 = (ty - ty0) * tw;
-                // SAFETY: output rows 2·ty, 2·ty + 1 of channel `o` are in this
-                // block's rows (the second only if inside the image).
+                // SAFETY: output row 2·ty of channel `o` is in this block's
+                // rows (this function's contract); `slice_mut` checks bounds.
                 let row0 = unsafe { out.slice_mut((o * h + 2 * ty) * w, w) };
-                let row1 =
-                    (2 * ty + 1 < h).then(|| unsafe { out.slice_mut((o * h + 2 * ty + 1) * w, w) });
+                let row1 = (2 * ty + 1 < h).then(|| {
+                    // SAFETY: as row0; row 2·ty + 1 is taken only inside the image.
+                    unsafe { out.slice_mut((o * h + 2 * ty + 1) * w, w) }
+                });
                 output_tile_row(
                     m,
                     o * tiles + t0,

@@ -1,6 +1,6 @@
-//! Locating and reading the PyTorch test vectors of `../shared/data/nets`.
-//! Same rule as cassi-io's shared-data test: `$CASSI_SHARED_DATA`, else
-//! `<crate>/../../../shared/data`; absent → the test prints a note and passes.
+//! Locating and reading the PyTorch test vectors of `../shared/data/nets`,
+//! found by `cassi_io::shared_data` (absent → the test prints a note and
+//! passes, or fails under `CASSI_REQUIRE_SHARED_DATA=1`).
 #![allow(dead_code)]
 
 pub mod cave;
@@ -11,21 +11,9 @@ use std::path::PathBuf;
 
 use cassi_nets::Tensor;
 
-pub fn shared_data() -> Option<PathBuf> {
-    let dir = match std::env::var_os("CASSI_SHARED_DATA") {
-        Some(d) => PathBuf::from(d),
-        None => PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data"),
-    };
-    dir.is_dir().then_some(dir)
-}
-
-/// `shared_data()/nets`, or `None` after printing why the test skips.
-pub fn nets_dir(test: &str) -> Option<PathBuf> {
-    let dir = shared_data().map(|d| d.join("nets")).filter(|d| d.is_dir());
-    if dir.is_none() {
-        eprintln!("note: {test}: no shared data directory (set CASSI_SHARED_DATA); skipping");
-    }
-    dir
+/// The shared data's `nets` folder, or `None` after a note (the test skips).
+pub fn nets_dir() -> Option<PathBuf> {
+    cassi_io::shared_data::for_test(&["nets"]).map(|d| d.join("nets"))
 }
 
 /// A float32 .npy as a tensor of its NumPy shape.
