@@ -11,7 +11,7 @@
 //!   α, dispersion model) exactly as the TV solvers do.
 //!
 //! A study loads each learned method once, before its first scene
-//! ([`crate::method::LearnedMethod::load`]): every reconstruction after that — each
+//! (`LearnedMethod::load`, in the study's methods): every reconstruction after that — each
 //! scenario of each scene, the sweeps' too — runs with that one
 //! [`LearnedModel`], which the study's clones share (`Arc`). Networks run
 //! through `&self`; PnP-HSICNN's denoiser (a `cassi_core::Denoiser`) needs

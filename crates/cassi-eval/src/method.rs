@@ -150,11 +150,12 @@ mod tests {
         assert!(e.contains(expected), "{e}");
     }
 
-    /// The study shares its models by reference (`Arc`), across threads too.
+    /// The study shares its models by reference (`Arc`), across threads too
+    /// (the study itself: protocol's test).
     #[test]
-    fn models_and_studies_can_be_shared_across_threads() {
+    fn models_can_be_shared_across_threads() {
         fn shareable<T: Send + Sync>() {}
         shareable::<LearnedModel>();
-        shareable::<crate::protocol::Study>();
+        shareable::<StudyMethod>();
     }
 }

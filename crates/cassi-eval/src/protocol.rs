@@ -325,3 +325,14 @@ pub fn run_prepared(
     };
     Ok((result, kept))
 }
+
+#[cfg(test)]
+mod tests {
+    /// A study (and the learned models its methods hold) can be shared
+    /// across threads.
+    #[test]
+    fn studies_can_be_shared_across_threads() {
+        fn shareable<T: Send + Sync>() {}
+        shareable::<super::Study>();
+    }
+}
