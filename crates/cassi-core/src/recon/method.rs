@@ -110,7 +110,8 @@ impl Method {
                 tv_iterations: 5,
                 spectral_weight: 0.5,
             }),
-            MethodId::MstS | MethodId::MstL | MethodId::HdNet | MethodId::PnpHsicnn => None,
+            // learned methods: their settings live with their weights (cassi-nets)
+            _ => None,
         }
     }
 
