@@ -8,7 +8,7 @@
 use cassi_core::Mismatch;
 use cassi_core::metrics::psnr;
 use cassi_core::optics::{CassiOperator, DispersionModel};
-use cassi_core::recon::{Method, reconstruct};
+use cassi_core::recon::{Method, Model};
 use cassi_core::solvers::{Silent, Strength};
 
 #[test]
@@ -66,18 +66,12 @@ fn gap_tv_matches_the_numpy_reference_on_cave() {
             .unwrap()
             .forward(&truth)
             .unwrap();
-        let x = reconstruct(
-            &y,
-            &mask,
-            28,
-            &nominal,
-            DispersionModel::Rounded,
-            &method,
-            &mut Silent,
-        )
-        .unwrap()
-        .cube
-        .clipped_to_unit();
+        let model = Model::new(&mask, 28, 2.0, nominal, DispersionModel::Rounded).unwrap();
+        let x = method
+            .solve(&y, &model, &mut Silent)
+            .unwrap()
+            .cube
+            .clipped_to_unit();
         let ours = psnr(&truth, &x).unwrap();
         let theirs = row["psnr"].as_f64().unwrap();
         assert!(

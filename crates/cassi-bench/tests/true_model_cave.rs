@@ -14,7 +14,7 @@ use cassi_core::metrics::psnr;
 use cassi_core::optics::{
     CassiOperator, DispersionModel, NoiseModel, SimulationSpec, simulate_oversampled,
 };
-use cassi_core::recon::{Method, ModelProblem};
+use cassi_core::recon::{Method, Model, ModelProblem};
 use cassi_core::solvers::{Admm, Gap, Silent};
 use cassi_core::{Cube, Mismatch};
 
@@ -108,8 +108,10 @@ fn the_true_subpixel_model_beats_the_nominal_one_on_cave() {
             }),
         };
         let y = simulate_oversampled(&scene, &mask, &spec, 2).unwrap();
-        let problem =
-            |m: &Mismatch| ModelProblem::new(&y, &mask, l, m, DispersionModel::Subpixel).unwrap();
+        let problem = |m: &Mismatch| {
+            let assumed = Model::new(&mask, l, 2.0, *m, DispersionModel::Subpixel).unwrap();
+            ModelProblem::new(&y, &assumed).unwrap()
+        };
         let (nominal, truth) = (problem(&Mismatch::nominal(2.0)), problem(&truth_params));
         let shape = truth.cube_shape();
         let score = |c: &Cube| psnr(&scene, &c.clipped_to_unit()).unwrap();

@@ -11,7 +11,7 @@ use cassi_core::metrics::psnr;
 use cassi_core::optics::{
     CassiOperator, DispersionModel, NoiseModel, SimulationSpec, simulate_oversampled,
 };
-use cassi_core::recon::ModelProblem;
+use cassi_core::recon::{Model, ModelProblem};
 use cassi_core::solvers::{Admm, AdmmParams, Gap, GapParams, History, Silent, Strength};
 use cassi_core::synth::{SceneSpec, random_binary_mask, synthetic_scene};
 use cassi_core::{Cube, Denoiser, Mask, Mismatch, STANDARD_WAVELENGTHS_NM};
@@ -273,9 +273,11 @@ fn the_true_model_never_loses_to_the_nominal_one() {
                     noise: noisy.then(NoiseModel::default),
                 };
                 let y = simulate_oversampled(&scene, &mask, &spec, 2).unwrap();
-                let nominal =
-                    ModelProblem::new(&y, &mask, l, &Mismatch::nominal(2.0), model).unwrap();
-                let truth = ModelProblem::new(&y, &mask, l, &m, model).unwrap();
+                let problem = |psi: Mismatch| {
+                    let assumed = Model::new(&mask, l, 2.0, psi, model).unwrap();
+                    ModelProblem::new(&y, &assumed).unwrap()
+                };
+                let (nominal, truth) = (problem(Mismatch::nominal(2.0)), problem(m));
                 let score = |c: &Cube| psnr(&scene, &c.clipped_to_unit()).unwrap();
                 let ys = |p: &ModelProblem| p.y.as_slice().to_vec();
                 let (yn, yt) = (ys(&nominal), ys(&truth));

@@ -11,134 +11,110 @@
 //!   α, dispersion model) exactly as the TV solvers do.
 //!
 //! A study loads each learned method once, before its first scene
-//! ([`LearnedMethod::load`]): every reconstruction after that — each
+//! (`LearnedMethod::load`, in the study's methods): every reconstruction after that — each
 //! scenario of each scene, the sweeps' too — runs with that one
 //! [`LearnedModel`], which the study's clones share (`Arc`). Networks run
 //! through `&self`; PnP-HSICNN's denoiser (a `cassi_core::Denoiser`) needs
 //! `&mut self`, so its model runs one reconstruction at a time.
 
-use cassi_core::optics::DispersionModel;
-use cassi_core::{Cube, Mask, Measurement, Mismatch};
+use cassi_core::recon::MethodId;
 
-use crate::method::LearnedMethod;
+pub use run::{LearnedModel, not_loaded};
 
-pub use run::LearnedModel;
-
-/// Bands of the networks' training data (MST toolbox).
-pub const NETWORK_BANDS: usize = 28;
-/// MST's fixed spatial size.
-pub const MST_SIZE: usize = 256;
-/// Detector columns per band the networks were trained with.
-pub const TRAINED_STRIDE: f64 = 2.0;
-
-/// Checks a study's nominal stride against what `method` was trained for.
-pub fn check_stride(method: &LearnedMethod, stride: f64) -> anyhow::Result<()> {
-    let m = method.method.as_str();
-    if m != "pnp-hsicnn" && stride != TRAINED_STRIDE {
+/// Checks a study's nominal stride against what `method` was trained for
+/// (its registry shape rules).
+pub fn check_stride(method: MethodId, stride: f64) -> anyhow::Result<()> {
+    if let Some(trained) = method.spec().shape.stride
+        && stride != trained as f64
+    {
         anyhow::bail!(
-            "{m} was trained for stride {TRAINED_STRIDE} (px per band); the study's stride is {stride}"
+            "{method} was trained for stride {trained} (px per band); the study's stride is {stride}"
         );
     }
     Ok(())
 }
 
-/// Checks a scene shape against what `method` can take (a study checks
-/// its mask first, so it fails before its first calibration).
-pub fn check_shape(
-    method: &LearnedMethod,
-    bands: usize,
-    rows: usize,
-    cols: usize,
-) -> anyhow::Result<()> {
-    let m = method.method.as_str();
-    if m == "pnp-hsicnn" {
-        return Ok(());
-    }
-    if bands != NETWORK_BANDS {
+/// Checks a scene shape against what `method` can take (its registry shape
+/// rules; a study checks its mask first, so it fails before its first
+/// calibration).
+pub fn check_shape(method: MethodId, bands: usize, rows: usize, cols: usize) -> anyhow::Result<()> {
+    let rules = method.spec().shape;
+    if let Some(trained) = rules.bands
+        && bands != trained
+    {
         anyhow::bail!(
-            "{m} reconstructs {NETWORK_BANDS} bands; the scene has {bands} (shape {bands}×{rows}×{cols})"
+            "{method} reconstructs {trained} bands; the scene has {bands} (shape {bands}×{rows}×{cols})"
         );
     }
-    if m.starts_with("mst") && (rows, cols) != (MST_SIZE, MST_SIZE) {
+    if let Some((r, c)) = rules.size
+        && (rows, cols) != (r, c)
+    {
         anyhow::bail!(
-            "{m} takes {MST_SIZE}×{MST_SIZE} scenes and masks; got {rows}×{cols} \
-             (crop the scenes and the mask to {MST_SIZE}×{MST_SIZE})"
+            "{method} takes {r}×{c} scenes and masks; got {rows}×{cols} \
+             (crop the scenes and the mask to {r}×{c})"
         );
     }
     Ok(())
-}
-
-/// The reconstruction of `y` by `method`, the instrument assumed to be
-/// `nominal_mask` placed and dispersed as `params` / `model` say (see the
-/// module notes for what each method uses of it), with the model `method`
-/// was loaded with.
-pub fn reconstruct(
-    method: &LearnedMethod,
-    y: &Measurement,
-    nominal_mask: &Mask,
-    bands: usize,
-    params: &Mismatch,
-    model: DispersionModel,
-) -> anyhow::Result<Cube> {
-    let (rows, cols) = nominal_mask.shape();
-    check_shape(method, bands, rows, cols)?;
-    let loaded = method.model().ok_or_else(|| run::not_loaded(method))?;
-    loaded.reconstruct(y, nominal_mask, bands, params, model)
 }
 
 #[cfg(feature = "nets")]
 mod run {
     use std::sync::{Mutex, PoisonError};
 
-    use anyhow::Context;
-    use cassi_core::optics::DispersionModel;
-    use cassi_core::solvers::Silent;
-    use cassi_core::{Cube, Mask, Measurement, Mismatch};
-    use cassi_nets::{PnpHsicnn, PnpHsicnnParams, Reconstructor};
+    use std::path::Path;
 
-    use crate::method::LearnedMethod;
+    use anyhow::Context;
+    use cassi_core::recon::{MethodId, MethodKind, Model};
+    use cassi_core::solvers::Silent;
+    use cassi_core::{Cube, Measurement};
+    use cassi_nets::{Network, PnpHsicnn, PnpHsicnnParams};
 
     /// A learned method's weights, loaded.
     // one per method, held once behind an Arc: the variants' sizes don't matter
     #[allow(clippy::large_enum_variant)]
     pub enum LearnedModel {
-        /// MST-S, MST-L or HDNet.
-        Network(Reconstructor),
+        /// A pretrained network (MST-S, MST-L, HDNet, …).
+        Network(Network),
         /// PnP-HSICNN, locked while it reconstructs (it needs `&mut self`).
         PnpHsicnn(Mutex<PnpHsicnn>),
     }
 
     impl LearnedModel {
-        /// `method`'s weights, loaded strictly.
-        pub(crate) fn load(method: &LearnedMethod) -> anyhow::Result<Self> {
-            if method.method == "pnp-hsicnn" {
-                let params = PnpHsicnnParams::default().with_overrides(method.iterations, None);
-                let pnp = PnpHsicnn::load(&method.weights, params).context("pnp-hsicnn weights")?;
-                return Ok(Self::PnpHsicnn(Mutex::new(pnp)));
+        /// `method`'s `weights`, loaded strictly; `iterations` overrides a
+        /// learned PnP method's count.
+        pub fn load(
+            method: MethodId,
+            weights: &Path,
+            iterations: Option<usize>,
+        ) -> anyhow::Result<Self> {
+            let context = || format!("{method} weights");
+            match method.kind() {
+                MethodKind::LearnedPnp => {
+                    let params = PnpHsicnnParams::default().with_overrides(iterations, None);
+                    let pnp = PnpHsicnn::load(weights, params).with_context(context)?;
+                    Ok(Self::PnpHsicnn(Mutex::new(pnp)))
+                }
+                MethodKind::Network => Ok(Self::Network(
+                    Network::load(method, weights).with_context(context)?,
+                )),
+                MethodKind::Iterative => anyhow::bail!("{method} is not a learned method"),
             }
-            let network = Reconstructor::load(&method.method, &method.weights)
-                .with_context(|| format!("{} weights", method.method))?;
-            Ok(Self::Network(network))
         }
 
-        pub(super) fn reconstruct(
-            &self,
-            y: &Measurement,
-            nominal_mask: &Mask,
-            bands: usize,
-            params: &Mismatch,
-            model: DispersionModel,
-        ) -> anyhow::Result<Cube> {
+        /// The cube from `y`, the instrument taken to be `model` (see the
+        /// module notes for what each method uses of it).
+        pub fn reconstruct(&self, y: &Measurement, model: &Model) -> anyhow::Result<Cube> {
             match self {
-                Self::Network(network) => {
-                    Ok(network.reconstruct(y, nominal_mask, &params.pose())?.cube)
-                }
+                // the network's own `&self` path: studies share one network
+                // across threads without a lock
+                Self::Network(network) => Ok(network
+                    .reconstruct(y, model.nominal_mask(), &model.mismatch().pose())?
+                    .cube),
                 Self::PnpHsicnn(pnp) => {
                     // a reconstruction keeps no state in the model, so one
                     // that panicked leaves nothing to distrust
                     let mut pnp = pnp.lock().unwrap_or_else(PoisonError::into_inner);
-                    let r = pnp.reconstruct(y, nominal_mask, bands, params, model, &mut Silent)?;
-                    Ok(r.reconstruction.cube)
+                    Ok(pnp.solve(y, model, &mut Silent)?.reconstruction.cube)
                 }
             }
         }
@@ -153,51 +129,47 @@ mod run {
         }
     }
 
-    pub(super) fn not_loaded(method: &LearnedMethod) -> anyhow::Error {
-        anyhow::anyhow!(
-            "{}: weights not loaded (LearnedMethod::load, before the study runs)",
-            method.method
-        )
+    /// The error of running `method` before loading it.
+    pub fn not_loaded(method: MethodId) -> anyhow::Error {
+        anyhow::anyhow!("{method}: weights not loaded (LearnedMethod::load, before the study runs)")
     }
 }
 
 #[cfg(not(feature = "nets"))]
 mod run {
-    use cassi_core::optics::DispersionModel;
-    use cassi_core::{Cube, Mask, Measurement, Mismatch};
+    use std::path::Path;
 
-    use crate::method::LearnedMethod;
+    use cassi_core::recon::{MethodId, Model};
+    use cassi_core::{Cube, Measurement};
 
     /// Has no values: this build has no deep networks, so nothing loads.
     #[derive(Debug)]
     pub enum LearnedModel {}
 
     impl LearnedModel {
-        pub(crate) fn load(method: &LearnedMethod) -> anyhow::Result<Self> {
+        pub fn load(
+            method: MethodId,
+            _weights: &Path,
+            _iterations: Option<usize>,
+        ) -> anyhow::Result<Self> {
             Err(unavailable(method))
         }
 
-        pub(super) fn reconstruct(
-            &self,
-            _y: &Measurement,
-            _nominal_mask: &Mask,
-            _bands: usize,
-            _params: &Mismatch,
-            _model: DispersionModel,
-        ) -> anyhow::Result<Cube> {
+        pub fn reconstruct(&self, _y: &Measurement, _model: &Model) -> anyhow::Result<Cube> {
             match *self {}
         }
     }
 
-    fn unavailable(method: &LearnedMethod) -> anyhow::Error {
+    fn unavailable(method: MethodId) -> anyhow::Error {
         anyhow::anyhow!(
-            "{}: this build has no deep networks; rebuild with `--features nets` \
-             (cargo build --release -p cassi-cli --features nets)",
-            method.method
+            "{method}: this build has no deep networks; rebuild with `--features nets` \
+             (cargo build --release -p cassi-cli --features nets)"
         )
     }
 
-    pub(super) fn not_loaded(method: &LearnedMethod) -> anyhow::Error {
+    /// The error of running `method` before loading it: here, that it
+    /// cannot load at all.
+    pub fn not_loaded(method: MethodId) -> anyhow::Error {
         unavailable(method)
     }
 }
@@ -206,66 +178,30 @@ mod run {
 mod tests {
     use super::*;
 
-    fn learned(name: &str) -> LearnedMethod {
-        LearnedMethod::new(name, "w.pth", None)
-    }
-
     #[test]
     fn shapes_the_networks_cannot_take_are_refused_with_both_shapes() {
-        let e = check_shape(&learned("mst-s"), 28, 128, 128)
+        let e = check_shape(MethodId::MstS, 28, 128, 128)
             .unwrap_err()
             .to_string();
         assert!(e.contains("256×256") && e.contains("128×128"), "{e}");
-        let e = check_shape(&learned("hdnet"), 31, 64, 64)
+        let e = check_shape(MethodId::HdNet, 31, 64, 64)
             .unwrap_err()
             .to_string();
         assert!(e.contains("28 bands") && e.contains("31"), "{e}");
-        let e = check_stride(&learned("mst-l"), 1.0)
-            .unwrap_err()
-            .to_string();
+        let e = check_stride(MethodId::MstL, 1.0).unwrap_err().to_string();
         assert!(e.contains("stride 2") && e.contains("1"), "{e}");
-        assert!(check_stride(&learned("pnp-hsicnn"), 1.5).is_ok());
-        assert!(check_shape(&learned("hdnet"), 28, 64, 96).is_ok());
-        assert!(check_shape(&learned("mst-s"), 28, 256, 256).is_ok());
-        assert!(check_shape(&learned("pnp-hsicnn"), 9, 20, 30).is_ok());
+        assert!(check_stride(MethodId::PnpHsicnn, 1.5).is_ok());
+        assert!(check_shape(MethodId::HdNet, 28, 64, 96).is_ok());
+        assert!(check_shape(MethodId::MstS, 28, 256, 256).is_ok());
+        assert!(check_shape(MethodId::PnpHsicnn, 9, 20, 30).is_ok());
     }
 
     #[cfg(not(feature = "nets"))]
     #[test]
     fn without_the_feature_learned_methods_say_how_to_rebuild() {
-        let e = learned("mst-s").load().unwrap_err().to_string();
+        let e = LearnedModel::load(MethodId::MstS, std::path::Path::new("w.pth"), None)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("--features nets"), "{e}");
-    }
-
-    /// A study runs only loaded methods: the load that checked the weights
-    /// is the one every reconstruction uses.
-    #[test]
-    fn a_method_that_was_not_loaded_does_not_run() {
-        let (y, mask) = (Measurement::zeros(8, 16), Mask::zeros(8, 8));
-        let nominal = Mismatch::nominal(TRAINED_STRIDE);
-        let e = reconstruct(
-            &learned("pnp-hsicnn"),
-            &y,
-            &mask,
-            4,
-            &nominal,
-            DispersionModel::Rounded,
-        )
-        .unwrap_err()
-        .to_string();
-        let expected = if cfg!(feature = "nets") {
-            "not loaded"
-        } else {
-            "--features nets"
-        };
-        assert!(e.contains(expected), "{e}");
-    }
-
-    /// The study shares its models by reference (`Arc`), across threads too.
-    #[test]
-    fn models_and_studies_can_be_shared_across_threads() {
-        fn shareable<T: Send + Sync>() {}
-        shareable::<LearnedModel>();
-        shareable::<crate::protocol::Study>();
     }
 }

@@ -5,10 +5,12 @@
 use std::path::PathBuf;
 use std::sync::Arc;
 
-use cassi_core::recon::Method;
+use cassi_core::Cube;
+use cassi_core::Measurement;
+use cassi_core::recon::{Method, MethodId, Model};
 use serde::{Deserialize, Serialize};
 
-use crate::learned::LearnedModel;
+use crate::learned::{LearnedModel, check_shape, not_loaded};
 
 /// Serialised untagged: a solver is written exactly as before learned
 /// methods existed (so earlier study records still resume), a learned
@@ -25,8 +27,8 @@ pub enum StudyMethod {
 /// clones (the sweeps') share it.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct LearnedMethod {
-    /// One of [`crate::weights::LEARNED_METHOD_NAMES`].
-    pub method: String,
+    /// A learned method of the registry (network or learned PnP).
+    pub method: MethodId,
     /// A PyTorch state-dict `.pth` or a `.safetensors` file.
     pub weights: PathBuf,
     /// PnP-HSICNN only: an iteration count other than the paper's 124.
@@ -39,13 +41,9 @@ pub struct LearnedMethod {
 
 impl LearnedMethod {
     /// `method` with `weights`, not loaded yet.
-    pub fn new(
-        method: impl Into<String>,
-        weights: impl Into<PathBuf>,
-        iterations: Option<usize>,
-    ) -> Self {
+    pub fn new(method: MethodId, weights: impl Into<PathBuf>, iterations: Option<usize>) -> Self {
         Self {
-            method: method.into(),
+            method,
             weights: weights.into(),
             iterations,
             loaded: None,
@@ -56,7 +54,7 @@ impl LearnedMethod {
     /// mismatched file is an error before a study starts; every
     /// reconstruction of the study then runs with this one model.
     pub fn load(self) -> anyhow::Result<Self> {
-        let model = LearnedModel::load(&self)?;
+        let model = LearnedModel::load(self.method, &self.weights, self.iterations)?;
         Ok(Self {
             loaded: Some(Arc::new(model)),
             ..self
@@ -66,6 +64,16 @@ impl LearnedMethod {
     /// The model [`load`](Self::load) made, if it ran.
     pub fn model(&self) -> Option<&LearnedModel> {
         self.loaded.as_deref()
+    }
+
+    /// The reconstruction of `y`, the instrument taken to be `model` (see
+    /// [`crate::learned`] for what each method uses of it), with the model
+    /// this method was loaded with.
+    pub fn reconstruct(&self, y: &Measurement, model: &Model) -> anyhow::Result<Cube> {
+        let (rows, cols) = model.nominal_mask().shape();
+        check_shape(self.method, model.bands(), rows, cols)?;
+        let loaded = self.model().ok_or_else(|| not_loaded(self.method))?;
+        loaded.reconstruct(y, model)
     }
 }
 
@@ -82,7 +90,7 @@ impl StudyMethod {
     pub fn name(&self) -> &str {
         match self {
             Self::Solver(m) => m.name(),
-            Self::Learned(l) => &l.method,
+            Self::Learned(l) => l.method.name(),
         }
     }
 }
@@ -107,7 +115,7 @@ mod tests {
             serde_json::to_value(&solver).unwrap(),
             serde_json::to_value(gap).unwrap()
         );
-        let learned = StudyMethod::Learned(LearnedMethod::new("mst-s", "w/mst_s.pth", None));
+        let learned = StudyMethod::Learned(LearnedMethod::new(MethodId::MstS, "w/mst_s.pth", None));
         let v = serde_json::to_value(&learned).unwrap();
         assert_eq!(
             v,
@@ -122,5 +130,32 @@ mod tests {
             StudyMethod::from(Method::by_name("pnp-tv").unwrap()).name(),
             "pnp-tv"
         );
+    }
+
+    /// A study runs only loaded methods: the load that checked the weights
+    /// is the one every reconstruction uses.
+    #[test]
+    fn a_method_that_was_not_loaded_does_not_run() {
+        let (y, mask) = (Measurement::zeros(8, 16), cassi_core::Mask::zeros(8, 8));
+        let model = Model::nominal(&mask, 4, 2.0, cassi_core::optics::DispersionModel::Rounded);
+        let e = LearnedMethod::new(MethodId::PnpHsicnn, "w.pth", None)
+            .reconstruct(&y, &model.unwrap())
+            .unwrap_err()
+            .to_string();
+        let expected = if cfg!(feature = "nets") {
+            "not loaded"
+        } else {
+            "--features nets"
+        };
+        assert!(e.contains(expected), "{e}");
+    }
+
+    /// The study shares its models by reference (`Arc`), across threads too
+    /// (the study itself: protocol's test).
+    #[test]
+    fn models_can_be_shared_across_threads() {
+        fn shareable<T: Send + Sync>() {}
+        shareable::<LearnedModel>();
+        shareable::<StudyMethod>();
     }
 }

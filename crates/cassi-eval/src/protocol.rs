@@ -22,7 +22,7 @@ use anyhow::Context;
 use cassi_core::calib::{Calibration, CalibrationProblem, Preset, calibrate};
 use cassi_core::metrics::{Metrics, evaluate};
 use cassi_core::optics::{DispersionModel, NoiseModel, SimulationSpec, simulate};
-use cassi_core::recon::reconstruct;
+use cassi_core::recon::Model;
 use cassi_core::solvers::Silent;
 use cassi_core::{Cube, Mask, Measurement, Mismatch, Parameter};
 use serde::{Deserialize, Serialize};
@@ -238,7 +238,9 @@ pub fn run_scenario(
         ),
         Scenario::Oracle => (&prepared.measurement, study.mismatch, study.instrument),
     };
-    let (metrics, seconds, cube) = reconstruct_and_score(scene, mask, y, &params, model, method)
+    let (metrics, seconds, cube) = Model::new(mask, scene.bands(), study.stride, params, model)
+        .map_err(anyhow::Error::from)
+        .and_then(|assumed| reconstruct_and_score(scene, y, &assumed, method))
         .with_context(|| format!("{} {}", method.name(), scenario.label()))?;
     let outcome = Outcome {
         method: method.name().to_string(),
@@ -249,26 +251,20 @@ pub fn run_scenario(
     Ok((outcome, cube))
 }
 
-/// Reconstructs `y` with the model (`params`, `model`), clips to [0, 1] and
-/// scores against `scene`: the metrics, the reconstruction's seconds and
-/// the clipped cube. Learned methods take what they can of the model
+/// Reconstructs `y` with the assumed instrument `model`, clips to [0, 1]
+/// and scores against `scene`: the metrics, the reconstruction's seconds
+/// and the clipped cube. Learned methods take what they can of the model
 /// ([`crate::learned`]: networks use the mask pose only).
 pub fn reconstruct_and_score(
     scene: &Cube,
-    mask: &Mask,
     y: &Measurement,
-    params: &Mismatch,
-    model: DispersionModel,
+    model: &Model,
     method: &StudyMethod,
 ) -> anyhow::Result<(Metrics, f64, Cube)> {
     let t = Instant::now();
     let cube = match method {
-        StudyMethod::Solver(m) => {
-            reconstruct(y, mask, scene.bands(), params, model, m, &mut Silent)?.cube
-        }
-        StudyMethod::Learned(l) => {
-            crate::learned::reconstruct(l, y, mask, scene.bands(), params, model)?
-        }
+        StudyMethod::Solver(m) => m.solve(y, model, &mut Silent)?.cube,
+        StudyMethod::Learned(l) => l.reconstruct(y, model)?,
     };
     let seconds = t.elapsed().as_secs_f64();
     let cube = cube.clipped_to_unit();
@@ -328,4 +324,15 @@ pub fn run_prepared(
         seconds: started.elapsed().as_secs_f64(),
     };
     Ok((result, kept))
+}
+
+#[cfg(test)]
+mod tests {
+    /// A study (and the learned models its methods hold) can be shared
+    /// across threads.
+    #[test]
+    fn studies_can_be_shared_across_threads() {
+        fn shareable<T: Send + Sync>() {}
+        shareable::<super::Study>();
+    }
 }

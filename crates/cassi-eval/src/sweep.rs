@@ -5,6 +5,7 @@
 use std::path::Path;
 
 use cassi_core::calib::Preset;
+use cassi_core::recon::Model;
 use cassi_core::{Mask, Mismatch};
 use serde::{Deserialize, Serialize};
 
@@ -146,14 +147,10 @@ pub fn ablation(
                         AblationVariant::Full => prepared.calibration.parameters,
                         AblationVariant::Oracle => study.mismatch,
                     };
-                    let (metrics, _, _) = reconstruct_and_score(
-                        &scene,
-                        mask,
-                        &prepared.measurement,
-                        &params,
-                        study.instrument,
-                        method,
-                    )?;
+                    let assumed =
+                        Model::new(mask, scene.bands(), study.stride, params, study.instrument)?;
+                    let (metrics, _, _) =
+                        reconstruct_and_score(&scene, &prepared.measurement, &assumed, method)?;
                     let t = study.mismatch;
                     let e2 = (params.dx - t.dx).powi(2)
                         + (params.dy - t.dy).powi(2)

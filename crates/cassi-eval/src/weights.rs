@@ -5,55 +5,30 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::bail;
-
-/// Pretrained networks (MST-S, MST-L, HDNet) and PnP with the HSI-SDeCNN
-/// denoiser; all need a weights file and a build with the `nets` feature.
-pub const LEARNED_METHOD_NAMES: [&str; 4] = ["mst-s", "mst-l", "hdnet", "pnp-hsicnn"];
+use cassi_core::recon::MethodId;
+use cassi_core::recon::registry::learned_names;
 
 /// True when this build can run the learned methods (feature `nets`).
 pub const NETS_BUILT: bool = cfg!(feature = "nets");
 
-pub fn is_learned(method: &str) -> bool {
-    LEARNED_METHOD_NAMES.contains(&method)
-}
-
-/// Where a user gets the official weights of `method`.
-pub fn official_weights(method: &str) -> &'static str {
-    match method {
-        "pnp-hsicnn" => {
-            "the HSI-SDeCNN denoiser of PnP-CASSI (github.com/zsm1211/PnP-CASSI, \
-             check_points/deep_denoiser.pth)"
-        }
-        _ => {
-            "the MST toolbox's model zoo (github.com/caiyuanhao1998/MST, linked from its \
-             README: mst_s.pth, mst_l.pth, hdnet.pth)"
-        }
-    }
-}
-
-/// File names tried for `method` in a weights folder, in order.
-pub fn candidate_files(method: &str) -> Vec<String> {
-    let mut stems = vec![method.to_string(), method.replace('-', "_")];
-    if method == "pnp-hsicnn" {
-        stems.extend(["deep_denoiser".to_string(), "hsi_sdecnn".to_string()]);
-    }
-    stems.dedup();
-    stems
-        .iter()
-        .flat_map(|s| [format!("{s}.pth"), format!("{s}.safetensors")])
-        .collect()
+/// Where a user gets the official weights of `method` (the registry's hint).
+pub fn official_weights(method: MethodId) -> &'static str {
+    method
+        .spec()
+        .weights
+        .map_or("none: it takes no weights", |hint| hint.official)
 }
 
 /// The weights file of learned method `method`: the one given for it in
 /// `given` (`--weights METHOD=FILE`), else the first of
-/// [`candidate_files`] in `dir` (`--weights-dir`). Errors say what was
+/// [`MethodId::weight_file_names`] in `dir` (`--weights-dir`). Errors say what was
 /// tried and where official weights come from.
 pub fn resolve_weights(
-    method: &str,
-    given: &[(String, PathBuf)],
+    method: MethodId,
+    given: &[(MethodId, PathBuf)],
     dir: Option<&Path>,
 ) -> anyhow::Result<PathBuf> {
-    if let Some((_, path)) = given.iter().find(|(m, _)| m == method) {
+    if let Some((_, path)) = given.iter().find(|(m, _)| *m == method) {
         if !path.is_file() {
             bail!(
                 "--weights {method}={}: no such file (official weights: {})",
@@ -70,7 +45,7 @@ pub fn resolve_weights(
             official_weights(method)
         );
     };
-    let names = candidate_files(method);
+    let names = method.weight_file_names();
     if let Some(found) = names.iter().map(|n| dir.join(n)).find(|p| p.is_file()) {
         return Ok(found);
     }
@@ -85,29 +60,34 @@ pub fn resolve_weights(
 /// Parses `--weights METHOD=FILE` values, refusing unknown or repeated
 /// methods and methods the study does not run (a typo would otherwise be
 /// silently ignored).
+/// `methods` are the names given to `--methods` (not checked here: an
+/// unknown one is reported where the study's methods are parsed).
 pub fn parse_weight_flags(
     flags: &[String],
     methods: &[String],
-) -> anyhow::Result<Vec<(String, PathBuf)>> {
-    let mut out: Vec<(String, PathBuf)> = Vec::new();
+) -> anyhow::Result<Vec<(MethodId, PathBuf)>> {
+    let mut out: Vec<(MethodId, PathBuf)> = Vec::new();
     for flag in flags {
-        let Some((method, path)) = flag.split_once('=') else {
+        let Some((name, path)) = flag.split_once('=') else {
             bail!("--weights {flag}: expected METHOD=FILE, e.g. --weights mst-s=mst_s.pth");
         };
-        let method = method.trim();
-        if !is_learned(method) {
+        let name = name.trim();
+        let Some(method) = MethodId::parse(name).ok().filter(|m| m.kind().is_learned()) else {
             bail!(
-                "--weights {flag}: '{method}' is not a learned method (known: {})",
-                LEARNED_METHOD_NAMES.join(", ")
+                "--weights {flag}: '{name}' is not a learned method (known: {})",
+                learned_names().collect::<Vec<_>>().join(", ")
             );
-        }
-        if !methods.iter().any(|m| m == method) {
+        };
+        if !methods
+            .iter()
+            .any(|m| MethodId::parse(m).ok() == Some(method))
+        {
             bail!("--weights {flag}: --methods does not include {method}");
         }
-        if out.iter().any(|(m, _)| m == method) {
+        if out.iter().any(|(m, _)| *m == method) {
             bail!("--weights: {method} is given twice");
         }
-        out.push((method.to_string(), PathBuf::from(path)));
+        out.push((method, PathBuf::from(path)));
     }
     Ok(out)
 }
@@ -130,14 +110,14 @@ mod tests {
         std::fs::write(dir.join("mst_s.pth"), b"x").unwrap();
         std::fs::write(dir.join("deep_denoiser.pth"), b"x").unwrap();
         assert_eq!(
-            resolve_weights("mst-s", &[], Some(&dir)).unwrap(),
+            resolve_weights(MethodId::MstS, &[], Some(&dir)).unwrap(),
             dir.join("mst_s.pth")
         );
         assert_eq!(
-            resolve_weights("pnp-hsicnn", &[], Some(&dir)).unwrap(),
+            resolve_weights(MethodId::PnpHsicnn, &[], Some(&dir)).unwrap(),
             dir.join("deep_denoiser.pth")
         );
-        let e = resolve_weights("hdnet", &[], Some(&dir))
+        let e = resolve_weights(MethodId::HdNet, &[], Some(&dir))
             .unwrap_err()
             .to_string();
         assert!(
@@ -149,22 +129,25 @@ mod tests {
         // a per-method file wins over the folder
         let own = dir.join("own.safetensors");
         std::fs::write(&own, b"x").unwrap();
-        let given = vec![("mst-s".to_string(), own.clone())];
-        assert_eq!(resolve_weights("mst-s", &given, Some(&dir)).unwrap(), own);
+        let given = vec![(MethodId::MstS, own.clone())];
+        assert_eq!(
+            resolve_weights(MethodId::MstS, &given, Some(&dir)).unwrap(),
+            own
+        );
         let _ = std::fs::remove_dir_all(&dir);
     }
 
     #[test]
     fn missing_weights_say_where_official_ones_come_from() {
-        let e = resolve_weights("pnp-hsicnn", &[], None)
+        let e = resolve_weights(MethodId::PnpHsicnn, &[], None)
             .unwrap_err()
             .to_string();
         assert!(
             e.contains("--weights pnp-hsicnn=FILE") && e.contains("zsm1211/PnP-CASSI"),
             "{e}"
         );
-        let given = vec![("mst-l".to_string(), PathBuf::from("/nonexistent/mst_l.pth"))];
-        let e = resolve_weights("mst-l", &given, None)
+        let given = vec![(MethodId::MstL, PathBuf::from("/nonexistent/mst_l.pth"))];
+        let e = resolve_weights(MethodId::MstL, &given, None)
             .unwrap_err()
             .to_string();
         assert!(
@@ -177,7 +160,7 @@ mod tests {
     fn weight_flags_are_checked() {
         let methods = vec!["gap-tv".to_string(), "mst-s".to_string()];
         let ok = parse_weight_flags(&["mst-s=a/b.pth".into()], &methods).unwrap();
-        assert_eq!(ok, vec![("mst-s".to_string(), PathBuf::from("a/b.pth"))]);
+        assert_eq!(ok, vec![(MethodId::MstS, PathBuf::from("a/b.pth"))]);
         for (flag, needle) in [
             ("mst-s", "METHOD=FILE"),
             ("gap-tv=x.pth", "not a learned method"),

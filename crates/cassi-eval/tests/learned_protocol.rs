@@ -19,7 +19,7 @@ use cassi_eval::protocol::{Scenario, Study, run_scene};
 fn loaded_from_a_copy(weights: &Path) -> LearnedMethod {
     let copy = std::env::temp_dir().join(format!("cassi-eval-mst_s-{}.pth", std::process::id()));
     std::fs::copy(weights, &copy).unwrap_or_else(|e| panic!("{}: {e}", weights.display()));
-    let loaded = LearnedMethod::new("mst-s", &copy, None).load();
+    let loaded = LearnedMethod::new(cassi_core::recon::MethodId::MstS, &copy, None).load();
     std::fs::remove_file(&copy).unwrap();
     loaded.unwrap_or_else(|e| panic!("{e:#}"))
 }

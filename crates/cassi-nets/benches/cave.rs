@@ -27,8 +27,11 @@ fn main() {
         .expect("thread pool");
     let load_before = common::load_average();
     let mask = tsa_mask(&data);
-    let net = cassi_nets::Reconstructor::load("mst-s", data.join("weights/mst_s.pth"))
-        .unwrap_or_else(|e| panic!("{e}"));
+    let net = cassi_nets::Network::load(
+        cassi_core::recon::MethodId::MstS,
+        data.join("weights/mst_s.pth"),
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
     let mut rows = Vec::new();
     let (mut sum_gap, mut sum_mst) = (0.0, 0.0);
     let files = scenes(&data);

@@ -16,7 +16,9 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Instant;
 
-use cassi_nets::{HdNet, HsiSdecnn, MST_BANDS, MST_MASK_WIDTH, MST_SIZE, Mst, MstConfig, Tensor};
+use cassi_nets::{
+    HdNet, HsiSdecnn, MST_MASK_WIDTH, MST_SIZE, Mst, MstConfig, NETWORK_BANDS, Tensor,
+};
 
 const THREADS: usize = 2;
 const NETWORKS: [&str; 4] = ["mst_s", "mst_l", "hdnet", "hsi_sdecnn"];
@@ -119,7 +121,7 @@ fn run_networks(data: &Path, wanted: &dyn Fn(&str) -> bool) -> Vec<serde_json::V
         .build()
         .expect("thread pool");
 
-    let (n, bands) = (MST_SIZE, MST_BANDS);
+    let (n, bands) = (MST_SIZE, NETWORK_BANDS);
     let h = Tensor::new(vec![1, bands, n, n], uniform(bands * n * n, 1)).unwrap();
     let phi = Tensor::new(
         vec![1, bands, n, MST_MASK_WIDTH],

@@ -35,3 +35,31 @@ pub type Result<T> = std::result::Result<T, NetError>;
 pub(crate) fn shape_str(shape: &[usize]) -> String {
     format!("{shape:?}")
 }
+
+/// A cassi-nets error as the science layer's, with the same message: what
+/// a [`cassi_core::recon::Reconstructor`] returns.
+impl From<NetError> for cassi_core::CassiError {
+    fn from(e: NetError) -> Self {
+        use cassi_core::CassiError;
+        match e {
+            NetError::Core(e) => e,
+            NetError::Input {
+                what,
+                got,
+                expected,
+            } => CassiError::Shape {
+                what,
+                got,
+                expected,
+            },
+            NetError::Checkpoint { path, msg } => CassiError::Meaningless {
+                what: path.display().to_string(),
+                reason: msg,
+            },
+            NetError::WeightMismatch { path, net, report } => CassiError::Meaningless {
+                what: path.display().to_string(),
+                reason: format!("the tensors do not match {net}:\n{report}"),
+            },
+        }
+    }
+}

@@ -13,8 +13,9 @@
 //! * [`PnpHsicnn`] is plug-and-play GAP with a TV warm-up then scheduled
 //!   HSI-SDeCNN / TV steps (the paper's PnP-HSICNN), on the nominal or a
 //!   calibrated instrument model.
-//! * [`Reconstructor`] picks a network by name and maps a measurement and
-//!   mask to a cube.
+//! * [`Network`] is a pretrained reconstructor chosen by its registry id
+//!   ([`cassi_core::recon::MethodId`]); it and [`PnpHsicnn`] implement
+//!   [`cassi_core::recon::Reconstructor`].
 //! * Inputs and outputs are [`Tensor`]s in PyTorch's NCHW layout, so test
 //!   vectors compare one to one.
 //!
@@ -32,9 +33,9 @@ mod hdnet;
 mod hsi_sdecnn;
 mod inputs;
 mod mst;
+mod network;
 mod ops;
 mod pnp;
-mod reconstructor;
 mod tensor;
 
 pub use buffer_pool::{MAX_POOLED_BYTES, cached_buffer_bytes, release_cached_buffers};
@@ -45,10 +46,10 @@ pub use hdnet::HdNet;
 pub use hsi_sdecnn::HsiSdecnn;
 pub use inputs::{PosedInputs, posed_inputs, toolbox_inputs};
 pub use mst::{
-    MST_BANDS, MST_MASK_WIDTH, MST_SIZE, Mst, MstActivations, MstConfig, MstMaskGuidance,
+    MST_MASK_WIDTH, MST_SIZE, Mst, MstActivations, MstConfig, MstMaskGuidance, NETWORK_BANDS,
 };
+pub use network::{NetReconstruction, Network};
 pub use pnp::{
     DenoiserSchedule, PnpHsicnn, PnpHsicnnParams, PnpReconstruction, ScheduledDenoiser, Stage,
 };
-pub use reconstructor::{NetReconstruction, Reconstructor, TRAINED_STEP};
 pub use tensor::Tensor;

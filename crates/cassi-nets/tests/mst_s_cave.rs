@@ -22,8 +22,11 @@ fn mst_s_beats_gap_tv_by_a_wide_margin_on_cave() {
         return;
     };
     let mask = tsa_mask(&data);
-    let net = cassi_nets::Reconstructor::load("mst-s", data.join("weights/mst_s.pth"))
-        .unwrap_or_else(|e| panic!("{e}"));
+    let net = cassi_nets::Network::load(
+        cassi_core::recon::MethodId::MstS,
+        data.join("weights/mst_s.pth"),
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
     let mut margins = Vec::new();
     for scene in scenes(&data).iter().take(2) {
         let (gap, mst) = gap_tv_and_network(scene, &mask, &net);

@@ -79,7 +79,8 @@ fn reconstructor_runs_mst_s_from_the_official_pth() {
         return;
     };
     let weights = nets.join("../weights/mst_s.pth");
-    let net = cassi_nets::Reconstructor::load("mst-s", weights).unwrap_or_else(|e| panic!("{e}"));
+    let net = cassi_nets::Network::load(cassi_core::recon::MethodId::MstS, weights)
+        .unwrap_or_else(|e| panic!("{e}"));
     let y = npy(nets.join("common/y.npy"));
     let mask = npy(nets.join("common/mask.npy"));
     let y = cassi_core::Measurement::from_vec(256, 310, y.into_data()).unwrap();
@@ -92,10 +93,12 @@ fn reconstructor_runs_mst_s_from_the_official_pth() {
     assert_eq!(cube.shape(), (28, 256, 256));
     let got = cassi_nets::Tensor::new(vec![1, 28, 256, 256], cube.into_vec()).unwrap();
     check(
-        "Reconstructor mst-s (.pth) vs mst_s/out.npy",
+        "Network mst-s (.pth) vs mst_s/out.npy",
         &got,
         &npy(nets.join("mst_s/out.npy")),
         1e-4,
     );
-    assert!(cassi_nets::Reconstructor::load("mst-xl", "x").is_err());
+    // a registry id that is not a network does not load as one
+    let e = cassi_nets::Network::load(cassi_core::recon::MethodId::PnpHsicnn, "x");
+    assert!(e.is_err_and(|e| e.to_string().contains("mst-s, mst-l, hdnet")));
 }

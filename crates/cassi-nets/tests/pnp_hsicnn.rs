@@ -6,7 +6,7 @@
 mod common;
 
 use cassi_core::optics::{DispersionModel, SimulationSpec, simulate};
-use cassi_core::recon::{Method, reconstruct};
+use cassi_core::recon::{Method, Model, Reconstructor};
 use cassi_core::solvers::{GapParams, Silent, Strength};
 use cassi_core::synth::{SceneSpec, random_binary_mask, synthetic_scene};
 use cassi_core::{Cube, Mask, Measurement, Mismatch};
@@ -49,12 +49,9 @@ fn the_papers_124_iterations_run_the_papers_schedule() {
     let mut pnp = load(&nets, params);
     let nominal = Mismatch::nominal(2.0);
     let r = pnp
-        .reconstruct(
+        .solve(
             &y,
-            &mask,
-            9,
-            &nominal,
-            DispersionModel::Rounded,
+            &Model::new(&mask, 9, 2.0, nominal, DispersionModel::Rounded).unwrap(),
             &mut Silent,
         )
         .unwrap();
@@ -100,33 +97,33 @@ fn tv_only_is_gap_tv_and_the_network_stages_change_the_result() {
     };
     let run = |params: PnpHsicnnParams| {
         load(&nets, params)
-            .reconstruct(
+            .solve(
                 &y,
-                &mask,
-                8,
-                &calibrated,
-                DispersionModel::Rounded,
+                &Model::new(&mask, 8, 2.0, calibrated, DispersionModel::Rounded).unwrap(),
                 &mut Silent,
             )
             .unwrap()
     };
     let a = run(tv_only);
     assert!(a.stages.iter().all(|&s| s == Stage::Tv));
-    let gap_tv = reconstruct(
+    let gap_tv = Method::GapTv {
+        gap,
+        tv_iterations: 5,
+    }
+    .solve(
         &y,
-        &mask,
-        8,
-        &calibrated,
-        DispersionModel::Rounded,
-        &Method::GapTv {
-            gap,
-            tv_iterations: 5,
-        },
+        &Model::new(&mask, 8, 2.0, calibrated, DispersionModel::Rounded).unwrap(),
         &mut Silent,
     )
     .unwrap();
     assert_eq!(a.reconstruction.cube, gap_tv.cube);
     assert_eq!(a.reconstruction.relative_residual, gap_tv.relative_residual);
+    // the same recipe behind the method-agnostic interface
+    let mut boxed: Box<dyn Reconstructor> = Box::new(load(&nets, tv_only));
+    assert_eq!(boxed.name(), "pnp-hsicnn");
+    let model = Model::new(&mask, 8, 2.0, calibrated, DispersionModel::Rounded).unwrap();
+    let cube = boxed.reconstruct(&y, &model, &mut Silent).unwrap();
+    assert_eq!(cube, a.reconstruction.cube);
 
     let mixed = PnpHsicnnParams {
         schedule: DenoiserSchedule {
@@ -168,12 +165,9 @@ fn bad_settings_and_shapes_are_errors() {
         ..PnpHsicnnParams::default()
     };
     let e = load(&nets, bad_sigma)
-        .reconstruct(
+        .solve(
             &y,
-            &mask,
-            4,
-            &nominal,
-            DispersionModel::Rounded,
+            &Model::new(&mask, 4, 2.0, nominal, DispersionModel::Rounded).unwrap(),
             &mut Silent,
         )
         .unwrap_err()
@@ -181,12 +175,9 @@ fn bad_settings_and_shapes_are_errors() {
     assert!(e.contains("sigma"), "{e}");
     let other_rows = Mask::from_vec(9, 8, vec![1.0; 72]).unwrap();
     let e = load(&nets, PnpHsicnnParams::default())
-        .reconstruct(
+        .solve(
             &y,
-            &other_rows,
-            4,
-            &nominal,
-            DispersionModel::Rounded,
+            &Model::new(&other_rows, 4, 2.0, nominal, DispersionModel::Rounded).unwrap(),
             &mut Silent,
         )
         .unwrap_err()

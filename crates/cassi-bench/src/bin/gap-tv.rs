@@ -16,7 +16,7 @@ use cassi_bench::{median, peak_rss_mib, shared_data};
 use cassi_core::Mismatch;
 use cassi_core::metrics::psnr;
 use cassi_core::optics::{CassiOperator, DispersionModel};
-use cassi_core::recon::{Method, reconstruct};
+use cassi_core::recon::{Method, Model};
 use cassi_core::solvers::Silent;
 use cassi_core::synth::{SceneSpec, random_binary_mask, synthetic_scene};
 use cassi_eval::report::Machine;
@@ -46,15 +46,8 @@ fn one_size(size: usize) -> anyhow::Result<serde_json::Value> {
     let mut times = Vec::new();
     for _ in 0..3 {
         let t0 = Instant::now();
-        let r = reconstruct(
-            &y,
-            &mask,
-            28,
-            &nominal,
-            DispersionModel::Rounded,
-            &method,
-            &mut Silent,
-        )?;
+        let model = Model::new(&mask, 28, 2.0, nominal, DispersionModel::Rounded)?;
+        let r = method.solve(&y, &model, &mut Silent)?;
         times.push(t0.elapsed().as_secs_f64());
         std::hint::black_box(r);
     }
@@ -83,15 +76,8 @@ fn rust_scenes(scenes: &[PathBuf], mask_path: &Path) -> anyhow::Result<serde_jso
             CassiOperator::with_mismatch(&mask, truth.bands(), &nominal, DispersionModel::Rounded)?;
         let y = op.forward(&truth)?;
         let t0 = Instant::now();
-        let r = reconstruct(
-            &y,
-            &mask,
-            truth.bands(),
-            &nominal,
-            DispersionModel::Rounded,
-            &method,
-            &mut Silent,
-        )?;
+        let model = Model::new(&mask, truth.bands(), 2.0, nominal, DispersionModel::Rounded)?;
+        let r = method.solve(&y, &model, &mut Silent)?;
         let secs = t0.elapsed().as_secs_f64();
         let p = psnr(&truth, &r.cube.clipped_to_unit())?;
         let name = path

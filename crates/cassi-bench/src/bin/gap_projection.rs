@@ -23,7 +23,7 @@ use cassi_core::metrics::psnr;
 use cassi_core::optics::{
     DispersionModel, NoiseModel, SimulationSpec, simulate, simulate_oversampled,
 };
-use cassi_core::recon::{Method, reconstruct};
+use cassi_core::recon::{Method, Model};
 use cassi_core::solvers::Silent;
 use cassi_eval::report::Machine;
 
@@ -125,7 +125,8 @@ fn main() -> anyhow::Result<()> {
         for (vi, (vname, nonneg)) in variants.iter().enumerate() {
             let method = with_projection(*nonneg)?;
             for (ci, (y, model_params, model)) in cases.iter().enumerate() {
-                let r = reconstruct(y, &mask, bands, model_params, *model, &method, &mut Silent)?;
+                let assumed = Model::new(&mask, bands, 2.0, *model_params, *model)?;
+                let r = method.solve(y, &assumed, &mut Silent)?;
                 let est = r.cube.clipped_to_unit();
                 let p = psnr(&truth, &est)?;
                 table[vi][ci].push(p);

@@ -8,7 +8,8 @@ use cassi_core::limits::check_elements;
 use cassi_core::metrics::SSIM_WIN;
 use cassi_core::optics::NoiseModel;
 use cassi_core::optics::validate_mismatch_for_mask;
-use cassi_core::recon::{METHOD_NAMES, Method};
+use cassi_core::recon::registry::names_of;
+use cassi_core::recon::{Method, MethodId, MethodKind};
 use cassi_core::synth::random_binary_mask;
 use cassi_core::{Instrument, Mask, Mismatch};
 use cassi_eval::learned::{check_shape, check_stride};
@@ -20,9 +21,7 @@ use cassi_eval::study::{
 };
 use cassi_eval::summary::summarize;
 use cassi_eval::sweep::{ablation, scaled_mismatch, sensitivity};
-use cassi_eval::weights::{
-    LEARNED_METHOD_NAMES, NETS_BUILT, is_learned, parse_weight_flags, resolve_weights,
-};
+use cassi_eval::weights::{NETS_BUILT, parse_weight_flags, resolve_weights};
 use cassi_io::{CheckedSet, OutputSet};
 use clap::Args;
 
@@ -114,14 +113,21 @@ fn study_methods(args: &EvalArgs) -> anyhow::Result<Vec<StudyMethod>> {
     names
         .iter()
         .map(|name| {
-            if !is_learned(name) {
-                let method = Method::by_name(name).map_err(|_| {
-                    anyhow::anyhow!(
-                        "--methods: unknown method '{name}' (solvers: {}; learned, with weights: {})",
-                        METHOD_NAMES.join(", "),
-                        LEARNED_METHOD_NAMES.join(", ")
-                    )
-                })?;
+            let id = MethodId::parse(name).map_err(|_| {
+                let list = |kinds: &[MethodKind]| {
+                    kinds
+                        .iter()
+                        .flat_map(|&k| names_of(k))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                };
+                anyhow::anyhow!(
+                    "--methods: unknown method '{name}' (solvers: {}; learned, with weights: {})",
+                    list(&[MethodKind::Iterative]),
+                    list(&[MethodKind::Network, MethodKind::LearnedPnp])
+                )
+            })?;
+            if let Some(method) = Method::defaults(id) {
                 return Ok(method.with_overrides(args.iterations, None).into());
             }
             if !NETS_BUILT {
@@ -130,10 +136,10 @@ fn study_methods(args: &EvalArgs) -> anyhow::Result<Vec<StudyMethod>> {
                      rebuild it with `cargo build --release -p cassi-cli --features nets`"
                 );
             }
-            let weights = resolve_weights(name, &given, args.weights_dir.as_deref())?;
-            let iterations = args.iterations.filter(|_| name == "pnp-hsicnn");
-            let learned = LearnedMethod::new(name, weights, iterations);
-            check_stride(&learned, args.stride)?;
+            let weights = resolve_weights(id, &given, args.weights_dir.as_deref())?;
+            let iterations = args.iterations.filter(|_| id.kind().has_iterations());
+            let learned = LearnedMethod::new(id, weights, iterations);
+            check_stride(id, args.stride)?;
             Ok(StudyMethod::Learned(learned.load()?))
         })
         .collect()
@@ -282,13 +288,12 @@ pub fn run(args: &EvalArgs, reporter: &Reporter) -> anyhow::Result<()> {
     check_mask(args, &mask, &mismatch, &mask_label)?;
     for method in &methods {
         if let StudyMethod::Learned(l) = method {
-            // the scenes' band count is checked as each loads
-            let bands = if args.scenes.is_some() {
-                cassi_eval::learned::NETWORK_BANDS
-            } else {
-                Instrument::default().wavelengths_nm.len()
+            let bands = match (&args.scenes, l.method.spec().shape.bands) {
+                // the scenes' band count is checked as each loads
+                (Some(_), Some(trained)) => trained,
+                _ => Instrument::default().wavelengths_nm.len(),
             };
-            check_shape(l, bands, mask.rows(), mask.cols())
+            check_shape(l.method, bands, mask.rows(), mask.cols())
                 .with_context(|| format!("--methods {} with mask {mask_label}", l.method))?;
         }
     }

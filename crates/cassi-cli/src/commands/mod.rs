@@ -3,6 +3,5 @@ pub mod demo;
 pub mod eval;
 pub mod info;
 pub mod inputs;
-pub mod net_reconstruct;
 pub mod reconstruct;
 pub mod simulate;

@@ -19,11 +19,12 @@ use crate::ops::conv_transpose::ConvTranspose2x2;
 use crate::tensor::Tensor;
 use msab::Msab;
 
-/// Bands, and the image size the mask shift-back is built for.
-pub const MST_BANDS: usize = 28;
-pub const MST_SIZE: usize = 256;
+use cassi_core::recon::registry::NETWORK_STEP;
+/// Bands, and the image size the mask shift-back is built for: the
+/// registry's, where every method's shape rules live.
+pub use cassi_core::recon::registry::{MST_SIZE, NETWORK_BANDS};
 /// Width of the shifted mask Phi: 256 + 2·27 (dispersion step 2).
-pub const MST_MASK_WIDTH: usize = MST_SIZE + 2 * (MST_BANDS - 1);
+pub const MST_MASK_WIDTH: usize = MST_SIZE + NETWORK_STEP * (NETWORK_BANDS - 1);
 
 /// Which MST: the block counts of encoder stages 0, 1 and the bottleneck
 /// (the decoder mirrors the encoder).
@@ -107,7 +108,7 @@ impl Mst {
 
     pub fn from_tensors(map: TensorMap, config: MstConfig) -> Result<Self> {
         let mut w = WeightLoader::new(config.name(), map);
-        let c0 = MST_BANDS;
+        let c0 = NETWORK_BANDS;
         let embedding = Conv2d::load(&mut w, "embedding", c0, c0, 3, false);
         let encoder = (0..2)
             .map(|i| {
@@ -160,12 +161,12 @@ impl Mst {
     /// The mask-dependent half of [`forward`](Self::forward), from Phi's
     /// first batch element.
     pub fn mask_guidance(&self, phi: &Tensor) -> Result<MstMaskGuidance> {
-        let dims = phi.nchw("MST mask Phi", Some(MST_BANDS))?;
+        let dims = phi.nchw("MST mask Phi", Some(NETWORK_BANDS))?;
         if dims[2..] != [MST_SIZE, MST_MASK_WIDTH] {
             return Err(NetError::Input {
                 what: "MST mask Phi".into(),
                 got: shape_str(phi.shape()),
-                expected: format!("(batch, {MST_BANDS}, {MST_SIZE}, {MST_MASK_WIDTH})"),
+                expected: format!("(batch, {NETWORK_BANDS}, {MST_SIZE}, {MST_MASK_WIDTH})"),
             });
         }
         let m0 = sample(phi, 0);
@@ -211,13 +212,13 @@ impl Mst {
     }
 
     fn check_h(&self, h: &Tensor) -> Result<[usize; 4]> {
-        let dims = h.nchw("MST input H", Some(MST_BANDS))?;
+        let dims = h.nchw("MST input H", Some(NETWORK_BANDS))?;
         if dims[2..] != [MST_SIZE, MST_SIZE] {
             return Err(NetError::Input {
                 what: "MST input H".into(),
                 got: shape_str(h.shape()),
                 expected: format!(
-                    "(batch, {MST_BANDS}, {MST_SIZE}, {MST_SIZE}); MST's mask shift-back is built for 256×256"
+                    "(batch, {NETWORK_BANDS}, {MST_SIZE}, {MST_SIZE}); MST's mask shift-back is built for 256×256"
                 ),
             });
         }

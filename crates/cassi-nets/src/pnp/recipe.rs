@@ -3,10 +3,10 @@
 
 use std::path::Path;
 
-use cassi_core::optics::DispersionModel;
-use cassi_core::recon::{ModelProblem, Reconstruction};
+use cassi_core::recon::registry::MethodId;
+use cassi_core::recon::{Model, ModelProblem, Reconstruction, Reconstructor};
 use cassi_core::solvers::{Gap, GapParams, Observer, Strength};
-use cassi_core::{Mask, Measurement, Mismatch};
+use cassi_core::{Cube, Measurement};
 use serde::{Deserialize, Serialize};
 
 use super::schedule::{DenoiserSchedule, Stage};
@@ -100,23 +100,19 @@ impl PnpHsicnn {
         Ok(Self::new(HsiSdecnn::load(weights)?, params))
     }
 
-    /// Reconstructs `bands` bands from `measurement`, the instrument being
-    /// `nominal_mask` moved and dispersed as `model_params` says (nominal,
-    /// calibrated or true), as cassi-core's TV recipes do. Any number of
-    /// bands and any size: the denoiser slides its 7-band window with the
-    /// band index clamped at the spectral edges.
-    pub fn reconstruct(
+    /// Reconstructs a cube from `measurement`, the instrument taken to be
+    /// `model` (nominal, calibrated or true), as cassi-core's TV recipes
+    /// do. Any number of bands and any size: the denoiser slides its 7-band
+    /// window with the band index clamped at the spectral edges.
+    pub fn solve(
         &mut self,
         measurement: &Measurement,
-        nominal_mask: &Mask,
-        bands: usize,
-        model_params: &Mismatch,
-        model: DispersionModel,
+        model: &Model,
         observer: &mut dyn Observer,
     ) -> Result<PnpReconstruction> {
         let p = self.params;
         p.validate()?;
-        let problem = ModelProblem::new(measurement, nominal_mask, bands, model_params, model)?;
+        let problem = ModelProblem::new(measurement, model)?;
         let mut prior =
             ScheduledDenoiser::new(p.schedule, p.tv_iterations, &mut self.denoiser, p.sigma);
         let solution = Gap::new(p.gap).solve(
@@ -131,5 +127,20 @@ impl PnpHsicnn {
             reconstruction: problem.finish(solution),
             stages,
         })
+    }
+}
+
+impl Reconstructor for PnpHsicnn {
+    fn name(&self) -> &str {
+        MethodId::PnpHsicnn.name()
+    }
+
+    fn reconstruct(
+        &mut self,
+        y: &Measurement,
+        model: &Model,
+        observer: &mut dyn Observer,
+    ) -> cassi_core::Result<Cube> {
+        Ok(self.solve(y, model, observer)?.reconstruction.cube)
     }
 }

@@ -8,10 +8,10 @@ use std::time::Instant;
 
 use cassi_core::metrics::{Metrics, evaluate};
 use cassi_core::optics::{DispersionModel, SimulationSpec, simulate};
-use cassi_core::recon::{Method, reconstruct};
+use cassi_core::recon::{Method, Model};
 use cassi_core::solvers::Silent;
 use cassi_core::{Cube, Mask, MaskPose, Mismatch};
-use cassi_nets::Reconstructor;
+use cassi_nets::Network;
 
 /// The TSA simulation mask (256 × 256).
 pub fn tsa_mask(data: &Path) -> Mask {
@@ -38,7 +38,7 @@ pub struct Scored {
 
 /// GAP-TV (its tuned defaults) and the network on the nominal, noise-free
 /// measurement of `scene`.
-pub fn gap_tv_and_network(scene: &Path, mask: &Mask, net: &Reconstructor) -> (Scored, Scored) {
+pub fn gap_tv_and_network(scene: &Path, mask: &Mask, net: &Network) -> (Scored, Scored) {
     let truth: Cube = cassi_io::load_cube(scene, None, cassi_io::CubeLayout::Auto)
         .unwrap_or_else(|e| panic!("{e}"));
     let nominal = Mismatch::nominal(2.0);
@@ -49,16 +49,11 @@ pub fn gap_tv_and_network(scene: &Path, mask: &Mask, net: &Reconstructor) -> (Sc
     };
     let y = simulate(&truth, mask, &spec).unwrap();
     let t = Instant::now();
-    let gap = reconstruct(
-        &y,
-        mask,
-        truth.bands(),
-        &nominal,
-        DispersionModel::Rounded,
-        &Method::by_name("gap-tv").unwrap(),
-        &mut Silent,
-    )
-    .unwrap();
+    let model = Model::new(mask, truth.bands(), 2.0, nominal, DispersionModel::Rounded).unwrap();
+    let gap = Method::by_name("gap-tv")
+        .unwrap()
+        .solve(&y, &model, &mut Silent)
+        .unwrap();
     let gap = Scored {
         seconds: t.elapsed().as_secs_f64(),
         metrics: evaluate(&truth, &gap.cube.clipped_to_unit()).unwrap(),

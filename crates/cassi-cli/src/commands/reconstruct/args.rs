@@ -1,25 +1,20 @@
-//! `cassi reconstruct`: measurement + mask (+ calibration) → cube, preview,
-//! and metrics against a truth cube when one is given.
+//! The flags of `cassi reconstruct` and what they name: the inputs, the
+//! assumed instrument's parameters (a calibration or sidecar file) and the
+//! files the command writes.
 
 use std::path::{Path, PathBuf};
-use std::time::Instant;
 
 use anyhow::{Context, bail};
-use cassi_core::color::pseudo_rgb;
-use cassi_core::metrics::{Metrics, evaluate};
 use cassi_core::optics::{DispersionModel, validate_mismatch_for_mask};
-use cassi_core::recon::{METHOD_NAMES, Method, reconstruct};
-use cassi_core::solvers::IterationInfo;
-use cassi_core::{Instrument, Mismatch, Parameter};
+use cassi_core::recon::MethodId;
+use cassi_core::recon::registry::all_names;
+use cassi_core::{Mismatch, Parameter};
 use cassi_io::{CheckedSet, OutputSet};
 use clap::Args;
-use serde::Serialize;
+use clap::builder::TypedValueParser;
 
-use super::inputs::{LayoutArg, MeasurementArgs, UncodedMask, parse_iterations, parse_weight};
-use super::net_reconstruct::{self, NET_METHOD_NAMES};
-use super::simulate::check_output;
-use crate::interrupt;
-use crate::report::Reporter;
+use crate::commands::inputs::{LayoutArg, MeasurementArgs, parse_iterations, parse_weight};
+use crate::commands::simulate::check_output;
 
 #[derive(Args)]
 pub struct ReconstructArgs {
@@ -34,7 +29,7 @@ pub struct ReconstructArgs {
     /// (mst-s, mst-l, hdnet) or PnP with a learned denoiser (pnp-hsicnn); these
     /// need --weights and a build with `--features nets`.
     #[arg(long, default_value = "gap-tv", value_parser = method_names())]
-    pub method: String,
+    pub method: MethodId,
     /// Weights for --method mst-s / mst-l / hdnet / pnp-hsicnn (the HSI-SDeCNN
     /// denoiser): a PyTorch state-dict .pth or a .safetensors file.
     #[arg(long)]
@@ -61,9 +56,11 @@ pub struct ReconstructArgs {
     pub layout: LayoutArg,
 }
 
-/// Solver and network method names, for `--method`.
-fn method_names() -> clap::builder::PossibleValuesParser {
-    clap::builder::PossibleValuesParser::new(METHOD_NAMES.iter().chain(&NET_METHOD_NAMES))
+/// Every registry name, for `--method` (listed in `--help` whether or not
+/// the networks are built in).
+fn method_names() -> impl TypedValueParser<Value = MethodId> {
+    clap::builder::PossibleValuesParser::new(all_names())
+        .map(|name| MethodId::parse(&name).expect("clap passes only registry names"))
 }
 
 /// The model parameters and dispersion model a calibration or sidecar file
@@ -146,104 +143,6 @@ fn json_kind(value: &serde_json::Value) -> &'static str {
     }
 }
 
-#[derive(Serialize)]
-struct ReconstructionReport {
-    measurement: PathBuf,
-    mask: PathBuf,
-    calibration: Option<PathBuf>,
-    model_parameters: Mismatch,
-    dispersion_model: DispersionModel,
-    method: Method,
-    bands: usize,
-    iterations: usize,
-    stop: cassi_core::solvers::StopReason,
-    relative_residual: f64,
-    seconds: f64,
-    width_fitted: Option<(usize, usize)>,
-    /// Metrics of the reconstruction clipped to [0, 1] against the truth.
-    metrics: Option<Metrics>,
-    metric_definitions: Option<&'static str>,
-}
-
-pub fn run(args: &ReconstructArgs, reporter: &Reporter) -> anyhow::Result<()> {
-    let checked = args.check_files()?;
-    if NET_METHOD_NAMES.contains(&args.method.as_str()) {
-        return net_reconstruct::run(args, reporter, &checked);
-    }
-    if args.weights.is_some() {
-        bail!(
-            "--weights is for the learned methods ({}), not --method {}",
-            NET_METHOD_NAMES.join(", "),
-            args.method
-        );
-    }
-    let (measurement, mask, bands) = args.input.load(reporter, UncodedMask::Warn)?;
-    let (params, file_model) = args.model_parameters(&mask)?;
-    let model = args.model.or(file_model).unwrap_or_default();
-    let instrument = Instrument::with_bands(bands, args.input.stride)?;
-    let truth = args.load_truth()?;
-    let method = Method::by_name(&args.method)?.with_overrides(args.iterations, args.weight);
-    let max_iter = match method {
-        Method::GapTv { gap, .. } | Method::PnpTv { gap, .. } => gap.iterations,
-        Method::AdmmTv { admm, .. } => admm.iterations,
-    };
-
-    let progress = reporter.progress(&format!("{} ", method.name()), max_iter as u64);
-    let mut observer = |info: &IterationInfo| {
-        progress.set(info.iteration as u64);
-        interrupt::control()
-    };
-    let t0 = Instant::now();
-    let recon = reporter.stage(&format!("reconstructing ({})", method.name()), || {
-        Ok(reconstruct(
-            &measurement,
-            &mask,
-            bands,
-            &params,
-            model,
-            &method,
-            &mut observer,
-        )?)
-    })?;
-    drop(progress);
-    interrupt::check()?;
-    let seconds = t0.elapsed().as_secs_f64();
-
-    let metrics = score_against_truth(truth.as_ref(), &recon.cube)?;
-    let report = ReconstructionReport {
-        measurement: args.input.measurement.clone(),
-        mask: args.input.mask.clone(),
-        calibration: args.calibration.clone(),
-        model_parameters: params,
-        dispersion_model: model,
-        method,
-        bands,
-        iterations: recon.solution_iterations,
-        stop: recon.stop,
-        relative_residual: recon.relative_residual,
-        seconds,
-        width_fitted: recon.width_fitted,
-        metrics,
-        metric_definitions: metrics.map(|_| cassi_core::metrics::METRIC_DEFINITIONS),
-    };
-    let summary = format!(
-        "wrote {} ({}×{}×{}), {} iterations, residual {:.2e}, {seconds:.2} s",
-        args.output.display(),
-        bands,
-        mask.rows(),
-        mask.cols(),
-        recon.solution_iterations,
-        recon.relative_residual
-    );
-    let outputs = Outputs {
-        path: &args.output,
-        cube: &recon.cube,
-        wavelengths_nm: &instrument.wavelengths_nm,
-        width_fitted: recon.width_fitted,
-    };
-    outputs.write(reporter, &checked, &report, summary, metrics.as_ref())
-}
-
 impl ReconstructArgs {
     /// Checks every output (the cube, its .png and .json) against every
     /// input before any work; see [`cassi_io::OutputSet`].
@@ -300,77 +199,5 @@ impl ReconstructArgs {
                     .map_err(Into::into)
             })
             .transpose()
-    }
-}
-
-/// PSNR/SSIM/SAM of the clipped estimate against `--truth`, if given.
-pub(crate) fn score_against_truth(
-    truth: Option<&cassi_core::Cube>,
-    cube: &cassi_core::Cube,
-) -> anyhow::Result<Option<Metrics>> {
-    truth
-        .map(|t| evaluate(t, &cube.clipped_to_unit()).with_context(|| "comparing with --truth"))
-        .transpose()
-}
-
-/// What every reconstruction writes: the cube, its pseudo-RGB preview, the
-/// JSON report beside them, and a summary line (+ metrics) on the terminal.
-pub(crate) struct Outputs<'a> {
-    pub path: &'a Path,
-    pub cube: &'a cassi_core::Cube,
-    pub wavelengths_nm: &'a [f64],
-    pub width_fitted: Option<(usize, usize)>,
-}
-
-impl Outputs<'_> {
-    /// Writes the three files as one set ([`ReconstructArgs::check_files`]):
-    /// all of them, or — when anything fails, the cube is not finite, or a
-    /// signal came — none, the previous ones left as they were.
-    pub(crate) fn write(
-        &self,
-        reporter: &Reporter,
-        checked: &CheckedSet,
-        report: &impl Serialize,
-        mut summary: String,
-        metrics: Option<&Metrics>,
-    ) -> anyhow::Result<()> {
-        self.cube
-            .check_finite("the reconstruction")
-            .with_context(|| {
-                format!(
-                    "nothing was written to {} (try fewer iterations or another --weight)",
-                    self.path.display()
-                )
-            })?;
-        let rgb = pseudo_rgb(self.cube, self.wavelengths_nm).with_context(|| {
-            format!(
-                "the preview of {}; nothing was written",
-                self.path.display()
-            )
-        })?;
-        let text = serde_json::to_string_pretty(report)? + "\n";
-        reporter.stage("writing the cube and preview", || {
-            let staging = checked.begin()?;
-            cassi_io::save_cube(self.path, self.cube, "cube")?;
-            cassi_io::write_rgb_png(self.path.with_extension("png"), &rgb)?;
-            cassi_io::write_atomic(self.path.with_extension("json"), text.as_bytes())?;
-            interrupt::check()?;
-            staging.commit()?;
-            Ok(())
-        })?;
-        if let Some((got, want)) = self.width_fitted {
-            reporter.say(&format!(
-                "note: the measurement has {got} columns, the model {want}: fitted on the right"
-            ));
-        }
-        if let Some(m) = metrics {
-            summary += &format!(
-                "\nPSNR {:.2} dB   SSIM {:.4}   SAM {:.2}°",
-                m.psnr, m.ssim, m.sam_deg
-            );
-        }
-        reporter.say(&summary);
-        reporter.emit(&serde_json::to_value(report)?);
-        Ok(())
     }
 }

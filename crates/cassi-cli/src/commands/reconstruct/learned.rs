@@ -8,23 +8,21 @@
 //! PnP-HSICNN uses the whole calibrated model, like the TV solvers.
 
 use anyhow::bail;
-use cassi_eval::weights::{LEARNED_METHOD_NAMES, official_weights};
+use cassi_eval::weights::official_weights;
 
 use cassi_io::CheckedSet;
 
-use super::reconstruct::ReconstructArgs;
+use super::args::ReconstructArgs;
 use crate::report::Reporter;
 
-/// The learned methods; listed in `--help` whether or not they are built in.
-pub const NET_METHOD_NAMES: [&str; 4] = LEARNED_METHOD_NAMES;
-
-/// `checked`: the outputs, checked against the inputs before any work.
+/// `args.method` is a learned method. `checked`: the outputs, checked
+/// against the inputs before any work.
 pub fn run(
     args: &ReconstructArgs,
     reporter: &Reporter,
     checked: &CheckedSet,
 ) -> anyhow::Result<()> {
-    if args.method != "pnp-hsicnn" {
+    if !args.method.kind().has_iterations() {
         // Solver flags mean nothing to a network: refuse them rather than
         // ignore them.
         for (given, flag) in [
@@ -46,7 +44,7 @@ pub fn run(
             "--method {} needs --weights FILE (a PyTorch .pth state dict or .safetensors); \
              official weights: {}",
             args.method,
-            official_weights(&args.method)
+            official_weights(args.method)
         );
     }
     run_learned(args, reporter, checked)
@@ -75,12 +73,14 @@ fn run_learned(
     use std::time::Instant;
 
     use cassi_core::metrics::Metrics;
+    use cassi_core::recon::registry::NETWORK_STEP;
+    use cassi_core::recon::{MethodId, MethodKind, Model};
     use cassi_core::solvers::IterationInfo;
     use cassi_core::{Cube, Instrument, MaskPose, Mismatch};
-    use cassi_nets::{MST_BANDS, PnpHsicnn, PnpHsicnnParams, Reconstructor, Stage, TRAINED_STEP};
+    use cassi_nets::{Network, PnpHsicnn, PnpHsicnnParams, Stage};
     use serde::Serialize;
 
-    use super::reconstruct::{Outputs, score_against_truth};
+    use super::outputs::{Outputs, score_against_truth};
     use crate::interrupt;
 
     /// What each learned method reports besides the common fields.
@@ -113,7 +113,7 @@ fn run_learned(
         measurement: PathBuf,
         mask: PathBuf,
         calibration: Option<PathBuf>,
-        method: String,
+        method: MethodId,
         weights: PathBuf,
         bands: usize,
         #[serde(flatten)]
@@ -126,20 +126,24 @@ fn run_learned(
     }
 
     let weights = args.weights.clone().unwrap_or_default();
-    let pnp = args.method == "pnp-hsicnn";
-    if !pnp && args.input.stride != TRAINED_STEP as f64 {
+    let rules = args.method.spec().shape;
+    if let Some(trained) = rules.stride
+        && args.input.stride != trained as f64
+    {
         bail!(
-            "--method {} was trained for --stride {TRAINED_STEP}, not {}",
+            "--method {} was trained for --stride {trained}, not {}",
             args.method,
             args.input.stride
         );
     }
     let (measurement, mask, bands) = args
         .input
-        .load(reporter, super::inputs::UncodedMask::Warn)?;
-    if !pnp && bands != MST_BANDS {
+        .load(reporter, crate::commands::inputs::UncodedMask::Warn)?;
+    if let Some(trained) = rules.bands
+        && bands != trained
+    {
         bail!(
-            "--method {} reconstructs {MST_BANDS} bands; the measurement and mask give {bands}",
+            "--method {} reconstructs {trained} bands; the measurement and mask give {bands}",
             args.method
         );
     }
@@ -147,19 +151,22 @@ fn run_learned(
     let truth = args.load_truth()?;
 
     let t0 = Instant::now();
+    let pnp = args.method.kind() == MethodKind::LearnedPnp;
     let (cube, details, width_fitted): (Cube, Details, Option<(usize, usize)>) = if pnp {
         let model = args.model.or(file_model).unwrap_or_default();
         let settings = PnpHsicnnParams::default().with_overrides(args.iterations, args.weight);
         let mut pnp = reporter.stage("loading the HSI-SDeCNN weights", || {
             Ok(PnpHsicnn::load(&weights, settings)?)
         })?;
-        let progress = reporter.progress("pnp-hsicnn ", settings.gap.iterations as u64);
+        let assumed = Model::new(&mask, bands, args.input.stride, params, model)?;
+        let progress =
+            reporter.progress(&format!("{} ", args.method), settings.gap.iterations as u64);
         let mut observer = |info: &IterationInfo| {
             progress.set(info.iteration as u64);
             interrupt::control()
         };
-        let r = reporter.stage("reconstructing (pnp-hsicnn)", || {
-            Ok(pnp.reconstruct(&measurement, &mask, bands, &params, model, &mut observer)?)
+        let r = reporter.stage(&format!("reconstructing ({})", args.method), || {
+            Ok(pnp.solve(&measurement, &assumed, &mut observer)?)
         })?;
         drop(progress);
         let count = |s: Stage| r.stages.iter().filter(|&&x| x == s).count();
@@ -177,17 +184,17 @@ fn run_learned(
         (r.reconstruction.cube, details, fitted)
     } else {
         let unused_dispersion = (args.calibration.is_some()
-            && (params.a1 != TRAINED_STEP as f64 || params.alpha_deg != 0.0))
+            && (params.a1 != NETWORK_STEP as f64 || params.alpha_deg != 0.0))
             .then(|| params.dispersion());
         if unused_dispersion.is_some() {
             reporter.say(&format!(
-                "note: {} keeps its trained dispersion (step {TRAINED_STEP}, α 0°); the \
+                "note: {} keeps its trained dispersion (step {NETWORK_STEP}, α 0°); the \
                  calibration's a1 = {}, α = {}° are not used (only the mask pose dx, dy, θ)",
                 args.method, params.a1, params.alpha_deg
             ));
         }
         let net = reporter.stage(&format!("loading {} weights", args.method), || {
-            Ok(Reconstructor::load(&args.method, &weights)?)
+            Ok(Network::load(args.method, &weights)?)
         })?;
         let pose = params.pose();
         let r = reporter.stage(&format!("reconstructing ({})", args.method), || {
@@ -195,7 +202,7 @@ fn run_learned(
         })?;
         let details = Details::Network {
             mask_pose: pose,
-            trained_step: TRAINED_STEP,
+            trained_step: NETWORK_STEP,
             unused_dispersion,
         };
         (r.cube, details, r.width_fitted)
@@ -209,7 +216,7 @@ fn run_learned(
         measurement: args.input.measurement.clone(),
         mask: args.input.mask.clone(),
         calibration: args.calibration.clone(),
-        method: args.method.clone(),
+        method: args.method,
         weights,
         bands,
         details,

@@ -1,0 +1,153 @@
+//! The assumed instrument a reconstruction inverts: the nominal mask, the
+//! cube's bands, the nominal stride, the mismatch ψ it is moved, dispersed
+//! and blurred by (nominal, calibrated or true) and the dispersion model.
+//! One value, checked once, so every reconstruction entry point takes the
+//! same thing and none can drop a part of it (the blur, say) on the way.
+
+use crate::cube::Mask;
+use crate::error::{CassiError, Result};
+use crate::optics::{DispersionModel, ModelOperator, validate_mask};
+use crate::params::Mismatch;
+
+/// The instrument a reconstruction assumes. Build it with [`Model::new`],
+/// which is where it is validated.
+#[derive(Debug, Clone, Copy)]
+pub struct Model<'m> {
+    nominal_mask: &'m Mask,
+    bands: usize,
+    stride: f64,
+    mismatch: Mismatch,
+    dispersion: DispersionModel,
+}
+
+impl<'m> Model<'m> {
+    /// `nominal_mask` moved, dispersed and blurred as `mismatch` says, for
+    /// cubes of `bands` bands; `stride` is the nominal dispersion (px per
+    /// band) the instrument was designed for, which networks are trained on.
+    pub fn new(
+        nominal_mask: &'m Mask,
+        bands: usize,
+        stride: f64,
+        mismatch: Mismatch,
+        dispersion: DispersionModel,
+    ) -> Result<Self> {
+        mismatch.validate()?;
+        validate_mask(nominal_mask, "nominal mask")?;
+        if bands == 0 {
+            return Err(CassiError::InvalidParameter {
+                name: "bands",
+                value: 0.0,
+                reason: "a cube has at least one band".into(),
+            });
+        }
+        if !(stride.is_finite() && stride > 0.0) {
+            return Err(CassiError::InvalidParameter {
+                name: "stride",
+                value: stride,
+                reason: "the nominal stride is a finite number of pixels per band > 0".into(),
+            });
+        }
+        Ok(Self {
+            nominal_mask,
+            bands,
+            stride,
+            mismatch,
+            dispersion,
+        })
+    }
+
+    /// The nominal instrument: no mismatch, dispersion `stride` px per band.
+    pub fn nominal(
+        nominal_mask: &'m Mask,
+        bands: usize,
+        stride: f64,
+        dispersion: DispersionModel,
+    ) -> Result<Self> {
+        Self::new(
+            nominal_mask,
+            bands,
+            stride,
+            Mismatch::nominal(stride),
+            dispersion,
+        )
+    }
+
+    /// This instrument with another mismatch (a scenario's, a calibration's).
+    pub fn with_mismatch(&self, mismatch: Mismatch) -> Result<Self> {
+        Self::new(
+            self.nominal_mask,
+            self.bands,
+            self.stride,
+            mismatch,
+            self.dispersion,
+        )
+    }
+
+    pub fn nominal_mask(&self) -> &'m Mask {
+        self.nominal_mask
+    }
+
+    pub fn bands(&self) -> usize {
+        self.bands
+    }
+
+    /// Nominal dispersion, detector columns per band.
+    pub fn stride(&self) -> f64 {
+        self.stride
+    }
+
+    /// ψ: mask pose, dispersion and blur σ.
+    pub fn mismatch(&self) -> &Mismatch {
+        &self.mismatch
+    }
+
+    pub fn dispersion(&self) -> DispersionModel {
+        self.dispersion
+    }
+
+    /// B(σ)·A(ψ): the forward operator of this instrument.
+    pub fn operator(&self) -> Result<ModelOperator> {
+        ModelOperator::new(
+            self.nominal_mask,
+            self.bands,
+            &self.mismatch,
+            self.dispersion,
+        )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn invalid_instruments_are_refused_where_they_are_built() {
+        let mask = Mask::from_vec(4, 4, vec![1.0; 16]).unwrap();
+        let ok = Model::nominal(&mask, 3, 2.0, DispersionModel::Rounded).unwrap();
+        assert_eq!(ok.operator().unwrap().cube_shape(), (3, 4, 4));
+        assert_eq!(ok.mismatch(), &Mismatch::nominal(2.0));
+        let bad_blur = Mismatch {
+            blur_sigma_px: -1.0,
+            ..Mismatch::nominal(2.0)
+        };
+        assert!(
+            ok.with_mismatch(bad_blur)
+                .unwrap_err()
+                .to_string()
+                .contains("blur_sigma_px")
+        );
+        let e = Model::nominal(&mask, 0, 2.0, DispersionModel::Rounded).unwrap_err();
+        assert!(e.to_string().contains("bands"), "{e}");
+        let e = Model::new(
+            &mask,
+            3,
+            f64::NAN,
+            Mismatch::nominal(2.0),
+            DispersionModel::Rounded,
+        )
+        .unwrap_err();
+        assert!(e.to_string().contains("stride"), "{e}");
+        let bad_mask = Mask::from_vec(4, 4, vec![2.0; 16]).unwrap();
+        assert!(Model::nominal(&bad_mask, 3, 2.0, DispersionModel::Rounded).is_err());
+    }
+}
