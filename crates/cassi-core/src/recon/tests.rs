@@ -1,7 +1,9 @@
 use super::*;
 use crate::cube::Cube;
 use crate::denoise::{TvChambolle2d, TvChambolleParams};
+use crate::optics::DispersionModel;
 use crate::optics::ModelOperator;
+use crate::params::Mismatch;
 use crate::solvers::{Gap, Silent};
 use crate::synth::random_binary_mask;
 
@@ -78,6 +80,6 @@ fn a_reconstructor_trait_object_gives_the_recipes_cube() {
     assert_eq!(boxed.name(), "gap-tv");
     let cube = boxed.reconstruct(&y, &model, &mut Silent).unwrap();
     assert_eq!(cube.as_slice(), expected.as_slice());
-    let piecewise = reconstruct(&y, &mask, bands, &psi, dispersion, &method, &mut Silent).unwrap();
-    assert_eq!(piecewise.cube.as_slice(), expected.as_slice());
+    let solved = method.solve(&y, &model, &mut Silent).unwrap();
+    assert_eq!(solved.cube.as_slice(), expected.as_slice());
 }

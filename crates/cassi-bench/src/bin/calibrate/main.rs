@@ -52,7 +52,7 @@ use cassi_core::metrics::psnr;
 use cassi_core::optics::{
     DispersionModel, NoiseModel, PhysicalSpec, SimulationSpec, simulate, simulate_physical,
 };
-use cassi_core::recon::{Method, reconstruct};
+use cassi_core::recon::{Method, Model};
 use cassi_core::solvers::Silent;
 use cassi_core::{Cube, Mask, Measurement, Mismatch, Parameter, Rng, STANDARD_WAVELENGTHS_NM};
 use cassi_eval::report::Machine;
@@ -381,15 +381,14 @@ fn per_parameter(f: impl Fn(Parameter) -> Value) -> Value {
 /// GAP-TV PSNR (dB) of `scene` from `y` with the model ψ = `params`.
 fn recon_psnr(y: &Measurement, mask: &Mask, scene: &Cube, params: &Mismatch) -> Result<f64> {
     let method = Method::by_name("gap-tv")?;
-    let rec = reconstruct(
-        y,
+    let model = Model::new(
         mask,
         scene.bands(),
-        params,
+        STRIDE,
+        *params,
         DispersionModel::Subpixel,
-        &method,
-        &mut Silent,
     )?;
+    let rec = method.solve(y, &model, &mut Silent)?;
     Ok(psnr(scene, &rec.cube.clipped_to_unit())?)
 }
 
