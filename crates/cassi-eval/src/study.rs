@@ -17,6 +17,7 @@ use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 
 use crate::protocol::{SceneResult, Study, run_scene};
+use crate::records::{Record, SceneRecord, read_versioned, write_record};
 
 /// Where a scene comes from.
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -100,19 +101,6 @@ pub enum Event<'a> {
     Recomputed { name: &'a str, reason: String },
     /// A scene finished and its result is on disk.
     SceneDone { result: &'a SceneResult },
-}
-
-/// A scene's result file as written: the study it belongs to, the digests
-/// of its inputs, then the result.
-#[derive(Serialize, Deserialize)]
-struct Record {
-    study: Study,
-    noise_seed: u64,
-    /// Absent in records written before digests existed: such a record is
-    /// never reused.
-    #[serde(default)]
-    inputs: Option<InputDigests>,
-    result: SceneResult,
 }
 
 /// SHA-256 (hex) of what a scene's result was computed from.
@@ -303,14 +291,13 @@ pub fn run_study(
             crate::study_figures::write_qualitative(&pending, &name, method.name(), &scene, &kept)
                 .with_context(|| format!("qualitative figures of scene {name}"))?;
         }
-        let record = Record {
+        let record = SceneRecord {
             study: study.clone(),
             noise_seed,
             inputs: Some(inputs),
             result,
         };
-        let text = serde_json::to_string_pretty(&record)? + "\n";
-        cassi_io::write_atomic(&path, text.as_bytes())?;
+        write_record(&path, &record)?;
         on_event(Event::SceneDone {
             result: &record.result,
         });
@@ -343,22 +330,26 @@ enum Earlier {
     Different(String),
 }
 
-/// The earlier result at `path`, reusable only when its input digests equal
-/// `inputs`.
+/// The earlier result at `path`, reusable only when it is a current record
+/// and its input digests equal `inputs`.
 fn earlier_result(path: &Path, inputs: &InputDigests) -> Earlier {
-    let Ok(text) = std::fs::read_to_string(path) else {
-        return Earlier::None;
-    };
-    let record: Record = match serde_json::from_str(&text) {
-        Ok(r) => r,
+    let earlier = match read_versioned::<SceneRecord>(path) {
+        Ok(e) => e,
+        Err(e) if e.is_missing() => return Earlier::None,
         Err(e) => return Earlier::Different(format!("the earlier result is unreadable ({e})")),
     };
-    match record.inputs {
+    if earlier.version < SceneRecord::VERSION {
+        return Earlier::Different(format!(
+            "the earlier result is a version-{} record (written by an older cassi)",
+            earlier.version
+        ));
+    }
+    match earlier.record.inputs {
         None => Earlier::Different(
             "the earlier result has no input digests (written by an older cassi)".into(),
         ),
-        Some(earlier) => match inputs.difference(&earlier) {
-            None => Earlier::Same(Box::new(record.result)),
+        Some(digests) => match inputs.difference(&digests) {
+            None => Earlier::Same(Box::new(earlier.record.result)),
             Some(reason) => Earlier::Different(reason),
         },
     }
