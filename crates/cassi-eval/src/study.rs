@@ -1,12 +1,12 @@
 //! A study over many scenes, safe to interrupt: each scene's result is
-//! written (atomically) as it finishes, with SHA-256 digests of its inputs
-//! (the scene's data, the mask's data, every setting), to
+//! written (atomically, a [`SceneRecord`]) as it finishes, with SHA-256
+//! digests of its inputs (the scene's data, the mask's data, every setting), to
 //! `<out>/.pending/scenes/<name>.json` — beside, not over, the results of the
 //! last finished study in `<out>/scenes/`. [`promote_pending`] moves a
 //! finished run's files into place (inside the caller's output set, so they
 //! land together with the report). A resumed run reuses a result, pending or
-//! promoted, only when all three digests match exactly; otherwise it
-//! recomputes the scene and says why.
+//! promoted, only when it is a current record and all three digests match
+//! exactly; otherwise it recomputes the scene and says why.
 
 use std::path::{Path, PathBuf};
 
@@ -407,5 +407,49 @@ mod tests {
         s.mismatch.dx = 1.25;
         let d = InputDigests::new(&scene, &mask, &s, 0).unwrap();
         assert!(d.difference(&base).unwrap().starts_with("the settings"));
+    }
+
+    fn reason(e: Earlier) -> String {
+        match e {
+            Earlier::Different(reason) => reason,
+            Earlier::Same(_) => panic!("reused"),
+            Earlier::None => panic!("not found"),
+        }
+    }
+
+    /// `--resume` reuses only a current record made from the same inputs;
+    /// an old-version (headerless) or newer record is recomputed, with why.
+    #[test]
+    fn resume_reuses_only_current_records_of_the_same_inputs() {
+        let dir = std::env::temp_dir().join(format!("cassi-study-earlier-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        // written by cassi before records had a header
+        let old = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/v0/scene.json");
+        let record = read_versioned::<SceneRecord>(&old).unwrap().record;
+        let inputs = record.inputs.clone().unwrap();
+        assert!(reason(earlier_result(&old, &inputs)).contains("version-0 record"));
+
+        let current = dir.join("scene.json");
+        write_record(&current, &record).unwrap();
+        assert!(matches!(
+            earlier_result(&current, &inputs),
+            Earlier::Same(_)
+        ));
+        let mut other = inputs.clone();
+        other.mask = "0".repeat(64);
+        assert!(reason(earlier_result(&current, &other)).starts_with("the mask's data"));
+        assert!(matches!(
+            earlier_result(&dir.join("absent.json"), &inputs),
+            Earlier::None
+        ));
+
+        let text = std::fs::read_to_string(&current).unwrap();
+        let newer = dir.join("newer.json");
+        std::fs::write(&newer, text.replacen("\"version\": 1", "\"version\": 2", 1)).unwrap();
+        let why = reason(earlier_result(&newer, &inputs));
+        assert!(
+            why.contains("newer.json") && why.contains("newer cassi"),
+            "{why}"
+        );
     }
 }
