@@ -20,7 +20,7 @@ pub fn existing_sidecar(measurement: &Path) -> Option<PathBuf> {
         return None;
     }
     let file = JsonFile::read(&path).ok()?;
-    (file.format() == Some(SimulationRecord::FORMAT)).then_some(path)
+    (file.format().ok()? == Some(SimulationRecord::FORMAT)).then_some(path)
 }
 
 /// The band count the simulation sidecar beside `measurement` records, if

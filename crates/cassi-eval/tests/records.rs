@@ -154,6 +154,13 @@ fn refusals_name_the_file_and_the_problem() {
         &["bad_version.json", "\"version\" must be a whole number"],
     );
     assert_says(
+        &refusal::<SceneRecord>("format_number.json", "{\"format\": 1, \"version\": 1}"),
+        &[
+            "format_number.json",
+            "\"format\" must be a string, got a number",
+        ],
+    );
+    assert_says(
         &refusal::<SummaryRecord>(
             "no_version.json",
             "{\"format\": \"cassi-study-summary\", \"study\": {}}",

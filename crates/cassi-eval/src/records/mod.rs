@@ -144,15 +144,22 @@ impl JsonFile {
     }
 
     /// The record kind: the header's `format`, or for a file without one,
-    /// the kind whose keys it has; `None` when neither.
-    pub fn format(&self) -> Option<&str> {
-        let object = self.value.as_object()?;
+    /// the kind whose keys it has; `None` when neither (or not an object).
+    /// A `format` that is not a string is an error.
+    pub fn format(&self) -> Result<Option<&str>, RecordError> {
+        let Some(object) = self.value.as_object() else {
+            return Ok(None);
+        };
         match object.get("format") {
-            Some(f) => f.as_str(),
-            None => KINDS
+            Some(Value::String(f)) => Ok(Some(f)),
+            Some(other) => Err(RecordError::BadHeader {
+                path: self.path.clone(),
+                detail: format!("\"format\" must be a string, got {}", json_kind(other)),
+            }),
+            None => Ok(KINDS
                 .iter()
                 .find(|(_, keys)| keys.iter().all(|k| object.contains_key(*k)))
-                .map(|(format, _)| *format),
+                .map(|(format, _)| *format)),
         }
     }
 
@@ -167,7 +174,8 @@ impl JsonFile {
             });
         };
         let headed = object.contains_key("format");
-        if let Some(found) = self.format()
+        let format = self.format()?;
+        if let Some(found) = format
             && found != R::FORMAT
         {
             return Err(RecordError::OtherKind {
@@ -197,7 +205,7 @@ impl JsonFile {
         fields.remove("version");
         match serde_json::from_value(Value::Object(fields)) {
             Ok(record) => Ok(Versioned { version, record }),
-            Err(error) if headed || self.format().is_some() => Err(RecordError::Invalid {
+            Err(error) if format.is_some() => Err(RecordError::Invalid {
                 path: path(),
                 format: R::FORMAT,
                 version,
@@ -212,11 +220,8 @@ impl JsonFile {
     }
 }
 
-/// The header's `format` (a string, checked by the caller) and `version`.
+/// The header's `version` (its `format` is checked by [`JsonFile::format`]).
 fn header_version(object: &serde_json::Map<String, Value>) -> Result<u64, String> {
-    if !object.get("format").is_some_and(Value::is_string) {
-        return Err("\"format\" must be a string".into());
-    }
     match object.get("version") {
         Some(v) => v
             .as_u64()

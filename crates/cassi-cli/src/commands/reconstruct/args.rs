@@ -85,7 +85,7 @@ pub fn read_model_file(path: &Path) -> anyhow::Result<(Mismatch, Option<Dispersi
     let named_at = |params: &serde_json::Value, field: &str| {
         named_mismatch(params).with_context(|| format!("{}: {field}", path.display()))
     };
-    let (m, model, field) = match file.format() {
+    let (m, model, field) = match file.format()? {
         Some(Calibration::FORMAT) => {
             let field = "\"parameters\"";
             let m = named_at(&v["parameters"], field)?;
