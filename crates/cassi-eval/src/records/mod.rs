@@ -20,7 +20,9 @@ use serde_json::Value;
 pub use simulation::{MeasurementInfo, SimulationRecord, Source};
 pub use study::{SceneRecord, StudySetup, SummaryRecord};
 
-/// A record kind: its header and its shape before the header existed.
+/// A record kind: its header and its shape before the header existed. The
+/// header's keys share the record's object, so no record has a field named
+/// `format` or `version`.
 pub trait Record: Serialize + DeserializeOwned {
     /// The header's `format` name, e.g. `"cassi-calibration"`.
     const FORMAT: &'static str;
@@ -201,8 +203,10 @@ impl JsonFile {
             });
         }
         let mut fields = object.clone();
-        fields.remove("format");
-        fields.remove("version");
+        if headed {
+            fields.remove("format");
+            fields.remove("version");
+        }
         match serde_json::from_value(Value::Object(fields)) {
             Ok(record) => Ok(Versioned { version, record }),
             Err(error) if format.is_some() => Err(RecordError::Invalid {
