@@ -370,3 +370,89 @@ fn eval_resume_recomputes_a_scene_whose_mask_changed() {
     assert!(!said.contains("result from an earlier run"), "{said}");
     assert_ne!(first, other);
 }
+
+/// `--calibration` takes a calibration record (current, or as cassi wrote
+/// it before records had a header), a simulation sidecar or a bare
+/// parameter object; another kind of record or a newer version is refused,
+/// naming the file.
+#[test]
+fn calibration_files_are_typed_records_or_parameter_objects() {
+    let d = dir("records");
+    let (meas, mask) = simulated(&d);
+    let out = d.join("r.npy");
+    let reconstruct = |calibration: &Path| {
+        let run = cassi(&[
+            "reconstruct",
+            s(&meas),
+            "--mask",
+            s(&mask),
+            "--calibration",
+            s(calibration),
+            "--iterations",
+            "2",
+            "-o",
+            s(&out),
+            "--json",
+        ]);
+        ok(&run);
+        let report: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+        report["model_parameters"]["dx"].as_f64().unwrap()
+    };
+    let v0 = Path::new(env!("CARGO_MANIFEST_DIR")).join("../cassi-eval/tests/fixtures/v0");
+    assert_eq!(
+        reconstruct(&v0.join("calibration.json")),
+        1.5000525971892626
+    );
+    assert_eq!(reconstruct(&v0.join("sidecar.json")), 1.5);
+    let bare = d.join("bare.json");
+    std::fs::write(
+        &bare,
+        r#"{"dx": 0.25, "dy": 0, "theta_deg": 0, "a1": 2, "alpha_deg": 0}"#,
+    )
+    .unwrap();
+    assert_eq!(reconstruct(&bare), 0.25);
+    // this build's own calibration record
+    let cal = d.join("cal.json");
+    ok(&cassi(&[
+        "calibrate",
+        s(&meas),
+        "--mask",
+        s(&mask),
+        "-o",
+        s(&cal),
+        "-q",
+    ]));
+    let text = std::fs::read_to_string(&cal).unwrap();
+    assert!(text.starts_with("{\n  \"format\": \"cassi-calibration\",\n  \"version\": 1,"));
+    reconstruct(&cal);
+
+    let newer = d.join("newer.json");
+    std::fs::write(&newer, text.replacen("\"version\": 1", "\"version\": 9", 1)).unwrap();
+    let summary = v0.join("summary.json");
+    let refused = d.join("refused.npy");
+    for (file, needles) in [
+        (&newer, &["newer.json", "version 9", "newer cassi"][..]),
+        (
+            &summary,
+            &[
+                "summary.json is a cassi-study-summary record",
+                "not a calibration",
+            ],
+        ),
+    ] {
+        assert_fails(
+            &[
+                "reconstruct",
+                s(&meas),
+                "--mask",
+                s(&mask),
+                "--calibration",
+                s(file),
+                "-o",
+                s(&refused),
+            ],
+            needles,
+            &refused,
+        );
+    }
+}

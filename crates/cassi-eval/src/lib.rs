@@ -10,6 +10,7 @@ pub mod figures;
 pub mod learned;
 pub mod method;
 pub mod protocol;
+pub mod records;
 pub mod report;
 pub mod study;
 pub mod study_figures;

@@ -5,9 +5,10 @@
 use std::fmt::Write;
 use std::path::Path;
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use crate::protocol::{SceneResult, Study};
+use crate::records::{StudySetup, SummaryRecord, write_record};
 use cassi_core::Parameter;
 
 use crate::study_figures::Figure;
@@ -15,7 +16,7 @@ use crate::summary::Summary;
 use crate::tables;
 
 /// The machine a study ran on, for the record.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Machine {
     pub cpu: String,
     pub threads: usize,
@@ -42,7 +43,7 @@ impl Machine {
 }
 
 /// The optional sweeps of a study.
-#[derive(Debug, Clone, Default, Serialize)]
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
 pub struct Sweeps {
     /// Sensitivity curves, one per preset.
     pub sensitivity: Vec<(String, Vec<crate::sweep::SensitivityPoint>)>,
@@ -73,15 +74,18 @@ pub fn write_all(
     sweeps: &Sweeps,
 ) -> anyhow::Result<()> {
     let machine = Machine::this();
-    let json = serde_json::json!({
-        "study": study, "setup": { "scenes": setup.scenes, "mask": setup.mask },
-        "machine": machine, "summary": summary, "sweeps": sweeps,
-        "metric_definitions": cassi_core::metrics::METRIC_DEFINITIONS,
-    });
-    cassi_io::write_atomic(
-        out.join(SUMMARY_FILE),
-        (serde_json::to_string_pretty(&json)? + "\n").as_bytes(),
-    )?;
+    let record = SummaryRecord {
+        study: study.clone(),
+        setup: StudySetup {
+            scenes: setup.scenes.to_string(),
+            mask: setup.mask.to_string(),
+        },
+        machine: machine.clone(),
+        summary: summary.clone(),
+        sweeps: sweeps.clone(),
+        metric_definitions: cassi_core::metrics::METRIC_DEFINITIONS.to_string(),
+    };
+    write_record(out.join(SUMMARY_FILE), &record)?;
     cassi_io::write_atomic(
         out.join(OUTCOMES_FILE),
         tables::outcomes_csv(results).as_bytes(),

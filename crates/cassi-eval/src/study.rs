@@ -1,12 +1,12 @@
 //! A study over many scenes, safe to interrupt: each scene's result is
-//! written (atomically) as it finishes, with SHA-256 digests of its inputs
-//! (the scene's data, the mask's data, every setting), to
+//! written (atomically, a [`SceneRecord`]) as it finishes, with SHA-256
+//! digests of its inputs (the scene's data, the mask's data, every setting), to
 //! `<out>/.pending/scenes/<name>.json` — beside, not over, the results of the
 //! last finished study in `<out>/scenes/`. [`promote_pending`] moves a
 //! finished run's files into place (inside the caller's output set, so they
 //! land together with the report). A resumed run reuses a result, pending or
-//! promoted, only when all three digests match exactly; otherwise it
-//! recomputes the scene and says why.
+//! promoted, only when it is a current record and all three digests match
+//! exactly; otherwise it recomputes the scene and says why.
 
 use std::path::{Path, PathBuf};
 
@@ -17,6 +17,7 @@ use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 
 use crate::protocol::{SceneResult, Study, run_scene};
+use crate::records::{Record, SceneRecord, read_versioned, write_record};
 
 /// Where a scene comes from.
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -100,19 +101,6 @@ pub enum Event<'a> {
     Recomputed { name: &'a str, reason: String },
     /// A scene finished and its result is on disk.
     SceneDone { result: &'a SceneResult },
-}
-
-/// A scene's result file as written: the study it belongs to, the digests
-/// of its inputs, then the result.
-#[derive(Serialize, Deserialize)]
-struct Record {
-    study: Study,
-    noise_seed: u64,
-    /// Absent in records written before digests existed: such a record is
-    /// never reused.
-    #[serde(default)]
-    inputs: Option<InputDigests>,
-    result: SceneResult,
 }
 
 /// SHA-256 (hex) of what a scene's result was computed from.
@@ -303,14 +291,13 @@ pub fn run_study(
             crate::study_figures::write_qualitative(&pending, &name, method.name(), &scene, &kept)
                 .with_context(|| format!("qualitative figures of scene {name}"))?;
         }
-        let record = Record {
+        let record = SceneRecord {
             study: study.clone(),
             noise_seed,
             inputs: Some(inputs),
             result,
         };
-        let text = serde_json::to_string_pretty(&record)? + "\n";
-        cassi_io::write_atomic(&path, text.as_bytes())?;
+        write_record(&path, &record)?;
         on_event(Event::SceneDone {
             result: &record.result,
         });
@@ -343,22 +330,26 @@ enum Earlier {
     Different(String),
 }
 
-/// The earlier result at `path`, reusable only when its input digests equal
-/// `inputs`.
+/// The earlier result at `path`, reusable only when it is a current record
+/// and its input digests equal `inputs`.
 fn earlier_result(path: &Path, inputs: &InputDigests) -> Earlier {
-    let Ok(text) = std::fs::read_to_string(path) else {
-        return Earlier::None;
-    };
-    let record: Record = match serde_json::from_str(&text) {
-        Ok(r) => r,
+    let earlier = match read_versioned::<SceneRecord>(path) {
+        Ok(e) => e,
+        Err(e) if e.is_missing() => return Earlier::None,
         Err(e) => return Earlier::Different(format!("the earlier result is unreadable ({e})")),
     };
-    match record.inputs {
+    if earlier.version < SceneRecord::VERSION {
+        return Earlier::Different(format!(
+            "the earlier result is a version-{} record (written by an older cassi)",
+            earlier.version
+        ));
+    }
+    match earlier.record.inputs {
         None => Earlier::Different(
             "the earlier result has no input digests (written by an older cassi)".into(),
         ),
-        Some(earlier) => match inputs.difference(&earlier) {
-            None => Earlier::Same(Box::new(record.result)),
+        Some(digests) => match inputs.difference(&digests) {
+            None => Earlier::Same(Box::new(earlier.record.result)),
             Some(reason) => Earlier::Different(reason),
         },
     }
@@ -416,5 +407,49 @@ mod tests {
         s.mismatch.dx = 1.25;
         let d = InputDigests::new(&scene, &mask, &s, 0).unwrap();
         assert!(d.difference(&base).unwrap().starts_with("the settings"));
+    }
+
+    fn reason(e: Earlier) -> String {
+        match e {
+            Earlier::Different(reason) => reason,
+            Earlier::Same(_) => panic!("reused"),
+            Earlier::None => panic!("not found"),
+        }
+    }
+
+    /// `--resume` reuses only a current record made from the same inputs;
+    /// an old-version (headerless) or newer record is recomputed, with why.
+    #[test]
+    fn resume_reuses_only_current_records_of_the_same_inputs() {
+        let dir = std::env::temp_dir().join(format!("cassi-study-earlier-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        // written by cassi before records had a header
+        let old = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/v0/scene.json");
+        let record = read_versioned::<SceneRecord>(&old).unwrap().record;
+        let inputs = record.inputs.clone().unwrap();
+        assert!(reason(earlier_result(&old, &inputs)).contains("version-0 record"));
+
+        let current = dir.join("scene.json");
+        write_record(&current, &record).unwrap();
+        assert!(matches!(
+            earlier_result(&current, &inputs),
+            Earlier::Same(_)
+        ));
+        let mut other = inputs.clone();
+        other.mask = "0".repeat(64);
+        assert!(reason(earlier_result(&current, &other)).starts_with("the mask's data"));
+        assert!(matches!(
+            earlier_result(&dir.join("absent.json"), &inputs),
+            Earlier::None
+        ));
+
+        let text = std::fs::read_to_string(&current).unwrap();
+        let newer = dir.join("newer.json");
+        std::fs::write(&newer, text.replacen("\"version\": 1", "\"version\": 2", 1)).unwrap();
+        let why = reason(earlier_result(&newer, &inputs));
+        assert!(
+            why.contains("newer.json") && why.contains("newer cassi"),
+            "{why}"
+        );
     }
 }

@@ -73,9 +73,8 @@ pub fn run(args: &CalibrateArgs, reporter: &Reporter) -> anyhow::Result<()> {
         )?)
     })?;
     interrupt::check()?;
-    let text = serde_json::to_string_pretty(&cal)? + "\n";
     let staging = checked.begin()?;
-    cassi_io::write_atomic(&args.output, text.as_bytes())?;
+    cassi_eval::records::write_record(&args.output, &cal)?;
     if let Some(p) = &args.write_mask {
         cassi_io::save_frame(p, &warp_mask(&mask, &cal.parameters.pose()), "mask")?;
     }

@@ -27,7 +27,7 @@ use clap::{Args, ValueEnum};
 use super::simulate::{SimulationInputs, simulate_and_write};
 use crate::interrupt;
 use crate::report::Reporter;
-use crate::sidecar::Source;
+use cassi_eval::records::Source;
 
 #[derive(Args)]
 pub struct DemoArgs {
@@ -176,8 +176,7 @@ pub fn run(args: &DemoArgs, reporter: &Reporter) -> anyhow::Result<()> {
             &mut |_| interrupt::stop_point(),
         )?)
     })?;
-    let text = serde_json::to_string_pretty(&calibration)? + "\n";
-    cassi_io::write_atomic(args.out.join("calibration.json"), text.as_bytes())?;
+    cassi_eval::records::write_record(args.out.join("calibration.json"), &calibration)?;
 
     // The four scenarios of the evaluation protocol on this scene, with the
     // measurement and calibration above; then the study's report.

@@ -8,11 +8,12 @@ use cassi_core::limits::check_elements;
 use cassi_core::optics::{DispersionModel, MaskCode, NoiseModel, mask_code, validate_measurement};
 use cassi_core::synth::{SceneSpec, random_binary_mask, synthetic_scene};
 use cassi_core::{Cube, Instrument, Mask, Mismatch, Parameter};
+use cassi_eval::records::Source;
 use cassi_io::{CubeLayout, OutputSet};
 use clap::{Args, ValueEnum};
 
 use crate::report::Reporter;
-use crate::sidecar::{Source, existing_sidecar, recorded_bands, sidecar_path};
+use crate::sidecar::{existing_sidecar, recorded_bands, sidecar_path};
 
 #[derive(Clone, Copy, ValueEnum)]
 pub enum LayoutArg {

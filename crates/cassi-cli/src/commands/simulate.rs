@@ -9,6 +9,7 @@ use cassi_core::optics::{
     simulate, simulate_physical, validate_mismatch_for_mask,
 };
 use cassi_core::{Cube, Instrument, Mask, Measurement};
+use cassi_eval::records::{MeasurementInfo, SimulationRecord, Source};
 use cassi_io::OutputSet;
 use clap::Args;
 
@@ -17,7 +18,7 @@ use super::inputs::{
 };
 use crate::interrupt;
 use crate::report::Reporter;
-use crate::sidecar::{MeasurementInfo, SimulationRecord, Source, sidecar_path};
+use crate::sidecar::sidecar_path;
 
 #[derive(Args)]
 pub struct SimulateArgs {
@@ -205,10 +206,9 @@ pub fn simulate_and_write(
             max,
         },
     };
-    let text = serde_json::to_string_pretty(&record).context("serialising the sidecar")? + "\n";
     reporter.stage("writing the measurement", || {
         cassi_io::save_frame(output, &measurement, "measurement")?;
-        cassi_io::write_atomic(sidecar_path(output), text.as_bytes())?;
+        cassi_eval::records::write_record(sidecar_path(output), &record)?;
         if preview {
             cassi_io::write_frame_png16(output.with_extension("png"), &measurement, None)?;
         }

@@ -5,10 +5,12 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
+use cassi_core::calib::Calibration;
 use cassi_core::optics::{DispersionModel, validate_mismatch_for_mask};
 use cassi_core::recon::MethodId;
 use cassi_core::recon::registry::all_names;
 use cassi_core::{Mismatch, Parameter};
+use cassi_eval::records::{JsonFile, Record, SimulationRecord, json_kind};
 use cassi_io::{CheckedSet, OutputSet};
 use clap::Args;
 use clap::builder::TypedValueParser;
@@ -63,37 +65,66 @@ fn method_names() -> impl TypedValueParser<Value = MethodId> {
         .map(|name| MethodId::parse(&name).expect("clap passes only registry names"))
 }
 
-/// The model parameters and dispersion model a calibration or sidecar file
-/// gives: a calibration's "parameters" (+ "model") or a sidecar's
-/// "simulation" → "mismatch" (+ "model"), each an object with exactly the
-/// named fields dx, dy, theta_deg, a1, alpha_deg (never read by position),
-/// every value a number in range.
+/// The model parameters and dispersion model `--calibration` names. Three
+/// shapes are accepted:
+/// - a calibration record (`cassi calibrate`'s output): its "parameters"
+///   and "model";
+/// - a simulation sidecar: its "simulation" → "mismatch" and "model" (the
+///   true instrument: the oracle model);
+/// - a parameter file written by hand: the parameters' object itself
+///   (`{dx, dy, theta_deg, a1, alpha_deg[, blur_sigma_px]}`), or wrapped as
+///   `{"parameters": {…}[, "model": …]}`, without the rest of a calibration.
+///
+/// The two records are read through [`cassi_eval::records`] (a newer
+/// version, or another kind of record, is refused naming the file). In every
+/// shape the parameters are an object with exactly the named fields (never
+/// read by position), every value a number in range.
 pub fn read_model_file(path: &Path) -> anyhow::Result<(Mismatch, Option<DispersionModel>)> {
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
-    let v: serde_json::Value = serde_json::from_str(&text)
-        .with_context(|| format!("{}: not valid JSON", path.display()))?;
-    let (params, model, field) = if let Some(p) = v.get("parameters") {
-        (p, v.get("model"), "\"parameters\"")
-    } else if let Some(sim) = v.get("simulation") {
-        (
-            sim.get("mismatch").unwrap_or(&serde_json::Value::Null),
-            sim.get("model"),
-            "\"simulation\".\"mismatch\"",
-        )
-    } else {
-        bail!(
-            "{}: no \"parameters\" (calibration) or \"simulation\" (sidecar) object",
-            path.display()
-        );
+    let file = JsonFile::read(path)?;
+    let v = file.value();
+    let named_at = |params: &serde_json::Value, field: &str| {
+        named_mismatch(params).with_context(|| format!("{}: {field}", path.display()))
     };
-    let m = named_mismatch(params).with_context(|| format!("{}: {field}", path.display()))?;
+    let (m, model, field) = match file.format()? {
+        Some(Calibration::FORMAT) => {
+            let field = "\"parameters\"";
+            let m = named_at(&v["parameters"], field)?;
+            let cal = file.parse::<Calibration>()?.record;
+            (m, Some(cal.model), field)
+        }
+        Some(SimulationRecord::FORMAT) => {
+            let field = "\"simulation\".\"mismatch\"";
+            let m = named_at(&v["simulation"]["mismatch"], field)?;
+            let sidecar = file.parse::<SimulationRecord>()?.record;
+            (m, Some(sidecar.simulation.model), field)
+        }
+        Some(other) => bail!(
+            "{} is a {other} record, not a calibration, a simulation sidecar or a parameter file",
+            path.display()
+        ),
+        None => match v.get("parameters") {
+            Some(params) => {
+                let field = "\"parameters\"";
+                let model = v
+                    .get("model")
+                    .map(|m| serde_json::from_value(m.clone()))
+                    .transpose()
+                    .with_context(|| format!("{}: \"model\"", path.display()))?;
+                (named_at(params, field)?, model, field)
+            }
+            None => {
+                let m = named_mismatch(v).with_context(|| {
+                    format!(
+                        "{}: not a calibration or a simulation sidecar, and as a parameter object",
+                        path.display()
+                    )
+                })?;
+                (m, None, "the parameters")
+            }
+        },
+    };
     m.validate()
         .with_context(|| format!("{}: {field}", path.display()))?;
-    let model = model
-        .map(|m| serde_json::from_value(m.clone()))
-        .transpose()
-        .with_context(|| format!("{}: \"model\"", path.display()))?;
     Ok((m, model))
 }
 
@@ -130,17 +161,6 @@ fn named_mismatch(value: &serde_json::Value) -> anyhow::Result<Mismatch> {
         p.set(&mut m, v);
     }
     Ok(m)
-}
-
-fn json_kind(value: &serde_json::Value) -> &'static str {
-    match value {
-        serde_json::Value::Null => "null",
-        serde_json::Value::Bool(_) => "a boolean",
-        serde_json::Value::Number(_) => "a number",
-        serde_json::Value::String(_) => "a string",
-        serde_json::Value::Array(_) => "an array",
-        serde_json::Value::Object(_) => "an object",
-    }
 }
 
 impl ReconstructArgs {
