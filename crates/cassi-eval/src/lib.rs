@@ -6,8 +6,10 @@
 
 #![forbid(unsafe_code)]
 
+pub mod digests;
 pub mod figures;
 pub mod learned;
+pub mod machine;
 pub mod method;
 pub mod protocol;
 pub mod records;
@@ -16,5 +18,6 @@ pub mod study;
 pub mod study_figures;
 pub mod summary;
 pub mod sweep;
+pub mod sweep_rows;
 pub mod tables;
 pub mod weights;

@@ -5,50 +5,15 @@
 use std::fmt::Write;
 use std::path::Path;
 
-use serde::{Deserialize, Serialize};
-
+use crate::machine::Machine;
 use crate::protocol::{SceneResult, Study};
 use crate::records::{StudySetup, SummaryRecord, write_record};
 use cassi_core::Parameter;
 
 use crate::study_figures::Figure;
 use crate::summary::Summary;
+use crate::sweep_rows::Sweeps;
 use crate::tables;
-
-/// The machine a study ran on, for the record.
-#[derive(Debug, Clone, Serialize, Deserialize)]
-pub struct Machine {
-    pub cpu: String,
-    pub threads: usize,
-    pub os: String,
-}
-
-impl Machine {
-    pub fn this() -> Self {
-        let cpu = std::fs::read_to_string("/proc/cpuinfo")
-            .ok()
-            .and_then(|s| {
-                s.lines()
-                    .find(|l| l.starts_with("model name"))
-                    .and_then(|l| l.split(':').nth(1))
-                    .map(|m| m.trim().to_string())
-            })
-            .unwrap_or_else(|| "unknown CPU".into());
-        Self {
-            cpu,
-            threads: std::thread::available_parallelism().map_or(1, |n| n.get()),
-            os: std::env::consts::OS.to_string(),
-        }
-    }
-}
-
-/// The optional sweeps of a study.
-#[derive(Debug, Clone, Default, Serialize, Deserialize)]
-pub struct Sweeps {
-    /// Sensitivity curves, one per preset.
-    pub sensitivity: Vec<(String, Vec<crate::sweep::SensitivityPoint>)>,
-    pub ablation: Option<Vec<crate::sweep::AblationRow>>,
-}
 
 /// Where the scenes and mask came from, as the report should name them.
 pub struct Setup<'a> {

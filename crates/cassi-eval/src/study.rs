@@ -14,9 +14,9 @@ use anyhow::Context;
 use cassi_core::synth::{SceneSpec, synthetic_scene};
 use cassi_core::{Cube, Mask};
 use serde::{Deserialize, Serialize};
-use sha2::{Digest, Sha256};
 
-use crate::protocol::{SceneResult, Study, run_scene};
+use crate::digests::InputDigests;
+use crate::protocol::{Reconstructions, SceneResult, Study, run_scene};
 use crate::records::{Record, SceneRecord, read_versioned, write_record};
 
 /// Where a scene comes from.
@@ -103,63 +103,6 @@ pub enum Event<'a> {
     SceneDone { result: &'a SceneResult },
 }
 
-/// SHA-256 (hex) of what a scene's result was computed from.
-#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
-pub struct InputDigests {
-    /// The scene cube: its shape (bands, rows, cols) and f32 values.
-    pub scene: String,
-    /// The nominal mask: its shape and values.
-    pub mask: String,
-    /// Every setting (the study's JSON, the noise seed, the cassi version).
-    pub settings: String,
-}
-
-impl InputDigests {
-    pub fn new(scene: &Cube, mask: &Mask, study: &Study, noise_seed: u64) -> anyhow::Result<Self> {
-        let (l, h, w) = scene.shape();
-        let settings = serde_json::json!({
-            "study": study,
-            "noise_seed": noise_seed,
-            "cassi_version": env!("CARGO_PKG_VERSION"),
-        });
-        Ok(Self {
-            scene: array_digest(&[l, h, w], scene.as_slice()),
-            mask: array_digest(&[mask.rows(), mask.cols()], mask.as_slice()),
-            settings: hex(&Sha256::digest(serde_json::to_vec(&settings)?)),
-        })
-    }
-
-    /// Which inputs differ from `earlier`, in words; `None` when all match.
-    fn difference(&self, earlier: &Self) -> Option<String> {
-        let differ: Vec<&str> = [
-            (self.scene != earlier.scene, "the scene's data"),
-            (self.mask != earlier.mask, "the mask's data"),
-            (self.settings != earlier.settings, "the settings"),
-        ]
-        .into_iter()
-        .filter_map(|(d, what)| d.then_some(what))
-        .collect();
-        (!differ.is_empty())
-            .then(|| format!("{} differ from the earlier run's", differ.join(" and ")))
-    }
-}
-
-/// SHA-256 of a shape and its f32 values (little-endian bytes).
-fn array_digest(shape: &[usize], values: &[f32]) -> String {
-    let mut h = Sha256::new();
-    for &d in shape {
-        h.update((d as u64).to_le_bytes());
-    }
-    for v in values {
-        h.update(v.to_le_bytes());
-    }
-    hex(&h.finalize())
-}
-
-fn hex(bytes: &[u8]) -> String {
-    bytes.iter().map(|b| format!("{b:02x}")).collect()
-}
-
 /// Where a finished study keeps a scene's result.
 pub fn scene_path(out: &Path, name: &str) -> PathBuf {
     out.join("scenes").join(format!("{name}.json"))
@@ -228,9 +171,15 @@ fn copy_tree(from: &Path, to: &Path) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// Draws the first scene's qualitative figures into a study folder: (folder,
+/// scene name, method name, true scene, reconstructions). The runner calls
+/// it and the presentation layer supplies it, so the runner draws nothing.
+pub type QualitativeFigures<'a> =
+    &'a dyn Fn(&Path, &str, &str, &Cube, &Reconstructions) -> anyhow::Result<()>;
+
 /// Runs `study` on every scene (scene i uses noise seed i), writing each
 /// result to `<out>/scenes/` (and, with `qualitative`, the first scene's
-/// panel and spectra to `<out>/figures/`). With `resume`, scenes whose file holds a
+/// panel and spectra through it). With `resume`, scenes whose file holds a
 /// result of the same study are loaded, not rerun.
 pub fn run_study(
     study: &Study,
@@ -238,7 +187,7 @@ pub fn run_study(
     mask: &Mask,
     out: &Path,
     resume: bool,
-    qualitative: bool,
+    qualitative: Option<QualitativeFigures<'_>>,
     on_event: &mut dyn FnMut(Event<'_>),
 ) -> anyhow::Result<Vec<SceneResult>> {
     let pending = out.join(PENDING);
@@ -282,13 +231,13 @@ pub fn run_study(
             name: &name,
         });
         // the first scene also gets the qualitative figures
-        let keep = qualitative && i == 0;
+        let keep = qualitative.is_some() && i == 0;
         let (result, kept) = run_scene(&name, &scene, mask, study, noise_seed, keep, &mut |step| {
             on_event(Event::Step { name: step })
         })
         .with_context(|| format!("scene {name}"))?;
-        if let Some(method) = study.methods.first().filter(|_| keep) {
-            crate::study_figures::write_qualitative(&pending, &name, method.name(), &scene, &kept)
+        if let (Some(method), Some(draw)) = (study.methods.first().filter(|_| keep), qualitative) {
+            draw(&pending, &name, method.name(), &scene, &kept)
                 .with_context(|| format!("qualitative figures of scene {name}"))?;
         }
         let record = SceneRecord {

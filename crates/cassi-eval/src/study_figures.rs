@@ -9,8 +9,8 @@ use cassi_core::{Cube, Instrument};
 
 use crate::figures::*;
 use crate::protocol::{Reconstructions, Scenario, SceneResult};
-use crate::report::Sweeps;
 use crate::summary::Summary;
+use crate::sweep_rows::Sweeps;
 
 /// A figure written for the report: caption and path relative to the study
 /// folder.
@@ -216,14 +216,14 @@ pub fn write_summary_figures(
                 presets.push(r.preset.clone());
             }
         }
-        let variants = crate::sweep::AblationVariant::ALL;
+        let variants = crate::sweep_rows::AblationVariant::ALL;
         let bars = GroupedBars {
             groups: presets.iter().map(|p| format!("{p} preset")).collect(),
             series: variants
                 .iter()
                 .map(|v| BarSeries {
                     name: match v {
-                        crate::sweep::AblationVariant::SearchOnly => {
+                        crate::sweep_rows::AblationVariant::SearchOnly => {
                             "search stages only".to_string()
                         }
                         _ => v.label("").to_string(),

@@ -7,11 +7,11 @@ use std::path::Path;
 use cassi_core::calib::Preset;
 use cassi_core::recon::Model;
 use cassi_core::{Mask, Mismatch};
-use serde::{Deserialize, Serialize};
 
 use crate::protocol::{Study, prepare, reconstruct_and_score};
 use crate::study::{Event, SceneSource, run_study};
-use crate::summary::{Summary, summarize};
+use crate::summary::summarize;
+use crate::sweep_rows::{AblationRow, AblationVariant, SensitivityPoint};
 
 /// The paper's mismatch scaled by `s`: dx, dy, θ, α × s, a1 = stride + s·(2.04 − 2).
 pub fn scaled_mismatch(s: f64, stride: f64) -> Mismatch {
@@ -24,14 +24,6 @@ pub fn scaled_mismatch(s: f64, stride: f64) -> Mismatch {
         alpha_deg: p.alpha_deg * s,
         blur_sigma_px: 0.0,
     }
-}
-
-/// One point of a sensitivity curve.
-#[derive(Debug, Clone, Serialize, Deserialize)]
-pub struct SensitivityPoint {
-    pub scale: f64,
-    pub mismatch: Mismatch,
-    pub summary: Summary,
 }
 
 /// The study at each scale of the paper's mismatch, each in its own folder
@@ -55,7 +47,7 @@ pub fn sensitivity(
             let dir = out
                 .join("sensitivity")
                 .join(format!("{}_scale{scale}", base.preset.name()));
-            let results = run_study(&study, scenes, mask, &dir, resume, false, &mut |e| {
+            let results = run_study(&study, scenes, mask, &dir, resume, None, &mut |e| {
                 on_event(scale, e)
             })?;
             Ok(SensitivityPoint {
@@ -65,50 +57,6 @@ pub fn sensitivity(
             })
         })
         .collect()
-}
-
-/// Which model an ablation row reconstructs with.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum AblationVariant {
-    /// The nominal model (Scenario II).
-    Nominal,
-    /// The parameters after the preset's search stages without refinement:
-    /// `paper`: the grids (stages 0–1); `default`: the correlation start.
-    SearchOnly,
-    /// The whole preset (Scenario III).
-    Full,
-    /// The true model (Scenario IV).
-    Oracle,
-}
-
-impl AblationVariant {
-    pub const ALL: [AblationVariant; 4] =
-        [Self::Nominal, Self::SearchOnly, Self::Full, Self::Oracle];
-
-    pub fn label(self, preset: &str) -> &'static str {
-        match (self, preset) {
-            (Self::Nominal, _) => "nominal (II)",
-            (Self::SearchOnly, "paper") => "grid only (stages 0–1)",
-            (Self::SearchOnly, _) => "first stage only",
-            (Self::Full, _) => "full pipeline (III)",
-            (Self::Oracle, _) => "oracle (IV)",
-        }
-    }
-}
-
-/// Mean PSNR of one method with one preset and variant.
-#[derive(Debug, Clone, Serialize, Deserialize)]
-pub struct AblationRow {
-    pub preset: String,
-    pub method: String,
-    pub variant: AblationVariant,
-    pub label: String,
-    pub psnr: f64,
-    /// Root-mean-square error over dx, dy (px) and θ (°) of this variant's
-    /// parameters, over scenes.
-    pub pose_rmse_px: f64,
-    pub calibration_seconds_mean: f64,
 }
 
 /// For each preset: calibrate every scene once, then reconstruct with the

@@ -187,7 +187,7 @@ pub fn parameters_csv(results: &[SceneResult]) -> String {
 }
 
 /// Mean PSNR of II, III, IV, ρ and parameter RMSE at each mismatch scale.
-pub fn sensitivity_table(points: &[crate::sweep::SensitivityPoint], preset: &str) -> String {
+pub fn sensitivity_table(points: &[crate::sweep_rows::SensitivityPoint], preset: &str) -> String {
     let names = Parameter::ALL.map(|p| p.name()).join(", ");
     let mut s = format!(
         "| scale | mismatch ({names}) | method | II (dB) | III (dB) | IV (dB) | ρ | RMSE dx / dy (px), θ (°) | `{preset}` calibration median (s) |\n|---:|---|---|---:|---:|---:|---:|---|---:|\n"
@@ -222,7 +222,7 @@ pub fn sensitivity_table(points: &[crate::sweep::SensitivityPoint], preset: &str
 }
 
 /// Mean PSNR and pose error per preset, method and pipeline variant.
-pub fn ablation_table(rows: &[crate::sweep::AblationRow]) -> String {
+pub fn ablation_table(rows: &[crate::sweep_rows::AblationRow]) -> String {
     let mut s = String::from(
         "| preset | method | model used | PSNR (dB) | pose RMSE (dx, dy px; θ °) | calibration mean (s) |\n|---|---|---|---:|---:|---:|\n",
     );

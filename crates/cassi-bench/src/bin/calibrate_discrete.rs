@@ -18,8 +18,8 @@ use cassi_bench::{median, shared_data};
 use cassi_core::calib::{CalibrationProblem, PRESET_NAMES, Preset, calibrate};
 use cassi_core::optics::{Dispersion, DispersionModel, NoiseModel, SimulationSpec, simulate};
 use cassi_core::{Mismatch, Parameter};
+use cassi_eval::machine::Machine;
 use cassi_eval::protocol::ParameterErrors;
-use cassi_eval::report::Machine;
 
 fn main() -> anyhow::Result<()> {
     let args: Vec<String> = std::env::args().collect();

@@ -19,7 +19,7 @@ use cassi_core::optics::{CassiOperator, DispersionModel};
 use cassi_core::recon::{Method, Model};
 use cassi_core::solvers::Silent;
 use cassi_core::synth::{SceneSpec, random_binary_mask, synthetic_scene};
-use cassi_eval::report::Machine;
+use cassi_eval::machine::Machine;
 
 /// The constant TV weight of a GAP-TV method (the reference runs the same).
 fn gap_weight(m: &Method) -> f32 {

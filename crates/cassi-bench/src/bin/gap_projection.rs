@@ -25,7 +25,7 @@ use cassi_core::optics::{
 };
 use cassi_core::recon::{Method, Model};
 use cassi_core::solvers::Silent;
-use cassi_eval::report::Machine;
+use cassi_eval::machine::Machine;
 
 const SETTINGS: [&str; 4] = [
     "ideal_noise_free",

@@ -48,7 +48,7 @@ use cassi_core::optics::{
 use cassi_core::recon::{Method, fit_width};
 use cassi_core::solvers::{Gap, Silent, Strength};
 use cassi_core::{Cube, Denoiser, Frame, Mask, Mismatch, Rng, STANDARD_WAVELENGTHS_NM};
-use cassi_eval::report::Machine;
+use cassi_eval::machine::Machine;
 use serde_json::{Value, json};
 
 const LAMBDAS: [f32; 9] = [0.03, 0.05, 0.07, 0.1, 0.14, 0.2, 0.28, 0.4, 0.56];

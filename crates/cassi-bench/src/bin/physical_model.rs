@@ -27,7 +27,7 @@ use cassi_core::optics::{
 use cassi_core::recon::{Method, fit_width};
 use cassi_core::solvers::{Gap, Silent};
 use cassi_core::{Cube, Denoiser, Measurement, Mismatch, Parameter, Rng, STANDARD_WAVELENGTHS_NM};
-use cassi_eval::report::Machine;
+use cassi_eval::machine::Machine;
 
 const SIGMAS: [f64; 3] = [0.0, 0.4, 0.8];
 

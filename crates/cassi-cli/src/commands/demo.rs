@@ -18,9 +18,10 @@ use cassi_core::recon::Method;
 use cassi_core::synth::{SceneSpec, random_binary_mask, synthetic_scene};
 use cassi_core::{Instrument, Mismatch, Parameter};
 use cassi_eval::protocol::{Prepared, Scenario, Study, ideal_measurements, run_prepared};
-use cassi_eval::report::{Setup, Sweeps, write_all};
+use cassi_eval::report::{Setup, write_all};
 use cassi_eval::study_figures::write_qualitative;
 use cassi_eval::summary::summarize;
+use cassi_eval::sweep_rows::Sweeps;
 use cassi_io::OutputSet;
 use clap::{Args, ValueEnum};
 

@@ -15,12 +15,13 @@ use cassi_core::{Instrument, Mask, Mismatch};
 use cassi_eval::learned::{check_shape, check_stride};
 use cassi_eval::method::{LearnedMethod, StudyMethod};
 use cassi_eval::protocol::Study;
-use cassi_eval::report::{REPORT_FILE, STUDY_FILES, Setup, Sweeps, write_all};
+use cassi_eval::report::{REPORT_FILE, STUDY_FILES, Setup, write_all};
 use cassi_eval::study::{
     Event, SceneSource, promote_pending, remove_pending, run_study, scenes_in,
 };
 use cassi_eval::summary::summarize;
 use cassi_eval::sweep::{ablation, scaled_mismatch, sensitivity};
+use cassi_eval::sweep_rows::Sweeps;
 use cassi_eval::weights::{NETS_BUILT, parse_weight_flags, resolve_weights};
 use cassi_io::{CheckedSet, OutputSet};
 use clap::Args;
@@ -315,7 +316,7 @@ pub fn run(args: &EvalArgs, reporter: &Reporter) -> anyhow::Result<()> {
         &mask,
         &args.out,
         args.resume,
-        true,
+        Some(&cassi_eval::study_figures::write_qualitative),
         &mut |e| match e {
             // between steps every finished scene is on disk: a signal ends
             // the run here (rerun with --resume to go on)

@@ -4,10 +4,11 @@
 use serde::{Deserialize, Serialize};
 
 use super::Record;
+use crate::digests::InputDigests;
+use crate::machine::Machine;
 use crate::protocol::{SceneResult, Study};
-use crate::report::{Machine, Sweeps};
-use crate::study::InputDigests;
 use crate::summary::Summary;
+use crate::sweep_rows::Sweeps;
 
 /// A scene's result file: the study it belongs to, the digests of its
 /// inputs, then the result.

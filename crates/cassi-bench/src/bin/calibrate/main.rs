@@ -55,7 +55,7 @@ use cassi_core::optics::{
 use cassi_core::recon::{Method, Model};
 use cassi_core::solvers::Silent;
 use cassi_core::{Cube, Mask, Measurement, Mismatch, Parameter, Rng, STANDARD_WAVELENGTHS_NM};
-use cassi_eval::report::Machine;
+use cassi_eval::machine::Machine;
 use serde_json::{Value, json};
 
 mod limits;
