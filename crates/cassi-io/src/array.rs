@@ -4,6 +4,27 @@
 
 use crate::escape::esc;
 
+/// One stored element type: kind ('f' IEEE float, 'i' signed, 'u' unsigned,
+/// 'b' bool), width in bytes, byte order.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct Elem {
+    pub kind: char,
+    pub size: usize,
+    pub endian: Endian,
+}
+
+impl Elem {
+    /// The element type, if cassi can decode it (float16/32/64, (u)int8…64, bool).
+    pub(crate) fn new(kind: char, size: usize, endian: Endian) -> Option<Self> {
+        match (kind, size) {
+            ('f', 2 | 4 | 8) | ('i' | 'u', 1 | 2 | 4 | 8) | ('b', 1) => {
+                Some(Elem { kind, size, endian })
+            }
+            _ => None,
+        }
+    }
+}
+
 /// What a reader knows about one variable before decoding its values.
 #[derive(Debug, Clone, Default)]
 pub(crate) struct VarInfo {
@@ -18,7 +39,7 @@ pub(crate) struct VarInfo {
     /// For a non-numeric variable: why it cannot be read (shown in errors).
     pub note: String,
     /// How the values are stored, for a numeric variable.
-    pub elem: Option<crate::decode::Elem>,
+    pub elem: Option<Elem>,
     /// Whether the values are stored column-major (MATLAB, NumPy `fortran_order`).
     pub fortran: bool,
     /// Whether the file allocates no storage for the values (an HDF5 dataset

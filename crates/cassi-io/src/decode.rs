@@ -10,29 +10,21 @@
 use std::io::Read;
 use std::path::Path;
 
-use crate::array::{Endian, index_str};
-use crate::describe::Stats;
+use serde::Serialize;
+
+use crate::array::{Elem, Endian, index_str};
 use crate::error::{IoError, Result};
 
-/// One stored element type: kind ('f' IEEE float, 'i' signed, 'u' unsigned,
-/// 'b' bool), width in bytes, byte order.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) struct Elem {
-    pub kind: char,
-    pub size: usize,
-    pub endian: Endian,
-}
-
-impl Elem {
-    /// The element type, if cassi can decode it (float16/32/64, (u)int8…64, bool).
-    pub(crate) fn new(kind: char, size: usize, endian: Endian) -> Option<Self> {
-        match (kind, size) {
-            ('f', 2 | 4 | 8) | ('i' | 'u', 1 | 2 | 4 | 8) | ('b', 1) => {
-                Some(Elem { kind, size, endian })
-            }
-            _ => None,
-        }
-    }
+/// Statistics of a numeric variable. `min`, `max` and `mean` are over the
+/// finite values (None when there are none).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Stats {
+    pub count: usize,
+    pub min: Option<f64>,
+    pub max: Option<f64>,
+    pub mean: Option<f64>,
+    /// Number of NaN/±Inf values.
+    pub non_finite: usize,
 }
 
 /// IEEE half → double, exact (subnormals, ±inf and NaN included).

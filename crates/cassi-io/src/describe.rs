@@ -6,21 +6,10 @@ use std::path::Path;
 use serde::Serialize;
 
 use crate::array::shape_str;
+use crate::decode::Stats;
 use crate::error::Result;
 use crate::escape::esc;
 use crate::open::{FileFormat, Opened};
-
-/// Statistics of a numeric variable. `min`, `max` and `mean` are over the
-/// finite values (None when there are none).
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct Stats {
-    pub count: usize,
-    pub min: Option<f64>,
-    pub max: Option<f64>,
-    pub mean: Option<f64>,
-    /// Number of NaN/±Inf values.
-    pub non_finite: usize,
-}
 
 /// One variable of a file.
 #[derive(Debug, Clone, PartialEq, Serialize)]

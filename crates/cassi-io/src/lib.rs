@@ -39,9 +39,10 @@ mod open;
 mod output_set;
 mod png;
 pub mod shared_data;
+mod temporaries;
 
-pub use atomic::{remove_stale_temporaries, remove_temporaries_for_exit};
-pub use describe::{FileSummary, Stats, VariableSummary, describe};
+pub use decode::Stats;
+pub use describe::{FileSummary, VariableSummary, describe};
 pub use error::{IoError, Result};
 pub use escape::esc;
 pub use load::{
@@ -50,6 +51,7 @@ pub use load::{
 pub use open::FileFormat;
 pub use output_set::{CheckedSet, OutputSet, Staging, output_exists};
 pub use png::{write_band_pngs, write_frame_png16, write_rgb_png};
+pub use temporaries::{remove_stale_temporaries, remove_temporaries_for_exit};
 
 /// Checks that `path` has an extension cassi can write (.npy, .npz, .mat),
 /// so a command can refuse a bad output name before doing any work.

@@ -18,8 +18,9 @@
 use std::io::Read;
 use std::path::Path;
 
+use crate::array::Elem;
 use crate::array::{Endian, VarInfo, element_count};
-use crate::decode::{Elem, Sink, inflate_bound, pump};
+use crate::decode::{Sink, inflate_bound, pump};
 use crate::error::{IoError, Result};
 
 const FORMAT: &str = "MATLAB v5 MAT-file";

@@ -17,8 +17,9 @@ use hdf5_reader::messages::layout::DataLayout;
 use hdf5_reader::object_header::ObjectHeader;
 use hdf5_reader::{ByteOrder, Dataset, Datatype, Hdf5File, OpenOptions};
 
+use crate::array::Elem;
 use crate::array::{Endian, VarInfo};
-use crate::decode::{Elem, Sink};
+use crate::decode::Sink;
 use crate::error::{IoError, Result};
 
 const FORMAT: &str = "MATLAB v7.3 MAT-file (HDF5)";

@@ -10,8 +10,9 @@ use std::fs::File;
 use std::io::{Read, Seek, Write};
 use std::path::Path;
 
+use crate::array::Elem;
 use crate::array::{Endian, VarInfo, element_count};
-use crate::decode::{Elem, Sink, inflate_bound, pump};
+use crate::decode::{Sink, inflate_bound, pump};
 use crate::error::{IoError, Result};
 
 const MAGIC: &[u8; 6] = b"\x93NUMPY";

@@ -7,8 +7,8 @@ use serde::Serialize;
 use cassi_core::limits;
 
 use crate::array::{VarInfo, element_count, list_vars, shape_str};
+use crate::decode::Stats;
 use crate::decode::{F32Sink, Sink, StatsSink};
-use crate::describe::Stats;
 use crate::error::{IoError, Result};
 use crate::escape::esc;
 use crate::mat5::Mat5;

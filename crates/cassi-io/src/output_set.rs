@@ -50,8 +50,8 @@
 use std::path::{Component, Path, PathBuf};
 use std::sync::Mutex;
 
-use crate::atomic;
 use crate::error::{IoError, Result};
+use crate::temporaries;
 
 /// A file path with the flag or role it came from.
 #[derive(Debug, Clone)]
@@ -240,7 +240,7 @@ impl OutputSet {
             .collect();
         folders.dedup();
         for dir in folders.iter().filter(|d| d.is_dir()) {
-            atomic::sweep_once(dir);
+            temporaries::sweep_once(dir);
         }
         Ok(CheckedSet {
             outputs,
@@ -304,7 +304,7 @@ impl CheckedSet {
                 path: dir.clone(),
                 reason: format!("cannot create the output folder: {e}"),
             })?;
-            atomic::sweep_once(dir);
+            temporaries::sweep_once(dir);
         }
         let mut active = lock_active();
         if active.is_some() {
@@ -353,7 +353,7 @@ pub(crate) fn record(path: &Path, target: PathBuf, tmp: PathBuf) -> Result<()> {
     let mut active = lock_active();
     let Some(a) = active.as_mut() else {
         drop(active);
-        atomic::discard(&tmp);
+        temporaries::discard(&tmp);
         return Err(IoError::InvalidArgument {
             path: path.to_path_buf(),
             reason: "the output set was closed while this file was written".into(),
@@ -361,7 +361,7 @@ pub(crate) fn record(path: &Path, target: PathBuf, tmp: PathBuf) -> Result<()> {
     };
     if let Some(i) = a.staged.iter().position(|(d, _)| *d == target) {
         let (_, old) = a.staged.remove(i);
-        atomic::discard(&old);
+        temporaries::discard(&old);
     }
     a.staged.push((target, tmp));
     Ok(())
@@ -403,11 +403,11 @@ impl Staging {
         self.done = true;
         let staged = lock_active().take().map(|a| a.staged).unwrap_or_default();
         // holding the list of temporaries: an exit handler waits for the commit
-        let mut temps = atomic::lock_temps();
+        let mut temps = temporaries::lock_temps();
         let drop_temps = |temps: &mut Vec<PathBuf>, list: &[(PathBuf, PathBuf)]| {
             for (_, tmp) in list {
                 let _ = std::fs::remove_file(tmp);
-                atomic::unregister(temps, tmp);
+                temporaries::unregister(temps, tmp);
             }
         };
         // 1. keep the files about to be replaced
@@ -419,13 +419,13 @@ impl Staging {
             }
             let dir = dest.parent().unwrap_or(Path::new("."));
             let name = dest.file_name().unwrap_or_default();
-            let backup = dir.join(atomic::temp_name(name));
+            let backup = dir.join(temporaries::temp_name(name));
             temps.push(backup.clone());
             let kept = std::fs::hard_link(dest, &backup)
                 .or_else(|_| std::fs::copy(dest, &backup).map(|_| ()));
             if let Err(e) = kept {
                 let _ = std::fs::remove_file(&backup);
-                atomic::unregister(&mut temps, &backup);
+                temporaries::unregister(&mut temps, &backup);
                 remove_backups(&mut temps, &backups);
                 drop_temps(&mut temps, &staged);
                 return Err(IoError::Write {
@@ -456,7 +456,7 @@ impl Staging {
                 }
                 drop_temps(&mut temps, &staged[k..]);
                 for (_, tmp) in &staged[..k] {
-                    atomic::unregister(&mut temps, tmp);
+                    temporaries::unregister(&mut temps, tmp);
                 }
                 remove_backups(&mut temps, &backups);
                 let mut detail = format!("cannot move the new file into place: {e}");
@@ -474,7 +474,7 @@ impl Staging {
                     cause: std::io::Error::other(detail),
                 });
             }
-            atomic::unregister(&mut temps, tmp);
+            temporaries::unregister(&mut temps, tmp);
         }
         // 3. the previous files are no longer needed
         remove_backups(&mut temps, &backups);
@@ -492,7 +492,7 @@ impl Staging {
 fn remove_backups(temps: &mut Vec<PathBuf>, backups: &[Option<PathBuf>]) {
     for b in backups.iter().flatten() {
         let _ = std::fs::remove_file(b);
-        atomic::unregister(temps, b);
+        temporaries::unregister(temps, b);
     }
 }
 
@@ -503,7 +503,7 @@ impl Drop for Staging {
         }
         let staged = lock_active().take().map(|a| a.staged).unwrap_or_default();
         for (_, tmp) in staged {
-            atomic::discard(&tmp);
+            temporaries::discard(&tmp);
         }
     }
 }
@@ -647,7 +647,11 @@ mod tests {
         assert_eq!(std::fs::read(&b).unwrap(), b"new b");
         assert_eq!(std::fs::read(&c).unwrap(), b"new c");
         assert!(hidden(&dir).is_empty(), "{:?}", hidden(&dir));
-        assert!(!atomic::lock_temps().iter().any(|t| t.starts_with(&dir)));
+        assert!(
+            !temporaries::lock_temps()
+                .iter()
+                .any(|t| t.starts_with(&dir))
+        );
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }
