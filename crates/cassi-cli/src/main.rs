@@ -5,6 +5,7 @@
 
 mod commands;
 mod interrupt;
+mod observer;
 mod report;
 mod sidecar;
 

@@ -35,6 +35,15 @@ impl Reporter {
         label: &str,
         work: impl FnOnce() -> anyhow::Result<T>,
     ) -> anyhow::Result<T> {
+        self.begin_stage(label);
+        let t0 = Instant::now();
+        let out = work();
+        self.end_stage(label, t0.elapsed().as_secs_f64(), out.is_ok());
+        out
+    }
+
+    /// Shows the spinner of a stage that begins (on a terminal).
+    pub fn begin_stage(&self, label: &str) {
         if self.interactive {
             let bar = ProgressBar::new_spinner();
             bar.set_style(
@@ -44,13 +53,14 @@ impl Reporter {
             bar.enable_steady_tick(Duration::from_millis(100));
             *self.active.borrow_mut() = Some(bar);
         }
-        let t0 = Instant::now();
-        let out = work();
+    }
+
+    /// Clears the stage's spinner and, when it succeeded, prints its time.
+    pub fn end_stage(&self, label: &str, seconds: f64, ok: bool) {
         self.clear();
-        if out.is_ok() && !self.quiet {
-            eprintln!("  {label:<36} {:>8.2} s", t0.elapsed().as_secs_f64());
+        if ok && !self.quiet {
+            eprintln!("  {label:<36} {seconds:>8.2} s");
         }
-        out
     }
 
     /// A progress bar over `len` steps (iterations), shown on a terminal only;

@@ -3,12 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
-use cassi_eval::records::{JsonFile, Record, SimulationRecord, read_record};
-
-/// `out/meas.npy` → `out/meas.json`.
-pub fn sidecar_path(measurement: &Path) -> PathBuf {
-    measurement.with_extension("json")
-}
+use cassi_eval::records::{JsonFile, Record, SimulationRecord, read_record, sidecar_path};
 
 /// The simulation sidecar beside `measurement`, if there is one: a JSON file
 /// of that name holding a simulation record (of any version, so a newer

@@ -8,6 +8,7 @@
 
 pub mod digests;
 pub mod figures;
+pub mod jobs;
 pub mod learned;
 pub mod machine;
 pub mod method;

@@ -44,6 +44,14 @@ pub struct Study {
     pub stride: f64,
 }
 
+impl Study {
+    /// How many progress steps `run_scene` reports per scene: simulating,
+    /// self-calibrating, then every method in every scenario.
+    pub fn steps_per_scene(&self) -> u64 {
+        2 + (Scenario::ALL.len() * self.methods.len()) as u64
+    }
+}
+
 /// One of the protocol's reconstructions.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]

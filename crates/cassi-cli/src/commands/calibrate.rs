@@ -10,7 +10,6 @@ use clap::Args;
 use cassi_io::OutputSet;
 
 use super::inputs::{MeasurementArgs, UncodedMask};
-use super::simulate::check_output;
 use crate::interrupt;
 use crate::report::Reporter;
 
@@ -42,7 +41,7 @@ pub fn run(args: &CalibrateArgs, reporter: &Reporter) -> anyhow::Result<()> {
     args.input.declare_inputs(&mut set);
     set.output("-o", &args.output);
     if let Some(p) = &args.write_mask {
-        check_output(p)?;
+        cassi_io::check_output_format(p)?;
         set.output("--write-mask", p);
     }
     let checked = set.check()?;

@@ -1,34 +1,20 @@
 //! `cassi demo`: the paper's mismatch on the embedded synthetic scene, with
-//! no input files. By default the snapshot comes from the physical simulator
-//! (4× oversampled, crisp mask squares, continuous dispersion, optical blur,
-//! a fixed sensor crop), which no operator the calibration fits can
-//! reproduce; `--instrument rounded|subpixel` makes it with a model's own
-//! operator instead (an inverse crime, kept for comparison).
+//! no input files (the job is [`cassi_eval::jobs::demo`]; this prints it).
 
 use std::path::PathBuf;
 
-use cassi_core::calib::{
-    Calibration, CalibrationProblem, DefaultPreset, Preset, calibrate_default,
-};
-use cassi_core::color::pseudo_rgb;
-use cassi_core::optics::{
-    DispersionModel, NoiseModel, PhysicalSpec, SimulationSpec, simulate, simulate_physical,
-};
+use cassi_core::calib::Calibration;
+use cassi_core::optics::{DispersionModel, PhysicalSpec};
 use cassi_core::recon::Method;
-use cassi_core::synth::{SceneSpec, random_binary_mask, synthetic_scene};
-use cassi_core::{Instrument, Mismatch, Parameter};
-use cassi_eval::protocol::{Prepared, Scenario, Study, ideal_measurements, run_prepared};
-use cassi_eval::report::{Setup, write_all};
-use cassi_eval::study_figures::write_qualitative;
-use cassi_eval::summary::summarize;
-use cassi_eval::sweep_rows::Sweeps;
-use cassi_io::OutputSet;
-use clap::{Args, ValueEnum};
+use cassi_core::{Mismatch, Parameter};
+use cassi_eval::jobs::demo::{
+    DemoInstrument, DemoOutcome, DemoPlan, MASK_SEED, SIZE, report_path, run_demo,
+};
+use cassi_eval::protocol::Scenario;
+use clap::Args;
 
-use super::simulate::{SimulationInputs, simulate_and_write};
-use crate::interrupt;
+use crate::observer::CliObserver;
 use crate::report::Reporter;
-use cassi_eval::records::Source;
 
 #[derive(Args)]
 pub struct DemoArgs {
@@ -41,210 +27,23 @@ pub struct DemoArgs {
     /// The true instrument: `physical` (4× oversampled, blur σ 0.5 px, fixed
     /// sensor; calibrated and reconstructed with the subpixel model) or a
     /// model's own operator (`rounded`, `subpixel`: an inverse crime).
-    #[arg(long, default_value = "physical")]
+    #[arg(long, default_value = "physical", value_parser = DemoInstrument::parse)]
     pub instrument: DemoInstrument,
 }
 
-/// What makes the demo's snapshot.
-#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum DemoInstrument {
-    Physical,
-    Rounded,
-    Subpixel,
-}
-
-impl DemoInstrument {
-    /// The model family that calibrates and reconstructs the snapshot.
-    fn model(self) -> DispersionModel {
-        match self {
-            Self::Physical | Self::Subpixel => DispersionModel::Subpixel,
-            Self::Rounded => DispersionModel::Rounded,
-        }
-    }
-}
-
-const SIZE: usize = 256;
-const MASK_SEED: u64 = 1;
-/// The physical instrument's grid, blur and sensor: a blur within the range
-/// the calibration benchmark covers (0–0.8 px), the sensor cropped to the
-/// nominal design's width (mask + 27 × stride), as a real camera's is.
-const OVERSAMPLE: usize = 4;
-const BLUR_SIGMA_PX: f64 = 0.5;
-
 pub fn run(args: &DemoArgs, reporter: &Reporter) -> anyhow::Result<()> {
-    // every file goes into --out, and all of them are replaced together at
-    // the end (or none, when anything fails or a signal comes)
-    let checked = OutputSet::new().output_dir("--out", &args.out).check()?;
-    let staging = checked.begin()?;
-    let instrument = Instrument::default();
-    let scene = reporter.stage("generating the synthetic scene", || {
-        Ok(synthetic_scene(&SceneSpec {
-            rows: SIZE,
-            cols: SIZE,
-            wavelengths_nm: instrument.wavelengths_nm.clone(),
-            seed: args.seed,
-        })?)
-    })?;
-    let mask = random_binary_mask(SIZE, SIZE, 0.5, MASK_SEED)?;
-    let model = args.instrument.model();
-    let physical = (args.instrument == DemoInstrument::Physical).then(|| PhysicalSpec {
-        oversample: OVERSAMPLE,
-        blur_sigma_px: BLUR_SIGMA_PX,
-        detector: Some((
-            SIZE,
-            SIZE + ((instrument.bands - 1) as f64 * instrument.stride).round() as usize,
-        )),
-        ..PhysicalSpec::default()
-    });
-    let spec = SimulationSpec {
-        mismatch: Mismatch {
-            blur_sigma_px: physical.map_or(0.0, |p| p.blur_sigma_px),
-            ..Mismatch::paper()
-        },
-        model,
-        noise: Some(NoiseModel::default()),
+    let plan = DemoPlan {
+        out: args.out.clone(),
+        seed: args.seed,
+        instrument: args.instrument,
     };
-    let inputs = SimulationInputs {
-        scene,
-        scene_source: Source::Synthetic {
-            seed: args.seed,
-            rows: SIZE,
-            cols: SIZE,
-            bands: instrument.bands,
-        },
-        mask,
-        mask_source: Source::Random {
-            seed: MASK_SEED,
-            open_fraction: 0.5,
-            rows: SIZE,
-            cols: SIZE,
-        },
-        instrument,
-        spec,
-        physical,
-    };
-    let meas_path = args.out.join("measurement.npy");
-    let (measurement, record) = simulate_and_write(&inputs, &meas_path, true, reporter)?;
-    reporter.stage("writing previews", || {
-        cassi_io::save_cube(args.out.join("scene.npy"), &inputs.scene, "scene")?;
-        cassi_io::save_frame(args.out.join("mask.npy"), &inputs.mask, "mask")?;
-        cassi_io::write_frame_png16(args.out.join("mask.png"), &inputs.mask, Some(1.0))?;
-        let rgb = pseudo_rgb(&inputs.scene, &inputs.instrument.wavelengths_nm)?;
-        cassi_io::write_rgb_png(args.out.join("scene_rgb.png"), &rgb)?;
-        Ok(())
-    })?;
-    // How much the noise costs: SNR of the noisy snapshot against the clean one.
-    let clean = match &physical {
-        None => simulate(
-            &inputs.scene,
-            &inputs.mask,
-            &SimulationSpec {
-                noise: None,
-                ..spec
-            },
-        )?,
-        Some(p) => simulate_physical(
-            &inputs.scene,
-            &inputs.mask,
-            &inputs.instrument.wavelengths_nm,
-            &spec.mismatch,
-            p,
-            None,
-        )?,
-    };
-    let (signal, error) = clean
-        .as_slice()
-        .iter()
-        .zip(measurement.as_slice())
-        .fold((0.0f64, 0.0f64), |(s, e), (&c, &n)| {
-            (s + (c as f64).powi(2), e + (n as f64 - c as f64).powi(2))
-        });
-    let snr_db = 10.0 * (signal / error.max(f64::MIN_POSITIVE)).log10();
-
-    // GAP-TV with the model a user would assume (nominal) and with the true
-    // one (the oracle): the gap between them is what calibration can win.
-    // Self-calibration from the measurement and the nominal mask alone.
-    let problem = CalibrationProblem {
-        measurement: &measurement,
-        nominal_mask: &inputs.mask,
-        bands: inputs.instrument.bands,
-        model,
-    };
-    let calibration = reporter.stage("self-calibrating (default preset)", || {
-        Ok(calibrate_default(
-            &problem,
-            &DefaultPreset::default(),
-            &mut |_| interrupt::stop_point(),
-        )?)
-    })?;
-    cassi_eval::records::write_record(args.out.join("calibration.json"), &calibration)?;
-
-    // The four scenarios of the evaluation protocol on this scene, with the
-    // measurement and calibration above; then the study's report.
-    let method = Method::by_name("gap-tv")?;
-    let study = Study {
-        mismatch: spec.mismatch,
-        instrument: model,
-        noise: NoiseModel::default(),
-        preset: Preset::Default(DefaultPreset::default()),
-        methods: vec![method.into()],
-        stride: inputs.instrument.stride,
-    };
-    let (ideal_clean, ideal_noisy) = ideal_measurements(
-        &inputs.scene,
-        &inputs.mask,
-        inputs.instrument.stride,
-        &NoiseModel::default(),
-    )?;
-    let prepared = Prepared {
-        ideal_clean,
-        ideal_noisy,
-        measurement: measurement.clone(),
-        calibration: calibration.clone(),
-    };
-    let (mut result, kept) = reporter.stage("GAP-TV in the five scenario variants", || {
-        run_prepared(
-            &format!("synthetic_{}", args.seed),
-            &inputs.scene,
-            &inputs.mask,
-            &study,
-            &prepared,
-            std::time::Instant::now(),
-            true,
-            &mut |_| interrupt::stop_point(),
-        )
-    })?;
-    // the scene's time includes the calibration made above
-    result.seconds += calibration.seconds;
-    for (scenario, cube) in &kept {
-        let rgb = pseudo_rgb(cube, &inputs.instrument.wavelengths_nm)?;
-        let file = format!("recon_{}_rgb.png", scenario_file(*scenario));
-        cassi_io::write_rgb_png(args.out.join(file), &rgb)?;
-    }
-    reporter.stage("writing the report", || {
-        write_qualitative(
-            &args.out,
-            &result.scene,
-            method.name(),
-            &inputs.scene,
-            &kept,
-        )?;
-        let results = [result.clone()];
-        let summary = summarize(&results);
-        write_all(
-            &args.out,
-            &Setup {
-                scenes: &format!("embedded synthetic scene (seed {})", args.seed),
-                mask: &format!("random binary, 50 % open (seed {MASK_SEED})"),
-            },
-            &study,
-            &results,
-            &summary,
-            &Sweeps::default(),
-        )
-    })?;
-    interrupt::check()?;
-    staging.commit()?;
+    let DemoOutcome {
+        record,
+        snr_db,
+        calibration,
+        method,
+        result,
+    } = run_demo(&plan, &mut CliObserver::new(reporter))?;
     let psnr = |s| {
         result
             .outcome(method.name(), s)
@@ -256,9 +55,12 @@ pub fn run(args: &DemoArgs, reporter: &Reporter) -> anyhow::Result<()> {
         psnr(Scenario::Oracle),
     );
 
-    let m = spec.mismatch;
-    let (l, h, w) = inputs.scene.shape();
-    let wl = &inputs.instrument.wavelengths_nm;
+    let m = record.simulation.mismatch;
+    let model = record.simulation.model;
+    let stride = record.instrument.stride;
+    let wl = &record.instrument.wavelengths_nm;
+    let (l, h, w) = (wl.len(), SIZE, SIZE);
+    let [rows, cols] = record.measurement.shape;
     reporter.say(&format!(
         "cassi demo: the paper's mismatch on the embedded synthetic scene\n\
          \x20 scene        synthetic {l}×{h}×{w} (bands×rows×cols, seed {}), {:.1}–{:.1} nm\n\
@@ -277,16 +79,16 @@ pub fn run(args: &DemoArgs, reporter: &Reporter) -> anyhow::Result<()> {
         wl[0],
         wl[wl.len() - 1],
         Parameter::format_all(&m),
-        describe_instrument(args.instrument, physical.as_ref()),
-        Parameter::format_all(&Mismatch::nominal(inputs.instrument.stride)),
-        measurement.rows(),
-        measurement.cols(),
+        describe_instrument(args.instrument, record.physical.as_ref()),
+        Parameter::format_all(&Mismatch::nominal(stride)),
+        rows,
+        cols,
         h,
-        w + ((l - 1) as f64 * inputs.instrument.stride).round() as usize,
+        w + ((l - 1) as f64 * stride).round() as usize,
         args.out.display(),
         calibration.seconds,
         calibration.evaluations,
-        parameter_table(&spec.mismatch, &calibration, model),
+        parameter_table(&m, &calibration, model),
         match method {
             Method::GapTv { gap, .. } => gap.iterations,
             _ => 0,
@@ -305,7 +107,7 @@ pub fn run(args: &DemoArgs, reporter: &Reporter) -> anyhow::Result<()> {
             .join("\n"),
         100.0 * (iii - ii) / (iv - ii),
         iv - ii,
-        args.out.join("report.md").display(),
+        report_path(&args.out).display(),
     ));
     reporter.emit(&serde_json::json!({
         "simulation": record,
@@ -368,14 +170,4 @@ fn parameter_table(truth: &Mismatch, cal: &Calibration, model: DispersionModel) 
         out += trade_offs.trim_end();
     }
     out
-}
-
-fn scenario_file(s: Scenario) -> &'static str {
-    match s {
-        Scenario::IdealClean => "ideal_noise_free",
-        Scenario::IdealNoisy => "ideal",
-        Scenario::Assumed => "assumed",
-        Scenario::Corrected => "corrected",
-        Scenario::Oracle => "oracle",
-    }
 }

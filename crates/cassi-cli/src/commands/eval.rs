@@ -3,31 +3,28 @@
 use std::path::PathBuf;
 
 use anyhow::Context;
+use cassi_core::Instrument;
+use cassi_core::Mismatch;
 use cassi_core::calib::{PRESET_NAMES, Preset};
 use cassi_core::limits::check_elements;
 use cassi_core::metrics::SSIM_WIN;
 use cassi_core::optics::NoiseModel;
-use cassi_core::optics::validate_mismatch_for_mask;
 use cassi_core::recon::registry::names_of;
 use cassi_core::recon::{Method, MethodId, MethodKind};
 use cassi_core::synth::random_binary_mask;
-use cassi_core::{Instrument, Mask, Mismatch};
-use cassi_eval::learned::{check_shape, check_stride};
+use cassi_eval::jobs::eval::{EvalOutcome, EvalPlan, declare_outputs, run_eval};
+use cassi_eval::learned::check_stride;
 use cassi_eval::method::{LearnedMethod, StudyMethod};
 use cassi_eval::protocol::Study;
-use cassi_eval::report::{REPORT_FILE, STUDY_FILES, Setup, write_all};
-use cassi_eval::study::{
-    Event, SceneSource, promote_pending, remove_pending, run_study, scenes_in,
-};
-use cassi_eval::summary::summarize;
-use cassi_eval::sweep::{ablation, scaled_mismatch, sensitivity};
-use cassi_eval::sweep_rows::Sweeps;
+use cassi_eval::report::REPORT_FILE;
+use cassi_eval::study::{SceneSource, scenes_in};
+use cassi_eval::sweep::scaled_mismatch;
 use cassi_eval::weights::{NETS_BUILT, parse_weight_flags, resolve_weights};
 use cassi_io::{CheckedSet, OutputSet};
 use clap::Args;
 
 use super::inputs::{MismatchArgs, NoiseArgs};
-use crate::interrupt;
+use crate::observer::CliObserver;
 use crate::report::Reporter;
 
 #[derive(Args)]
@@ -183,31 +180,6 @@ fn check_flags(args: &EvalArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Refuses a mask too small to score, or a mismatch (the study's, or any
-/// sweep's) that moves the mask off itself.
-fn check_mask(
-    args: &EvalArgs,
-    mask: &Mask,
-    mismatch: &Mismatch,
-    label: &str,
-) -> anyhow::Result<()> {
-    if mask.rows() < SSIM_WIN || mask.cols() < SSIM_WIN {
-        anyhow::bail!(
-            "mask {label} is {}×{}: scenes must be at least {SSIM_WIN}×{SSIM_WIN} pixels \
-             (SSIM's window)",
-            mask.rows(),
-            mask.cols()
-        );
-    }
-    validate_mismatch_for_mask(mismatch, mask.rows(), mask.cols())
-        .with_context(|| format!("the mismatch, with mask {label}"))?;
-    for &s in &args.sensitivity {
-        validate_mismatch_for_mask(&scaled_mismatch(s, args.stride), mask.rows(), mask.cols())
-            .with_context(|| format!("--sensitivity {s}, with mask {label}"))?;
-    }
-    Ok(())
-}
-
 /// The files the study reads and writes, checked before any work: the
 /// report files in --out, and its folders written scene by scene (scenes/,
 /// figures/, sensitivity/), which must hold no input.
@@ -235,15 +207,7 @@ fn check_files(args: &EvalArgs) -> anyhow::Result<CheckedSet> {
             set.input("a file of --weights-dir", path);
         }
     }
-    let out = &args.out;
-    for file in STUDY_FILES {
-        set.output(format!("--out's {file}"), out.join(file));
-    }
-    set.output_dir("--out's scenes/", out.join("scenes"))
-        .output_dir("--out's figures/", out.join("figures"));
-    if !args.sensitivity.is_empty() {
-        set.output_dir("--out's sensitivity/", out.join("sensitivity"));
-    }
+    declare_outputs(&mut set, &args.out, !args.sensitivity.is_empty());
     Ok(set.check()?)
 }
 
@@ -286,18 +250,6 @@ pub fn run(args: &EvalArgs, reporter: &Reporter) -> anyhow::Result<()> {
             format!("random binary {0}×{0}, 50 % open, seed 1", args.size),
         ),
     };
-    check_mask(args, &mask, &mismatch, &mask_label)?;
-    for method in &methods {
-        if let StudyMethod::Learned(l) = method {
-            let bands = match (&args.scenes, l.method.spec().shape.bands) {
-                // the scenes' band count is checked as each loads
-                (Some(_), Some(trained)) => trained,
-                _ => Instrument::default().wavelengths_nm.len(),
-            };
-            check_shape(l.method, bands, mask.rows(), mask.cols())
-                .with_context(|| format!("--methods {} with mask {mask_label}", l.method))?;
-        }
-    }
     let study = Study {
         mismatch,
         instrument: args.mismatch.model,
@@ -306,53 +258,6 @@ pub fn run(args: &EvalArgs, reporter: &Reporter) -> anyhow::Result<()> {
         methods,
         stride: args.stride,
     };
-    let steps_per_scene = 2 + 5 * study.methods.len() as u64;
-    let total = steps_per_scene * scenes.len() as u64;
-    let bar = reporter.progress("evaluating", total);
-    let mut done = 0u64;
-    let results = run_study(
-        &study,
-        &scenes,
-        &mask,
-        &args.out,
-        args.resume,
-        Some(&cassi_eval::study_figures::write_qualitative),
-        &mut |e| match e {
-            // between steps every finished scene is on disk: a signal ends
-            // the run here (rerun with --resume to go on)
-            _ if interrupt::cancelled() => interrupt::stop_point(),
-            Event::SceneStart { index, .. } => done = index as u64 * steps_per_scene,
-            Event::Step { .. } => {
-                done += 1;
-                bar.set(done);
-            }
-            Event::Skipped { name } => {
-                done += steps_per_scene;
-                bar.set(done);
-                reporter.say(&format!("  {name:<28} (result from an earlier run)"));
-            }
-            Event::Recomputed { name, reason } => {
-                reporter.say(&format!("  {name:<28} recomputed: {reason}"));
-            }
-            Event::SceneDone { result } => {
-                let line: Vec<String> = result
-                    .outcomes
-                    .iter()
-                    .filter(|o| o.method == result.outcomes[0].method)
-                    .map(|o| format!("{:.2}", o.metrics.psnr))
-                    .collect();
-                reporter.say(&format!(
-                    "  {:<28} calibrated in {:.1} s; {} PSNR I/I+n/II/III/IV {} dB",
-                    result.scene,
-                    result.calibration.seconds,
-                    result.outcomes[0].method,
-                    line.join(" / ")
-                ));
-            }
-        },
-    )?;
-    drop(bar);
-    let summary = summarize(&results);
     let sweep_presets: Vec<Preset> = if args.sweep_presets.is_empty() {
         vec![study.preset.clone()]
     } else {
@@ -361,83 +266,24 @@ pub fn run(args: &EvalArgs, reporter: &Reporter) -> anyhow::Result<()> {
             .map(|p| Preset::by_name(p, args.stride))
             .collect::<Result<_, _>>()?
     };
-    let mut sweeps = Sweeps::default();
-    if !args.sensitivity.is_empty() {
-        for preset in &sweep_presets {
-            let base = Study {
-                preset: preset.clone(),
-                ..study.clone()
-            };
-            let label = format!("sensitivity ({})", preset.name());
-            let total = (args.sensitivity.len() * scenes.len()) as u64;
-            let bar = reporter.progress(&label, total);
-            let mut done = 0;
-            let points = sensitivity(
-                &base,
-                &args.sensitivity,
-                &scenes,
-                &mask,
-                &args.out,
-                args.resume,
-                &mut |scale, e| {
-                    interrupt::stop_point();
-                    if matches!(e, Event::SceneDone { .. } | Event::Skipped { .. }) {
-                        done += 1;
-                        bar.set(done);
-                    }
-                    if let Event::Recomputed { name, reason } = &e {
-                        reporter.say(&format!("  {scale}×: {name:<24} recomputed: {reason}"));
-                    }
-                    if let Event::SceneDone { result } = e {
-                        reporter.say(&format!(
-                            "  {scale}×: {:<24} errors {}",
-                            result.scene,
-                            result.errors.format_all()
-                        ));
-                    }
-                },
-            )?;
-            sweeps.sensitivity.push((preset.name().to_string(), points));
-        }
-    }
-    if args.ablation {
-        let bar = reporter.progress("ablation", (sweep_presets.len() * scenes.len()) as u64);
-        let mut done = 0;
-        sweeps.ablation = Some(ablation(
-            &study,
-            &sweep_presets,
-            &scenes,
-            &mask,
-            &mut |_| {
-                interrupt::stop_point();
-                bar.set(done);
-                done += 1;
-            },
-        )?);
-    }
     let scenes_label = match &args.scenes {
         Some(d) => format!("`{}`", d.display()),
         None => format!("embedded synthetic {0}×{0}×28, seeds 0…", args.size),
     };
-    // the summary, tables, report and figures: all replaced, or none
-    interrupt::check()?;
-    let staging = checked.begin()?;
-    // the study's scene records and first-scene figures join the set
-    let pending = promote_pending(&args.out)?;
-    write_all(
-        &args.out,
-        &Setup {
-            scenes: &scenes_label,
-            mask: &mask_label,
-        },
-        &study,
-        &results,
-        &summary,
-        &sweeps,
-    )?;
-    interrupt::check()?;
-    staging.commit()?;
-    remove_pending(&pending)?;
+    let plan = EvalPlan {
+        study,
+        scenes,
+        mask,
+        scenes_label,
+        mask_label,
+        out: args.out.clone(),
+        resume: args.resume,
+        sensitivity: args.sensitivity.clone(),
+        ablation: args.ablation,
+        sweep_presets,
+    };
+    plan.check()?;
+    let EvalOutcome { summary, .. } = run_eval(&plan, checked, &mut CliObserver::new(reporter))?;
     let mut text = String::from("\n");
     text += &cassi_eval::tables::main_table(&summary);
     text += &format!(

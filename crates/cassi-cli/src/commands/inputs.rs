@@ -13,7 +13,8 @@ use cassi_io::{CubeLayout, OutputSet};
 use clap::{Args, ValueEnum};
 
 use crate::report::Reporter;
-use crate::sidecar::{existing_sidecar, recorded_bands, sidecar_path};
+use crate::sidecar::{existing_sidecar, recorded_bands};
+use cassi_eval::records::sidecar_path;
 
 #[derive(Clone, Copy, ValueEnum)]
 pub enum LayoutArg {

@@ -1,15 +1,16 @@
 //! `cassi simulate`: scene + mask + mismatch + noise → measurement + sidecar.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use anyhow::{Context, bail};
+use cassi_core::Instrument;
 use cassi_core::limits::check_elements;
 use cassi_core::optics::{
     DispersionModel, MaskCode, PhysicalSpec, SimulationSpec, mask_code, physical_detector_shape,
-    simulate, simulate_physical, validate_mismatch_for_mask,
+    validate_mismatch_for_mask,
 };
-use cassi_core::{Cube, Instrument, Mask, Measurement};
-use cassi_eval::records::{MeasurementInfo, SimulationRecord, Source};
+use cassi_eval::jobs::simulation::{SimulationInputs, declare_outputs, simulate_and_record};
+use cassi_eval::records::sidecar_path;
 use cassi_io::OutputSet;
 use clap::Args;
 
@@ -17,8 +18,8 @@ use super::inputs::{
     InstrumentArgs, MaskArgs, MismatchArgs, NoiseArgs, SceneArgs, load_mask, load_scene,
 };
 use crate::interrupt;
+use crate::observer::CliObserver;
 use crate::report::Reporter;
-use crate::sidecar::sidecar_path;
 
 #[derive(Args)]
 pub struct SimulateArgs {
@@ -154,85 +155,8 @@ fn parse_adc_bits(text: &str) -> Result<u32, String> {
     }
 }
 
-/// The inputs of one simulation, already loaded.
-pub struct SimulationInputs {
-    pub scene: Cube,
-    pub scene_source: Source,
-    pub mask: Mask,
-    pub mask_source: Source,
-    pub instrument: Instrument,
-    pub spec: SimulationSpec,
-    /// `Some`: the physical instrument ([`simulate_physical`]) with
-    /// `spec.mismatch` and `spec.noise`; `spec.model` is not used.
-    pub physical: Option<PhysicalSpec>,
-}
-
-/// Simulates and writes the measurement, its sidecar and (optionally) a PNG
-/// preview. The files go through the caller's output set: call it between
-/// [`cassi_io::CheckedSet::begin`] and the commit, with the paths declared
-/// by [`declare_outputs`].
-pub fn simulate_and_write(
-    inputs: &SimulationInputs,
-    output: &Path,
-    preview: bool,
-    reporter: &Reporter,
-) -> anyhow::Result<(Measurement, SimulationRecord)> {
-    let measurement = reporter.stage("simulating the measurement", || {
-        Ok(match &inputs.physical {
-            None => simulate(&inputs.scene, &inputs.mask, &inputs.spec)?,
-            Some(physical) => simulate_physical(
-                &inputs.scene,
-                &inputs.mask,
-                &inputs.instrument.wavelengths_nm,
-                &inputs.spec.mismatch,
-                physical,
-                inputs.spec.noise.as_ref(),
-            )?,
-        })
-    })?;
-    interrupt::check()?;
-    let (min, max) = measurement.min_max();
-    let record = SimulationRecord {
-        cassi_version: env!("CARGO_PKG_VERSION").to_string(),
-        scene: inputs.scene_source.clone(),
-        mask: inputs.mask_source.clone(),
-        instrument: inputs.instrument.clone(),
-        simulation: inputs.spec,
-        physical: inputs.physical,
-        measurement: MeasurementInfo {
-            path: output.to_path_buf(),
-            shape: [measurement.rows(), measurement.cols()],
-            min,
-            max,
-        },
-    };
-    reporter.stage("writing the measurement", || {
-        cassi_io::save_frame(output, &measurement, "measurement")?;
-        cassi_eval::records::write_record(sidecar_path(output), &record)?;
-        if preview {
-            cassi_io::write_frame_png16(output.with_extension("png"), &measurement, None)?;
-        }
-        Ok(())
-    })?;
-    Ok((measurement, record))
-}
-
-/// The files [`simulate_and_write`] writes for `-o output`.
-pub fn declare_outputs(set: &mut OutputSet, output: &Path, preview: bool) {
-    set.output("-o", output)
-        .output("the sidecar (-o with .json)", sidecar_path(output));
-    if preview {
-        set.output("the preview (-o with .png)", output.with_extension("png"));
-    }
-}
-
-/// Refuses an output name cassi cannot write (by its extension).
-pub fn check_output(output: &Path) -> anyhow::Result<()> {
-    Ok(cassi_io::check_output_format(output)?)
-}
-
 pub fn run(args: &SimulateArgs, reporter: &Reporter) -> anyhow::Result<()> {
-    check_output(&args.output)?;
+    cassi_io::check_output_format(&args.output)?;
     // every file read and written, compared before any work
     let mut set = OutputSet::new();
     if let Some(p) = &args.scene.scene {
@@ -241,7 +165,7 @@ pub fn run(args: &SimulateArgs, reporter: &Reporter) -> anyhow::Result<()> {
     if let Some(p) = &args.mask.mask {
         set.input("--mask", p);
     }
-    declare_outputs(&mut set, &args.output, args.preview);
+    declare_outputs(&mut set, "-o", &args.output, args.preview);
     let checked = set.check()?;
     // Parameters first: a typo should not cost a scene load.
     Instrument::with_bands(1, args.instrument.stride).context("--stride")?;
@@ -329,7 +253,12 @@ pub fn run(args: &SimulateArgs, reporter: &Reporter) -> anyhow::Result<()> {
         physical,
     };
     let staging = checked.begin()?;
-    let (measurement, record) = simulate_and_write(&inputs, &args.output, args.preview, reporter)?;
+    let (measurement, record) = simulate_and_record(
+        &inputs,
+        &args.output,
+        args.preview,
+        &mut CliObserver::new(reporter),
+    )?;
     interrupt::check()?;
     staging.commit()?;
     reporter.say(&format!(

@@ -17,7 +17,7 @@ use serde::Serialize;
 use serde::de::DeserializeOwned;
 use serde_json::Value;
 
-pub use simulation::{MeasurementInfo, SimulationRecord, Source};
+pub use simulation::{MeasurementInfo, SimulationRecord, Source, sidecar_path};
 pub use study::{SceneRecord, StudySetup, SummaryRecord};
 
 /// A record kind: its header and its shape before the header existed. The

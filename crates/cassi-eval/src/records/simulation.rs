@@ -1,13 +1,18 @@
 //! The simulation sidecar: the JSON record written beside every simulated
 //! measurement (`cassi simulate`), everything needed to reproduce it.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use cassi_core::Instrument;
 use cassi_core::optics::{PhysicalSpec, SimulationSpec};
 use serde::{Deserialize, Serialize};
 
 use super::Record;
+
+/// Where the sidecar of a measurement goes: `out/meas.npy` → `out/meas.json`.
+pub fn sidecar_path(measurement: &Path) -> PathBuf {
+    measurement.with_extension("json")
+}
 
 /// Where an input array came from.
 #[derive(Debug, Clone, Serialize, Deserialize)]

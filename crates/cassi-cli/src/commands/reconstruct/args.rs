@@ -16,7 +16,6 @@ use clap::Args;
 use clap::builder::TypedValueParser;
 
 use crate::commands::inputs::{LayoutArg, MeasurementArgs, parse_iterations, parse_weight};
-use crate::commands::simulate::check_output;
 
 #[derive(Args)]
 pub struct ReconstructArgs {
@@ -167,7 +166,7 @@ impl ReconstructArgs {
     /// Checks every output (the cube, its .png and .json) against every
     /// input before any work; see [`cassi_io::OutputSet`].
     pub(crate) fn check_files(&self) -> anyhow::Result<CheckedSet> {
-        check_output(&self.output)?;
+        cassi_io::check_output_format(&self.output)?;
         let mut set = OutputSet::new();
         self.input.declare_inputs(&mut set);
         for (flag, path) in [

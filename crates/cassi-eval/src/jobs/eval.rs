@@ -1,0 +1,258 @@
+//! The whole evaluation (`cassi eval`): the four-scenario study over a set
+//! of scenes, the optional sweeps, then the summary, tables, report and
+//! figures, all replaced together or not at all.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::Context;
+use cassi_core::calib::Preset;
+use cassi_core::metrics::SSIM_WIN;
+use cassi_core::optics::validate_mismatch_for_mask;
+use cassi_core::{Instrument, Mask};
+use cassi_io::{CheckedSet, OutputSet};
+
+use super::JobObserver;
+use crate::learned::check_shape;
+use crate::method::StudyMethod;
+use crate::protocol::{SceneResult, Study};
+use crate::report::{STUDY_FILES, Setup, write_all};
+use crate::study::{Event, SceneSource, promote_pending, remove_pending, run_study};
+use crate::study_figures::write_qualitative;
+use crate::summary::{Summary, summarize};
+use crate::sweep::{ablation, scaled_mismatch, sensitivity};
+use crate::sweep_rows::Sweeps;
+
+/// One evaluation, fully decided: what runs, on what, and where it goes.
+pub struct EvalPlan {
+    pub study: Study,
+    pub scenes: Vec<SceneSource>,
+    pub mask: Mask,
+    /// How the report names the scenes and the mask.
+    pub scenes_label: String,
+    pub mask_label: String,
+    /// The output folder (per-scene results, tables, report, figures).
+    pub out: PathBuf,
+    /// Reuse scene results of the same study already in `out`.
+    pub resume: bool,
+    /// Also run the study at these multiples of the paper's mismatch.
+    pub sensitivity: Vec<f64>,
+    /// Also compare the search stages alone with the full pipeline.
+    pub ablation: bool,
+    /// The presets the sweeps run.
+    pub sweep_presets: Vec<Preset>,
+}
+
+/// What an evaluation produced (its files are in the plan's `out`).
+pub struct EvalOutcome {
+    pub results: Vec<SceneResult>,
+    pub summary: Summary,
+    pub sweeps: Sweeps,
+}
+
+/// Declares the files and folders an evaluation into `out` writes: the
+/// report files, and the folders written scene by scene (which must hold
+/// no input).
+pub fn declare_outputs(set: &mut OutputSet, out: &Path, with_sensitivity: bool) {
+    for file in STUDY_FILES {
+        set.output(format!("--out's {file}"), out.join(file));
+    }
+    set.output_dir("--out's scenes/", out.join("scenes"))
+        .output_dir("--out's figures/", out.join("figures"));
+    if with_sensitivity {
+        set.output_dir("--out's sensitivity/", out.join("sensitivity"));
+    }
+}
+
+impl EvalPlan {
+    /// Refuses, before any work, a mask too small to score, a mismatch (the
+    /// study's, or any sweep's) that moves the mask off itself, and a
+    /// learned method whose network cannot take the scenes' shape.
+    pub fn check(&self) -> anyhow::Result<()> {
+        let (mask, label) = (&self.mask, &self.mask_label);
+        if mask.rows() < SSIM_WIN || mask.cols() < SSIM_WIN {
+            anyhow::bail!(
+                "mask {label} is {}×{}: scenes must be at least {SSIM_WIN}×{SSIM_WIN} pixels \
+                 (SSIM's window)",
+                mask.rows(),
+                mask.cols()
+            );
+        }
+        validate_mismatch_for_mask(&self.study.mismatch, mask.rows(), mask.cols())
+            .with_context(|| format!("the mismatch, with mask {label}"))?;
+        for &s in &self.sensitivity {
+            validate_mismatch_for_mask(
+                &scaled_mismatch(s, self.study.stride),
+                mask.rows(),
+                mask.cols(),
+            )
+            .with_context(|| format!("--sensitivity {s}, with mask {label}"))?;
+        }
+        let from_files = self
+            .scenes
+            .iter()
+            .any(|s| matches!(s, SceneSource::File { .. }));
+        for method in &self.study.methods {
+            if let StudyMethod::Learned(l) = method {
+                let bands = match (from_files, l.method.spec().shape.bands) {
+                    // the scenes' band count is checked as each loads
+                    (true, Some(trained)) => trained,
+                    _ => Instrument::default().wavelengths_nm.len(),
+                };
+                check_shape(l.method, bands, mask.rows(), mask.cols())
+                    .with_context(|| format!("--methods {} with mask {label}", l.method))?;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Runs the plan: the study scene by scene (each result on disk as it is
+/// made, so an interrupted run resumes), the sweeps, then every report file
+/// written together. `checked` holds the output paths checked before any
+/// work (see [`declare_outputs`]).
+pub fn run_eval(
+    plan: &EvalPlan,
+    checked: CheckedSet,
+    observer: &mut dyn JobObserver,
+) -> anyhow::Result<EvalOutcome> {
+    let study = &plan.study;
+    let steps_per_scene = study.steps_per_scene();
+    observer.progress_started("evaluating", steps_per_scene * plan.scenes.len() as u64);
+    let mut done = 0u64;
+    let results = run_study(
+        study,
+        &plan.scenes,
+        &plan.mask,
+        &plan.out,
+        plan.resume,
+        Some(&write_qualitative),
+        &mut |e| {
+            // between steps every finished scene is on disk: a signal may
+            // end the run here (rerun with resume to go on)
+            observer.stop_point();
+            match e {
+                Event::SceneStart { index, .. } => done = index as u64 * steps_per_scene,
+                Event::Step { .. } => {
+                    done += 1;
+                    observer.progress(done);
+                }
+                Event::Skipped { name } => {
+                    done += steps_per_scene;
+                    observer.progress(done);
+                    observer.say(&format!("  {name:<28} (result from an earlier run)"));
+                }
+                Event::Recomputed { name, reason } => {
+                    observer.say(&format!("  {name:<28} recomputed: {reason}"));
+                }
+                Event::SceneDone { result } => observer.say(&scene_line(result)),
+            }
+        },
+    )?;
+    observer.progress_finished();
+    let summary = summarize(&results);
+    let sweeps = run_sweeps(plan, observer)?;
+    // the summary, tables, report and figures: all replaced, or none
+    observer.checkpoint()?;
+    let staging = checked.begin()?;
+    // the study's scene records and first-scene figures join the set
+    let pending = promote_pending(&plan.out)?;
+    write_all(
+        &plan.out,
+        &Setup {
+            scenes: &plan.scenes_label,
+            mask: &plan.mask_label,
+        },
+        study,
+        &results,
+        &summary,
+        &sweeps,
+    )?;
+    observer.checkpoint()?;
+    staging.commit()?;
+    remove_pending(&pending)?;
+    Ok(EvalOutcome {
+        results,
+        summary,
+        sweeps,
+    })
+}
+
+/// A finished scene in one line: calibration time and the first method's
+/// PSNR in every scenario.
+fn scene_line(result: &SceneResult) -> String {
+    let first = &result.outcomes[0].method;
+    let psnr: Vec<String> = result
+        .outcomes
+        .iter()
+        .filter(|o| o.method == *first)
+        .map(|o| format!("{:.2}", o.metrics.psnr))
+        .collect();
+    format!(
+        "  {:<28} calibrated in {:.1} s; {first} PSNR I/I+n/II/III/IV {} dB",
+        result.scene,
+        result.calibration.seconds,
+        psnr.join(" / ")
+    )
+}
+
+/// The sensitivity curves (one per sweep preset) and the ablation the plan
+/// asks for.
+fn run_sweeps(plan: &EvalPlan, observer: &mut dyn JobObserver) -> anyhow::Result<Sweeps> {
+    let mut sweeps = Sweeps::default();
+    if !plan.sensitivity.is_empty() {
+        for preset in &plan.sweep_presets {
+            let base = Study {
+                preset: preset.clone(),
+                ..plan.study.clone()
+            };
+            let total = (plan.sensitivity.len() * plan.scenes.len()) as u64;
+            observer.progress_started(&format!("sensitivity ({})", preset.name()), total);
+            let mut done = 0;
+            let points = sensitivity(
+                &base,
+                &plan.sensitivity,
+                &plan.scenes,
+                &plan.mask,
+                &plan.out,
+                plan.resume,
+                &mut |scale, e| {
+                    observer.stop_point();
+                    if matches!(e, Event::SceneDone { .. } | Event::Skipped { .. }) {
+                        done += 1;
+                        observer.progress(done);
+                    }
+                    if let Event::Recomputed { name, reason } = &e {
+                        observer.say(&format!("  {scale}×: {name:<24} recomputed: {reason}"));
+                    }
+                    if let Event::SceneDone { result } = e {
+                        observer.say(&format!(
+                            "  {scale}×: {:<24} errors {}",
+                            result.scene,
+                            result.errors.format_all()
+                        ));
+                    }
+                },
+            )?;
+            observer.progress_finished();
+            sweeps.sensitivity.push((preset.name().to_string(), points));
+        }
+    }
+    if plan.ablation {
+        let total = (plan.sweep_presets.len() * plan.scenes.len()) as u64;
+        observer.progress_started("ablation", total);
+        let mut done = 0;
+        sweeps.ablation = Some(ablation(
+            &plan.study,
+            &plan.sweep_presets,
+            &plan.scenes,
+            &plan.mask,
+            &mut |_| {
+                observer.stop_point();
+                observer.progress(done);
+                done += 1;
+            },
+        )?);
+        observer.progress_finished();
+    }
+    Ok(sweeps)
+}
