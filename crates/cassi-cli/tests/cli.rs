@@ -522,6 +522,52 @@ fn calibrate_recovers_the_simulated_mismatch_and_feeds_reconstruct() {
     assert_eq!(report["model_parameters"], cal["parameters"]);
 }
 
+/// The sweeps' studies run in folders of their own under --out; their
+/// scene records join the output set with the rest (they used to fail to
+/// write: their nested folders were never created).
+#[test]
+fn eval_sweeps_write_their_studies_and_tables() {
+    let dir = scratch("eval-sweeps");
+    let out = dir.join("study");
+    let res = cassi(&[
+        "eval",
+        "--synthetic",
+        "--size",
+        "64",
+        "--iterations",
+        "15",
+        "--sensitivity",
+        "0.5,1",
+        "--ablation",
+        "-o",
+        s(&out),
+    ]);
+    assert!(
+        res.status.success(),
+        "{}",
+        String::from_utf8_lossy(&res.stderr)
+    );
+    for scale in ["0.5", "1"] {
+        let f = out.join(format!(
+            "sensitivity/default_scale{scale}/scenes/synthetic_0.json"
+        ));
+        assert!(f.is_file(), "{} missing", f.display());
+    }
+    assert!(
+        !out.join("sensitivity/default_scale0.5/.pending").exists(),
+        "a sweep's pending folder was left behind"
+    );
+    let report = std::fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(
+        report.contains("## Sensitivity to the mismatch size"),
+        "{report}"
+    );
+    assert!(
+        report.contains("## Ablation of the calibration pipeline"),
+        "{report}"
+    );
+}
+
 #[test]
 fn eval_writes_the_study_and_resumes_without_rerunning() {
     let dir = scratch("eval");

@@ -160,6 +160,9 @@ fn copy_tree(from: &Path, to: &Path) -> anyhow::Result<()> {
         let entry = entry?;
         let (src, dst) = (entry.path(), to.join(entry.file_name()));
         if entry.file_type()?.is_dir() {
+            // a sweep's study folder nests below the declared output folder
+            std::fs::create_dir_all(&dst)
+                .with_context(|| format!("cannot create {}", dst.display()))?;
             copy_tree(&src, &dst)?;
         } else if !entry.file_name().to_string_lossy().starts_with('.') {
             // (hidden files are temporaries of an interrupted write)
