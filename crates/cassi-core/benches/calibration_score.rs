@@ -43,12 +43,7 @@ fn main() {
         noise: None,
     };
     let y = simulate(&scene, &mask, &spec).unwrap();
-    let problem = CalibrationProblem {
-        measurement: &y,
-        nominal_mask: &mask,
-        bands: 28,
-        model,
-    };
+    let problem = CalibrationProblem::nominal(&y, &mask, 28, 2.0, model).unwrap();
     let at = Mismatch {
         dx: 1.4,
         dy: 0.9,

@@ -47,12 +47,7 @@ fn the_score_is_minimal_at_the_truth_without_noise() {
         blur_sigma_px: 0.0,
     };
     let (y, mask) = setup(64, 8, truth, DispersionModel::Rounded);
-    let p = CalibrationProblem {
-        measurement: &y,
-        nominal_mask: &mask,
-        bands: 8,
-        model: DispersionModel::Rounded,
-    };
+    let p = CalibrationProblem::nominal(&y, &mask, 8, 2.0, DispersionModel::Rounded).unwrap();
     let proxy = ProxyParams::default();
     let at = p.score(&truth, &proxy).unwrap();
     let off = [
@@ -101,12 +96,7 @@ fn the_subpixel_score_is_minimal_at_the_true_dispersion() {
         blur_sigma_px: 0.0,
     };
     let (y, mask) = setup(64, 8, truth, DispersionModel::Subpixel);
-    let p = CalibrationProblem {
-        measurement: &y,
-        nominal_mask: &mask,
-        bands: 8,
-        model: DispersionModel::Subpixel,
-    };
+    let p = CalibrationProblem::nominal(&y, &mask, 8, 2.0, DispersionModel::Subpixel).unwrap();
     let proxy = ProxyParams::default();
     let at = p.score(&truth, &proxy).unwrap();
     for m in [
@@ -160,12 +150,7 @@ fn default_preset_recovers_a_known_mask_misalignment() {
     ];
     for (model, truth) in cases {
         let (y, mask) = setup(96, 8, truth, model);
-        let p = CalibrationProblem {
-            measurement: &y,
-            nominal_mask: &mask,
-            bands: 8,
-            model,
-        };
+        let p = CalibrationProblem::nominal(&y, &mask, 8, 2.0, model).unwrap();
         let cal = calibrate_default(&p, &DefaultPreset::default(), &mut |_| {}).unwrap();
         let e = cal.parameters;
         eprintln!("{model:?}: {e:?}");

@@ -33,12 +33,7 @@ fn paper_preset_recovers_a_known_mask_misalignment() {
         noise: None,
     };
     let y = simulate(&scene, &mask, &spec).unwrap();
-    let problem = CalibrationProblem {
-        measurement: &y,
-        nominal_mask: &mask,
-        bands,
-        model,
-    };
+    let problem = CalibrationProblem::nominal(&y, &mask, bands, 2.0, model).unwrap();
     let mut names = Vec::new();
     let cal = calibrate_paper(&problem, &PaperPreset::default(), &mut |s| {
         names.push(s.name.clone())

@@ -190,12 +190,13 @@ pub fn prepare(
         }
     };
     progress("self-calibrating");
-    let problem = CalibrationProblem {
-        measurement: &measurement,
-        nominal_mask: mask,
-        bands: scene.bands(),
-        model: study.instrument,
-    };
+    let problem = CalibrationProblem::nominal(
+        &measurement,
+        mask,
+        scene.bands(),
+        study.stride,
+        study.instrument,
+    )?;
     let calibration = calibrate(&problem, &study.preset, &mut |_| {})?;
     Ok(Prepared {
         ideal_clean,

@@ -83,12 +83,7 @@ fn main() -> anyhow::Result<()> {
             }),
         };
         let y = simulate(&scene, &mask, &spec)?;
-        let problem = CalibrationProblem {
-            measurement: &y,
-            nominal_mask: &mask,
-            bands: scene.bands(),
-            model,
-        };
+        let problem = CalibrationProblem::nominal(&y, &mask, scene.bands(), 2.0, model)?;
         let verbose = args.iter().any(|a| a == "--verbose");
         let cal = calibrate(&problem, &preset, &mut |st| {
             if verbose {

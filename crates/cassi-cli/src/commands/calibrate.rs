@@ -46,12 +46,8 @@ pub fn run(args: &CalibrateArgs, reporter: &Reporter) -> anyhow::Result<()> {
     }
     let checked = set.check()?;
     let (measurement, mask, bands) = args.input.load(reporter, UncodedMask::Refuse)?;
-    let problem = CalibrationProblem {
-        measurement: &measurement,
-        nominal_mask: &mask,
-        bands,
-        model: args.model,
-    };
+    let problem =
+        CalibrationProblem::nominal(&measurement, &mask, bands, args.input.stride, args.model)?;
     let mut on_stage = |s: &StageReport| {
         // between stages nothing is half-written: a signal ends the run here
         interrupt::stop_point();

@@ -103,12 +103,12 @@ pub fn calibrate_default(
     // (the inverse-crime benchmark) the texture stage moved dx by 0.17–0.35 px
     // and invented a blur of up to 0.24 px where the proxy stages end within
     // 0.04 px.
-    let texture = preset.texture_fit && problem.model == DispersionModel::Subpixel;
-    let proxy_refines_dispersion = problem.model == DispersionModel::Subpixel && !texture;
+    let texture = preset.texture_fit && problem.model() == DispersionModel::Subpixel;
+    let proxy_refines_dispersion = problem.model() == DispersionModel::Subpixel && !texture;
     if proxy_refines_dispersion {
         best = subpixel_tilt_stage(&mut run, &scores, best);
     }
-    if problem.model == DispersionModel::Rounded || proxy_refines_dispersion {
+    if problem.model() == DispersionModel::Rounded || proxy_refines_dispersion {
         best = joint_refinement(&mut run, &scores, best);
     }
     let (uncertainty, trade_offs, uncertainty_evals) = if texture {
@@ -126,7 +126,7 @@ pub fn calibrate_default(
     let seconds = run.seconds();
     Ok(Calibration {
         preset: "default".into(),
-        model: problem.model,
+        model: problem.model(),
         parameters: best,
         score,
         nominal_score,
@@ -152,10 +152,7 @@ impl<'a> Scores<'a> {
     fn new(problem: &'a CalibrationProblem<'a>, preset: &'a DefaultPreset) -> Self {
         Self {
             problem,
-            front: CalibrationProblem {
-                model: DispersionModel::Rounded,
-                ..*problem
-            },
+            front: problem.with_model(DispersionModel::Rounded),
             preset,
             search_proxy: ProxyParams {
                 iterations: preset.search_iterations,
@@ -221,8 +218,8 @@ fn correlation(run: &mut StageRunner<'_>, scores: &Scores<'_>) -> Result<Mismatc
     let stage = run.start();
     let (dx0, dy0, theta0) = init::correlation_pose(
         problem.measurement,
-        problem.nominal_mask,
-        problem.bands,
+        problem.nominal_mask(),
+        problem.bands(),
         preset.stride,
         preset.window_shift_range,
     )?;
@@ -255,8 +252,8 @@ fn pose_from_starts(
     // (dx, dy) starts: the pose fit's and the global correlation peak's
     let (gdx, gdy) = init::correlation_shift(
         problem.measurement,
-        problem.nominal_mask,
-        problem.bands,
+        problem.nominal_mask(),
+        problem.bands(),
         preset.stride,
         preset.shift_range,
     )?;
@@ -303,7 +300,7 @@ fn dispersion(
     let hypotheses = rounded_dispersion(
         &|m| stage.score(&|m| scores.search(m), m),
         &best,
-        scores.problem.bands,
+        scores.problem.bands(),
         range,
         preset.alpha_range_deg,
     );
@@ -367,7 +364,7 @@ fn subpixel_tilt_stage(run: &mut StageRunner<'_>, scores: &Scores<'_>, best: Mis
     let tilts = subpixel_tilt(
         &|m| stage.score(&search_model, m),
         &best,
-        scores.problem.bands,
+        scores.problem.bands(),
         preset.alpha_range_deg,
     );
     // (dy, θ, α): the rows and the tilt; dx and a1 stay as the rounded
@@ -401,7 +398,7 @@ fn joint_refinement(run: &mut StageRunner<'_>, scores: &Scores<'_>, best: Mismat
     let (problem, preset) = (scores.problem, scores.preset);
     let stage = run.start();
     let (a1_lo, a1_hi) = rounding_intervals(
-        problem.bands,
+        problem.bands(),
         best.alpha_deg,
         best.a1 - preset.a1_span,
         best.a1 + preset.a1_span,
@@ -409,7 +406,7 @@ fn joint_refinement(run: &mut StageRunner<'_>, scores: &Scores<'_>, best: Mismat
     .into_iter()
     .find(|&(a, b)| a <= best.a1 && best.a1 <= b)
     .unwrap_or((best.a1, best.a1));
-    let (free, steps, tol, max_evaluations) = match problem.model {
+    let (free, steps, tol, max_evaluations) = match problem.model() {
         DispersionModel::Rounded => (
             vec![Dx, Dy, ThetaDeg],
             vec![0.05, 0.05, 0.05],
@@ -466,7 +463,7 @@ fn texture_stage(
         .into_iter()
         // the rounded model's score is flat in a1 and α within a rounding
         // pattern: the proxy stages chose it
-        .filter(|&p| problem.model == DispersionModel::Subpixel || !matches!(p, A1 | AlphaDeg))
+        .filter(|&p| problem.model() == DispersionModel::Subpixel || !matches!(p, A1 | AlphaDeg))
         .filter(|&p| preset.fit_blur || p != BlurSigmaPx)
         .collect();
     // σ enters as |σ|: the simplex may cross 0 on a sharp instrument

@@ -217,8 +217,8 @@ impl CalibrationProblem<'_> {
                 reason: "exact score gradients are available for the sharp model only".into(),
             });
         }
-        let dispersion = Dispersion::new(self.bands, psi.dispersion(), self.model)?;
-        let warp = warp_mask_with_derivatives(self.nominal_mask, &psi.pose());
+        let dispersion = Dispersion::new(self.bands(), psi.dispersion(), self.model())?;
+        let warp = warp_mask_with_derivatives(self.nominal_mask(), &psi.pose());
         let a = CassiOperator::new(warp.value.clone(), dispersion)?;
         let derivatives: Vec<OperatorDerivative> = params
             .iter()
@@ -480,12 +480,7 @@ mod tests {
         mask: &'a Mask,
         model: DispersionModel,
     ) -> CalibrationProblem<'a> {
-        CalibrationProblem {
-            measurement: y,
-            nominal_mask: mask,
-            bands: 6,
-            model,
-        }
+        CalibrationProblem::nominal(y, mask, 6, 2.0, model).unwrap()
     }
 
     /// A candidate away from the truth on every axis, with no rounded band

@@ -158,7 +158,7 @@ pub fn calibrate_paper(
     let seconds = run.seconds();
     Ok(Calibration {
         preset: "paper".into(),
-        model: problem.model,
+        model: problem.model(),
         parameters: best,
         score: final_score,
         nominal_score,

@@ -21,6 +21,7 @@ use crate::error::{Result, shape_error};
 use crate::linop::LinearOperator;
 use crate::optics::{CassiOperator, DispersionModel, ModelOperator};
 use crate::params::Mismatch;
+use crate::recon::Model;
 
 /// Settings of the proxy reconstruction inside the score.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -39,30 +40,67 @@ impl Default for ProxyParams {
     }
 }
 
-/// Everything fixed during a calibration: the measurement, the nominal mask,
-/// the band count and the instrument model used for candidates.
+/// Everything fixed during a calibration: the measurement and the
+/// instrument as designed — a [`Model`] with the nominal mask, the band
+/// count, the nominal stride and the dispersion family the candidates use
+/// (its mismatch is where the search starts from: the nominal one).
+#[derive(Debug, Clone, Copy)]
 pub struct CalibrationProblem<'a> {
     pub measurement: &'a Measurement,
-    pub nominal_mask: &'a Mask,
-    pub bands: usize,
-    pub model: DispersionModel,
+    pub nominal: Model<'a>,
 }
 
-impl CalibrationProblem<'_> {
+impl<'a> CalibrationProblem<'a> {
+    /// The measurement of the nominal instrument `nominal_mask` with `bands`
+    /// bands dispersed `stride` px per band, fitted with `dispersion`.
+    pub fn nominal(
+        measurement: &'a Measurement,
+        nominal_mask: &'a Mask,
+        bands: usize,
+        stride: f64,
+        dispersion: DispersionModel,
+    ) -> Result<Self> {
+        Ok(Self {
+            measurement,
+            nominal: Model::nominal(nominal_mask, bands, stride, dispersion)?,
+        })
+    }
+
+    pub fn nominal_mask(&self) -> &'a Mask {
+        self.nominal.nominal_mask()
+    }
+
+    pub fn bands(&self) -> usize {
+        self.nominal.bands()
+    }
+
+    /// The dispersion family of the candidates.
+    pub fn model(&self) -> DispersionModel {
+        self.nominal.dispersion()
+    }
+
+    /// The same problem fitted with another dispersion family.
+    pub fn with_model(&self, dispersion: DispersionModel) -> Self {
+        Self {
+            measurement: self.measurement,
+            nominal: self.nominal.with_dispersion(dispersion),
+        }
+    }
+
     pub fn validate(&self) -> Result<()> {
         self.measurement.check_finite("measurement")?;
-        if self.measurement.rows() != self.nominal_mask.rows() {
+        if self.measurement.rows() != self.nominal_mask().rows() {
             return Err(shape_error(
                 "measurement rows",
                 self.measurement.rows().to_string(),
-                format!("{} (the mask's rows)", self.nominal_mask.rows()),
+                format!("{} (the mask's rows)", self.nominal_mask().rows()),
             ));
         }
-        if self.measurement.cols() < self.nominal_mask.cols() {
+        if self.measurement.cols() < self.nominal_mask().cols() {
             return Err(shape_error(
                 "measurement cols",
                 self.measurement.cols().to_string(),
-                format!("at least {} (the mask's cols)", self.nominal_mask.cols()),
+                format!("at least {} (the mask's cols)", self.nominal_mask().cols()),
             ));
         }
         Ok(())
@@ -70,7 +108,7 @@ impl CalibrationProblem<'_> {
 
     /// score(ψ) with the proxy `proxy` (ψ's blur included).
     pub fn score(&self, psi: &Mismatch, proxy: &ProxyParams) -> Result<f64> {
-        let op = ModelOperator::new(self.nominal_mask, self.bands, psi, self.model)?;
+        let op = ModelOperator::new(self.nominal_mask(), self.bands(), psi, self.model())?;
         Ok(proxy_residual(&op, self.measurement, proxy))
     }
 }

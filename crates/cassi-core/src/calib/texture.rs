@@ -64,7 +64,7 @@ impl<'a> TextureFit<'a> {
         at: &Mismatch,
         proxy: &ProxyParams,
     ) -> Result<Self> {
-        let op = ModelOperator::new(problem.nominal_mask, problem.bands, at, problem.model)?;
+        let op = ModelOperator::new(problem.nominal_mask(), problem.bands(), at, problem.model())?;
         let (_, rows, cols) = op.cube_shape();
         let mut scene = proxy_reconstruction(&op, problem.measurement, proxy);
         smooth_bands(&mut scene, rows, cols, &gaussian_taps(SCENE_SMOOTH_PX));
@@ -89,7 +89,7 @@ impl<'a> TextureFit<'a> {
     /// h(A_ψ x̃) on the measurement's frame (cropped or zero-padded).
     fn template(&self, psi: &Mismatch) -> Result<Vec<f32>> {
         let p = self.problem;
-        let op = ModelOperator::new(p.nominal_mask, p.bands, psi, p.model)?;
+        let op = ModelOperator::new(p.nominal_mask(), p.bands(), psi, p.model())?;
         let (rows, det) = op.measurement_shape();
         let mut t = vec![0.0f32; op.range_len()];
         op.apply(&self.scene, &mut t);
@@ -188,12 +188,8 @@ mod tests {
             seed: 2,
         };
         let y = simulate_physical(&scene, &mask, &wl, &truth, &spec, Some(&noise)).unwrap();
-        let problem = CalibrationProblem {
-            measurement: &y,
-            nominal_mask: &mask,
-            bands,
-            model: DispersionModel::Subpixel,
-        };
+        let problem =
+            CalibrationProblem::nominal(&y, &mask, bands, 2.0, DispersionModel::Subpixel).unwrap();
         // x̃ from a candidate half a pixel off: it must not pull the fit there
         let start = Mismatch { dx: 0.8, ..truth };
         let fit = TextureFit::new(&problem, &start, &ProxyParams::default()).unwrap();

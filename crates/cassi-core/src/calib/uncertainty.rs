@@ -28,7 +28,7 @@ pub(crate) fn curvature_uncertainty(
         let c = (fp + fm - 2.0 * f0) / (h * h);
         (c > 0.0).then(|| (2.0 * f0 / (n * c)).sqrt())
     };
-    let subpixel = problem.model == DispersionModel::Subpixel;
+    let subpixel = problem.model() == DispersionModel::Subpixel;
     let u = Uncertainty(
         Parameter::ALL
             .iter()

@@ -83,6 +83,15 @@ impl<'m> Model<'m> {
         )
     }
 
+    /// This instrument fitted with another dispersion family (nothing the
+    /// constructor checks depends on it).
+    pub fn with_dispersion(&self, dispersion: DispersionModel) -> Self {
+        Self {
+            dispersion,
+            ..*self
+        }
+    }
+
     pub fn nominal_mask(&self) -> &'m Mask {
         self.nominal_mask
     }

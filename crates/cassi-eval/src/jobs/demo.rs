@@ -183,12 +183,13 @@ pub fn run_demo(plan: &DemoPlan, observer: &mut dyn JobObserver) -> anyhow::Resu
     let snr_db = snr_db(&inputs, &measurement)?;
 
     // Self-calibration from the measurement and the nominal mask alone.
-    let problem = CalibrationProblem {
-        measurement: &measurement,
-        nominal_mask: &inputs.mask,
-        bands: inputs.instrument.bands,
+    let problem = CalibrationProblem::nominal(
+        &measurement,
+        &inputs.mask,
+        inputs.instrument.bands,
+        inputs.instrument.stride,
         model,
-    };
+    )?;
     let calibration = stage(observer, "self-calibrating (default preset)", |o| {
         Ok(calibrate_default(
             &problem,

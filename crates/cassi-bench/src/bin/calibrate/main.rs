@@ -395,12 +395,7 @@ fn recon_psnr(y: &Measurement, mask: &Mask, scene: &Cube, params: &Mismatch) -> 
 /// Calibrates one case (and reconstructs with `--recon`); its JSON record.
 fn run_case(args: &Args, case: &Case, name: &str, scene: &Cube, mask: &Mask) -> Result<Value> {
     let y = measure(case, scene, mask, Some(&noise(case.seed)))?;
-    let problem = CalibrationProblem {
-        measurement: &y,
-        nominal_mask: mask,
-        bands: scene.bands(),
-        model: args.model,
-    };
+    let problem = CalibrationProblem::nominal(&y, mask, scene.bands(), 2.0, args.model)?;
     let verbose = args.verbose;
     let cal = calibrate(&problem, &args.preset, &mut |st| {
         if verbose {
