@@ -222,7 +222,7 @@ fn simulate_reproduces_the_library_and_itself() {
             theta_deg: 0.4,
             a1: 2.1,
             alpha_deg: -0.5,
-            blur_sigma_px: 0.0,
+            ..Mismatch::nominal(2.0)
         },
         model: DispersionModel::Subpixel,
         noise: Some(NoiseModel {

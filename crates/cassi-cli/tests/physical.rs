@@ -100,7 +100,7 @@ fn oversampled_simulation_has_the_fixed_detector_and_a_full_sidecar() {
         theta_deg: 0.2,
         a1: 2.05,
         alpha_deg: 0.0,
-        blur_sigma_px: 0.0,
+        ..Mismatch::nominal(2.0)
     };
     let noise = NoiseModel {
         photon_peak: Some(20000.0),

@@ -197,7 +197,7 @@ pub struct Mismatch {
 
 impl Mismatch {
     /// No mismatch for an instrument of nominal stride `stride`.
-    pub fn nominal(stride: f64) -> Self {
+    pub const fn nominal(stride: f64) -> Self {
         Self {
             dx: 0.0,
             dy: 0.0,
@@ -209,7 +209,7 @@ impl Mismatch {
     }
 
     /// The paper's injected mismatch (§5.1): dx 1.5 px, dy 1.0 px, θ 0.3°, a1 2.04, α 0.5°.
-    pub fn paper() -> Self {
+    pub const fn paper() -> Self {
         Self {
             dx: 1.5,
             dy: 1.0,

@@ -59,7 +59,7 @@ fn the_true_blurred_model_never_loses_and_modelling_blur_pays() {
             theta_deg: -0.4,
             a1: 1.95,
             alpha_deg: 0.8,
-            blur_sigma_px: 0.0,
+            ..Mismatch::nominal(2.0)
         },
     ];
     let noise = NoiseModel {

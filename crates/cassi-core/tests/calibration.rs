@@ -44,7 +44,7 @@ fn the_score_is_minimal_at_the_truth_without_noise() {
         theta_deg: 0.4,
         a1: 2.0,
         alpha_deg: 0.0,
-        blur_sigma_px: 0.0,
+        ..Mismatch::nominal(2.0)
     };
     let (y, mask) = setup(64, 8, truth, DispersionModel::Rounded);
     let p = CalibrationProblem::nominal(&y, &mask, 8, 2.0, DispersionModel::Rounded).unwrap();
@@ -93,7 +93,7 @@ fn the_subpixel_score_is_minimal_at_the_true_dispersion() {
         theta_deg: 0.4,
         a1: 2.05,
         alpha_deg: 1.5,
-        blur_sigma_px: 0.0,
+        ..Mismatch::nominal(2.0)
     };
     let (y, mask) = setup(64, 8, truth, DispersionModel::Subpixel);
     let p = CalibrationProblem::nominal(&y, &mask, 8, 2.0, DispersionModel::Subpixel).unwrap();
@@ -133,7 +133,7 @@ fn default_preset_recovers_a_known_mask_misalignment() {
                 theta_deg: 0.35,
                 a1: 2.0,
                 alpha_deg: 0.0,
-                blur_sigma_px: 0.0,
+                ..Mismatch::nominal(2.0)
             },
         ),
         (
@@ -144,7 +144,7 @@ fn default_preset_recovers_a_known_mask_misalignment() {
                 theta_deg: 0.35,
                 a1: 2.05,
                 alpha_deg: 1.5,
-                blur_sigma_px: 0.0,
+                ..Mismatch::nominal(2.0)
             },
         ),
     ];

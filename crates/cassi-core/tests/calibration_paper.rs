@@ -24,7 +24,7 @@ fn paper_preset_recovers_a_known_mask_misalignment() {
         theta_deg: 0.45,
         a1: 2.0,
         alpha_deg: 0.0,
-        blur_sigma_px: 0.0,
+        ..Mismatch::nominal(2.0)
     };
     let model = DispersionModel::Rounded;
     let spec = SimulationSpec {

@@ -48,7 +48,7 @@ fn mismatches() -> Vec<(&'static str, Mismatch)> {
                 theta_deg: -0.5,
                 a1: 1.85,
                 alpha_deg: -1.5,
-                blur_sigma_px: 0.0,
+                ..Mismatch::nominal(2.0)
             },
         ),
     ]

@@ -22,7 +22,7 @@ pub fn scaled_mismatch(s: f64, stride: f64) -> Mismatch {
         theta_deg: p.theta_deg * s,
         a1: stride + s * (p.a1 - 2.0),
         alpha_deg: p.alpha_deg * s,
-        blur_sigma_px: 0.0,
+        ..Mismatch::nominal(2.0)
     }
 }
 

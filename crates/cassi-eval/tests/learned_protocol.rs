@@ -43,7 +43,7 @@ fn mst_s_is_guided_by_each_scenarios_mask() {
             theta_deg: 0.3,
             a1: 2.0,
             alpha_deg: 0.0,
-            blur_sigma_px: 0.0,
+            ..Mismatch::nominal(2.0)
         },
         instrument: DispersionModel::Rounded,
         noise: NoiseModel::default(),

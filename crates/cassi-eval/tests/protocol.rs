@@ -31,7 +31,7 @@ fn scenarios_order_as_they_must_and_calibration_closes_the_gap() {
             theta_deg: 0.35,
             a1: 2.0,
             alpha_deg: 0.0,
-            blur_sigma_px: 0.0,
+            ..Mismatch::nominal(2.0)
         },
         instrument: DispersionModel::Rounded,
         noise: NoiseModel::default(),

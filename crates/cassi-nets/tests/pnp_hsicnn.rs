@@ -79,7 +79,7 @@ fn tv_only_is_gap_tv_and_the_network_stages_change_the_result() {
         theta_deg: 0.2,
         a1: 2.0,
         alpha_deg: 0.0,
-        blur_sigma_px: 0.0,
+        ..Mismatch::nominal(2.0)
     };
     let gap = GapParams {
         iterations: 12,

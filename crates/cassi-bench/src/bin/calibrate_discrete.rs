@@ -62,7 +62,7 @@ fn main() -> anyhow::Result<()> {
                 theta_deg: rng.uniform_in(-1.0, 1.0),
                 a1: rng.uniform_in(1.9, 2.1),
                 alpha_deg: 0.5,
-                blur_sigma_px: 0.0,
+                ..Mismatch::nominal(2.0)
             },
         };
         let name = path

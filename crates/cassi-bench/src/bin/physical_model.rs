@@ -61,7 +61,7 @@ fn random_mismatch(rng: &mut Rng) -> Mismatch {
         theta_deg: rng.uniform_in(-0.8, 0.8),
         a1: rng.uniform_in(1.93, 2.07),
         alpha_deg: rng.uniform_in(-1.0, 1.0),
-        blur_sigma_px: 0.0,
+        ..Mismatch::nominal(2.0)
     }
 }
 

@@ -465,7 +465,7 @@ mod tests {
             theta_deg: 0.3,
             a1: 2.04,
             alpha_deg: 0.5,
-            blur_sigma_px: 0.0,
+            ..Mismatch::nominal(2.0)
         };
         let spec = SimulationSpec {
             mismatch: truth,
@@ -491,7 +491,7 @@ mod tests {
         theta_deg: 0.23,
         a1: 2.03,
         alpha_deg: 0.4,
-        blur_sigma_px: 0.0,
+        ..Mismatch::nominal(2.0)
     };
 
     fn assert_close(what: &str, got: f64, want: f64) {

@@ -478,7 +478,7 @@ mod tests {
             theta_deg: 0.0,
             a1: 2.0,
             alpha_deg: 0.0,
-            blur_sigma_px: 0.0,
+            ..Mismatch::nominal(2.0)
         };
         let op = CassiOperator::with_mismatch(&mask, 3, &m, DispersionModel::Rounded).unwrap();
         assert_eq!(op.mask().get(4, 3), 1.0);

@@ -602,7 +602,7 @@ mod tests {
             theta_deg,
             a1,
             alpha_deg,
-            blur_sigma_px: 0.0,
+            ..Mismatch::nominal(2.0)
         }
     }
 
