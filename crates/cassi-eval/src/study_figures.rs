@@ -222,12 +222,7 @@ pub fn write_summary_figures(
             series: variants
                 .iter()
                 .map(|v| BarSeries {
-                    name: match v {
-                        crate::sweep_rows::AblationVariant::SearchOnly => {
-                            "search stages only".to_string()
-                        }
-                        _ => v.label("").to_string(),
-                    },
+                    name: v.generic_label().to_string(),
                     values: presets
                         .iter()
                         .map(|p| {

@@ -85,7 +85,7 @@ pub fn ablation(
             let scene = source.load()?;
             let prepared = prepare(&scene, mask, &study, i as u64, &mut |_| {})?;
             calib_secs += prepared.calibration.seconds;
-            let search = search_only(&prepared.calibration.stages, name)
+            let search = search_only(&prepared.calibration.stages, preset)
                 .unwrap_or(prepared.calibration.parameters);
             for (mi, method) in study.methods.iter().enumerate() {
                 for (vi, variant) in AblationVariant::ALL.iter().enumerate() {
@@ -115,7 +115,7 @@ pub fn ablation(
                     preset: name.to_string(),
                     method: method.name().to_string(),
                     variant: *variant,
-                    label: variant.label(name).to_string(),
+                    label: variant.label(preset).to_string(),
                     psnr: sums[mi][vi].0 / n,
                     pose_rmse_px: (sums[mi][vi].1 / n).sqrt(),
                     calibration_seconds_mean: calib_secs / n,
@@ -127,10 +127,10 @@ pub fn ablation(
 }
 
 /// The parameters after a preset's search stages (before any refinement).
-fn search_only(stages: &[cassi_core::calib::StageReport], preset: &str) -> Option<Mismatch> {
-    let stage = match preset {
-        "paper" => stages.iter().find(|s| s.name.starts_with("1 "))?,
-        _ => stages.first()?,
-    };
-    Some(stage.parameters)
+fn search_only(stages: &[cassi_core::calib::StageReport], preset: &Preset) -> Option<Mismatch> {
+    Some(
+        stages
+            .get(preset.search_stages().checked_sub(1)?)?
+            .parameters,
+    )
 }

@@ -3,6 +3,7 @@
 //! `sweep` so records and reports can name them without depending on it.
 
 use cassi_core::Mismatch;
+use cassi_core::calib::Preset;
 use serde::{Deserialize, Serialize};
 
 use crate::summary::Summary;
@@ -34,13 +35,22 @@ impl AblationVariant {
     pub const ALL: [AblationVariant; 4] =
         [Self::Nominal, Self::SearchOnly, Self::Full, Self::Oracle];
 
-    pub fn label(self, preset: &str) -> &'static str {
-        match (self, preset) {
-            (Self::Nominal, _) => "nominal (II)",
-            (Self::SearchOnly, "paper") => "grid only (stages 0–1)",
-            (Self::SearchOnly, _) => "first stage only",
-            (Self::Full, _) => "full pipeline (III)",
-            (Self::Oracle, _) => "oracle (IV)",
+    /// The row's label for `preset` (the search-only variant is named by
+    /// the preset's search).
+    pub fn label(self, preset: &Preset) -> &'static str {
+        match self {
+            Self::SearchOnly => preset.search_label(),
+            v => v.generic_label(),
+        }
+    }
+
+    /// The label every preset shares.
+    pub fn generic_label(self) -> &'static str {
+        match self {
+            Self::Nominal => "nominal (II)",
+            Self::SearchOnly => "search stages only",
+            Self::Full => "full pipeline (III)",
+            Self::Oracle => "oracle (IV)",
         }
     }
 }

@@ -133,6 +133,23 @@ impl Preset {
             Self::Paper(_) => "paper",
         }
     }
+
+    /// How many of the preset's first recorded stages are its search, before
+    /// any refinement (the ablation's search-only variant stops there).
+    pub fn search_stages(&self) -> usize {
+        match self {
+            Self::Default(_) => 1,
+            Self::Paper(_) => 2,
+        }
+    }
+
+    /// What the ablation calls this preset's search-only variant.
+    pub fn search_label(&self) -> &'static str {
+        match self {
+            Self::Default(_) => "first stage only",
+            Self::Paper(_) => "grid only (stages 0–1)",
+        }
+    }
 }
 
 /// Runs `preset` on `problem`; `on_stage` sees each stage as it finishes.
