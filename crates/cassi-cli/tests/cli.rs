@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use cassi_core::optics::{DispersionModel, NoiseModel, SimulationSpec, simulate};
 use cassi_core::synth::{SceneSpec, random_binary_mask, synthetic_scene};
 use cassi_core::{Cube, Mismatch};
-use common::{assert_fails, cassi, s};
+use common::{assert_fails, cassi, ok, s};
 
 mod common;
 
@@ -520,6 +520,71 @@ fn calibrate_recovers_the_simulated_mismatch_and_feeds_reconstruct() {
     let report: serde_json::Value =
         serde_json::from_slice(&std::fs::read(dir.join("cube.json")).unwrap()).unwrap();
     assert_eq!(report["model_parameters"], cal["parameters"]);
+}
+
+/// Sharded runs merged give the study one process makes: every score and
+/// parameter the same (only timings differ), the report and figures
+/// written; a merge before every shard has finished names the missing one.
+#[test]
+fn eval_shards_merge_into_the_one_process_study() {
+    let dir = scratch("eval-shards");
+    let (whole, sharded) = (dir.join("whole"), dir.join("sharded"));
+    let base = [
+        "eval",
+        "--synthetic",
+        "--count",
+        "3",
+        "--size",
+        "64",
+        "--iterations",
+        "15",
+        "--quiet",
+    ];
+    let run = |extra: &[&str]| {
+        let mut args = base.to_vec();
+        args.extend_from_slice(extra);
+        cassi(&args)
+    };
+    ok(&run(&["-o", s(&whole)]));
+    ok(&run(&["-o", s(&sharded), "--shard", "1/2"]));
+    let early = run(&["-o", s(&sharded), "--merge", "2"]);
+    assert!(!early.status.success());
+    let e = String::from_utf8_lossy(&early.stderr);
+    assert!(e.contains("shard 0/2") && e.contains("synthetic_0"), "{e}");
+    assert!(
+        !sharded.join("report.md").exists(),
+        "a failed merge wrote a report"
+    );
+    ok(&run(&["-o", s(&sharded), "--shard", "0/2"]));
+    ok(&run(&["-o", s(&sharded), "--merge", "2"]));
+    // scores and parameters equal; the last column (seconds) is timing
+    let without_timing = |path: std::path::PathBuf| -> Vec<String> {
+        std::fs::read_to_string(&path)
+            .unwrap()
+            .lines()
+            .map(|l| l.rsplit_once(',').map_or(l, |(head, _)| head).to_string())
+            .collect()
+    };
+    assert_eq!(
+        without_timing(whole.join("outcomes.csv")),
+        without_timing(sharded.join("outcomes.csv"))
+    );
+    for f in [
+        "parameters.csv",
+        "report.md",
+        "figures/qualitative.png",
+        "scenes/synthetic_2.json",
+    ] {
+        assert!(sharded.join(f).is_file(), "{f} missing after the merge");
+    }
+    assert_eq!(
+        without_timing(whole.join("parameters.csv")),
+        without_timing(sharded.join("parameters.csv"))
+    );
+    // sweeps are not sharded
+    let refused = run(&["-o", s(&sharded), "--shard", "0/2", "--ablation"]);
+    assert!(!refused.status.success());
+    assert!(String::from_utf8_lossy(&refused.stderr).contains("not sharded"));
 }
 
 /// The sweeps' studies run in folders of their own under --out; their

@@ -15,6 +15,7 @@ pub mod method;
 pub mod protocol;
 pub mod records;
 pub mod report;
+pub mod shard;
 pub mod study;
 pub mod study_figures;
 pub mod summary;

@@ -18,6 +18,7 @@ use serde::{Deserialize, Serialize};
 use crate::digests::InputDigests;
 use crate::protocol::{Reconstructions, SceneResult, Study, run_scene};
 use crate::records::{Record, SceneRecord, read_versioned, write_record};
+use crate::shard::Shard;
 
 /// Where a scene comes from.
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -153,7 +154,10 @@ fn collect_pending(dir: &Path, found: &mut Vec<PathBuf>) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn copy_tree(from: &Path, to: &Path) -> anyhow::Result<()> {
+/// Copies the files under `from` to the same places under `to` through
+/// [`cassi_io::write_atomic`] (so inside an output set's staging they are
+/// committed with the rest); hidden files (temporaries) are left out.
+pub fn copy_tree(from: &Path, to: &Path) -> anyhow::Result<()> {
     for entry in
         std::fs::read_dir(from).with_context(|| format!("cannot list {}", from.display()))?
     {
@@ -180,19 +184,35 @@ fn copy_tree(from: &Path, to: &Path) -> anyhow::Result<()> {
 pub type QualitativeFigures<'a> =
     &'a dyn Fn(&Path, &str, &str, &Cube, &Reconstructions) -> anyhow::Result<()>;
 
-/// Runs `study` on every scene (scene i uses noise seed i), writing each
-/// result to `<out>/scenes/` (and, with `qualitative`, the first scene's
-/// panel and spectra through it). With `resume`, scenes whose file holds a
-/// result of the same study are loaded, not rerun.
+/// How a study runs: whether it reuses earlier results, which share of the
+/// scenes it runs, and who draws the first scene's qualitative figures.
+#[derive(Clone, Copy, Default)]
+pub struct RunOptions<'a> {
+    /// Load scenes whose file holds a result of the same study instead of
+    /// rerunning them.
+    pub resume: bool,
+    /// Run only this shard's scenes (each keeps its index and noise seed).
+    pub shard: Option<Shard>,
+    /// Draws the first scene's panel and spectra (when this run holds it).
+    pub qualitative: Option<QualitativeFigures<'a>>,
+}
+
+/// Runs `study` on every scene (scene i uses noise seed i) or on one shard's
+/// share of them, writing each result to `<out>/scenes/`.
 pub fn run_study(
     study: &Study,
     scenes: &[SceneSource],
     mask: &Mask,
     out: &Path,
-    resume: bool,
-    qualitative: Option<QualitativeFigures<'_>>,
+    options: RunOptions<'_>,
     on_event: &mut dyn FnMut(Event<'_>),
 ) -> anyhow::Result<Vec<SceneResult>> {
+    let RunOptions {
+        resume,
+        shard,
+        qualitative,
+    } = options;
+    let held = |i: usize| shard.is_none_or(|s| s.holds(i));
     let pending = out.join(PENDING);
     if !resume && pending.exists() {
         // an interrupted run's work is kept only for --resume
@@ -202,7 +222,7 @@ pub fn run_study(
     std::fs::create_dir_all(pending.join("scenes"))
         .with_context(|| format!("cannot create {}", pending.join("scenes").display()))?;
     let mut results = Vec::with_capacity(scenes.len());
-    for (i, source) in scenes.iter().enumerate() {
+    for (i, source) in scenes.iter().enumerate().filter(|&(i, _)| held(i)) {
         let name = source.name();
         let path = scene_path(&pending, &name);
         let noise_seed = i as u64;
@@ -259,7 +279,9 @@ pub fn run_study(
     // interrupted run over other scenes) must not be promoted with it
     let names: Vec<String> = scenes
         .iter()
-        .map(|s| format!("{}.json", s.name()))
+        .enumerate()
+        .filter(|&(i, _)| held(i))
+        .map(|(_, s)| format!("{}.json", s.name()))
         .collect();
     for entry in std::fs::read_dir(pending.join("scenes"))?.flatten() {
         if !names
@@ -270,6 +292,25 @@ pub fn run_study(
         }
     }
     Ok(results)
+}
+
+/// The result a finished run left at `path` for `scene` (noise seed
+/// `noise_seed`), checked to be a current record of `study` made from
+/// exactly these inputs; an error naming the file says what is missing or
+/// differs.
+pub fn stored_result(
+    path: &Path,
+    scene: &Cube,
+    mask: &Mask,
+    study: &Study,
+    noise_seed: u64,
+) -> anyhow::Result<SceneResult> {
+    let inputs = InputDigests::new(scene, mask, study, noise_seed)?;
+    match earlier_result(path, &inputs) {
+        Earlier::Same(r) => Ok(*r),
+        Earlier::None => anyhow::bail!("{}: no such result", path.display()),
+        Earlier::Different(reason) => anyhow::bail!("{}: {reason}", path.display()),
+    }
 }
 
 /// What an earlier run left for a scene.

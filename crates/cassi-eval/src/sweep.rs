@@ -9,7 +9,7 @@ use cassi_core::recon::Model;
 use cassi_core::{Mask, Mismatch};
 
 use crate::protocol::{Study, prepare, reconstruct_and_score};
-use crate::study::{Event, SceneSource, run_study};
+use crate::study::{Event, RunOptions, SceneSource, run_study};
 use crate::summary::summarize;
 use crate::sweep_rows::{AblationRow, AblationVariant, SensitivityPoint};
 
@@ -47,9 +47,17 @@ pub fn sensitivity(
             let dir = out
                 .join("sensitivity")
                 .join(format!("{}_scale{scale}", base.preset.name()));
-            let results = run_study(&study, scenes, mask, &dir, resume, None, &mut |e| {
-                on_event(scale, e)
-            })?;
+            let results = run_study(
+                &study,
+                scenes,
+                mask,
+                &dir,
+                RunOptions {
+                    resume,
+                    ..RunOptions::default()
+                },
+                &mut |e| on_event(scale, e),
+            )?;
             Ok(SensitivityPoint {
                 scale,
                 mismatch: study.mismatch,

@@ -12,11 +12,12 @@ use cassi_core::optics::NoiseModel;
 use cassi_core::recon::registry::names_of;
 use cassi_core::recon::{Method, MethodId, MethodKind};
 use cassi_core::synth::random_binary_mask;
-use cassi_eval::jobs::eval::{EvalOutcome, EvalPlan, declare_outputs, run_eval};
+use cassi_eval::jobs::eval::{EvalMode, EvalOutcome, EvalPlan, declare_outputs, run_eval};
 use cassi_eval::learned::check_stride;
 use cassi_eval::method::{LearnedMethod, StudyMethod};
 use cassi_eval::protocol::Study;
 use cassi_eval::report::REPORT_FILE;
+use cassi_eval::shard::Shard;
 use cassi_eval::study::{SceneSource, scenes_in};
 use cassi_eval::sweep::scaled_mismatch;
 use cassi_eval::weights::{NETS_BUILT, parse_weight_flags, resolve_weights};
@@ -101,6 +102,26 @@ pub struct EvalArgs {
     /// Presets the sweeps run (default: --preset).
     #[arg(long, value_delimiter = ',', value_parser = PRESET_NAMES)]
     pub sweep_presets: Vec<String>,
+    /// Run only shard K of N (K from 0): scenes K, K + N, K + 2N, … (each
+    /// keeps its noise seed), into --out's shards/K-of-N/; no report. Run
+    /// every shard with otherwise the same flags (in any order, anywhere
+    /// that sees --out), then `--merge N`.
+    #[arg(long, value_name = "K/N", value_parser = Shard::parse, conflicts_with = "merge")]
+    pub shard: Option<Shard>,
+    /// Write the report of a study whose N shards have finished (same flags
+    /// as the shards): the same files one process would have written.
+    #[arg(long, value_name = "N")]
+    pub merge: Option<usize>,
+}
+
+impl EvalArgs {
+    fn mode(&self) -> EvalMode {
+        match (self.shard, self.merge) {
+            (Some(shard), _) => EvalMode::Shard(shard),
+            (None, Some(count)) => EvalMode::Merge { count },
+            (None, None) => EvalMode::Whole,
+        }
+    }
 }
 
 /// The study's methods: solvers by name, learned methods with their
@@ -207,7 +228,12 @@ fn check_files(args: &EvalArgs) -> anyhow::Result<CheckedSet> {
             set.input("a file of --weights-dir", path);
         }
     }
-    declare_outputs(&mut set, &args.out, !args.sensitivity.is_empty());
+    declare_outputs(
+        &mut set,
+        &args.out,
+        !args.sensitivity.is_empty(),
+        args.mode(),
+    );
     Ok(set.check()?)
 }
 
@@ -281,9 +307,23 @@ pub fn run(args: &EvalArgs, reporter: &Reporter) -> anyhow::Result<()> {
         sensitivity: args.sensitivity.clone(),
         ablation: args.ablation,
         sweep_presets,
+        mode: args.mode(),
     };
     plan.check()?;
-    let EvalOutcome { summary, .. } = run_eval(&plan, checked, &mut CliObserver::new(reporter))?;
+    let EvalOutcome {
+        summary, results, ..
+    } = run_eval(&plan, checked, &mut CliObserver::new(reporter))?;
+    if let EvalMode::Shard(shard) = plan.mode {
+        reporter.say(&format!(
+            "shard {shard}: {} scene result(s) in {}; when every shard has finished, run the \
+             same command with --merge {} instead of --shard",
+            results.len(),
+            shard.folder(&args.out).display(),
+            shard.count()
+        ));
+        reporter.emit(&serde_json::to_value(&summary)?);
+        return Ok(());
+    }
     let mut text = String::from("\n");
     text += &cassi_eval::tables::main_table(&summary);
     text += &format!(

@@ -9,14 +9,18 @@ use cassi_core::calib::Preset;
 use cassi_core::metrics::SSIM_WIN;
 use cassi_core::optics::validate_mismatch_for_mask;
 use cassi_core::{Instrument, Mask};
-use cassi_io::{CheckedSet, OutputSet};
+use cassi_io::{CheckedSet, OutputSet, Staging};
 
 use super::JobObserver;
 use crate::learned::check_shape;
 use crate::method::StudyMethod;
 use crate::protocol::{SceneResult, Study};
 use crate::report::{STUDY_FILES, Setup, write_all};
-use crate::study::{Event, SceneSource, promote_pending, remove_pending, run_study};
+use crate::shard::Shard;
+use crate::study::{
+    Event, RunOptions, SceneSource, copy_tree, promote_pending, remove_pending, run_study,
+    scene_path, stored_result,
+};
 use crate::study_figures::write_qualitative;
 use crate::summary::{Summary, summarize};
 use crate::sweep::{ablation, scaled_mismatch, sensitivity};
@@ -40,6 +44,21 @@ pub struct EvalPlan {
     pub ablation: bool,
     /// The presets the sweeps run.
     pub sweep_presets: Vec<Preset>,
+    /// The whole study, one shard of it, or the merge of finished shards.
+    pub mode: EvalMode,
+}
+
+/// Which part of an evaluation one run does.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum EvalMode {
+    /// Every scene, then the report.
+    Whole,
+    /// One shard's scenes into [`Shard::folder`]; no report (the merge
+    /// writes it).
+    Shard(Shard),
+    /// The report of a study whose `count` shards have finished, from their
+    /// folders: the same files one process would have written.
+    Merge { count: usize },
 }
 
 /// What an evaluation produced (its files are in the plan's `out`).
@@ -50,9 +69,15 @@ pub struct EvalOutcome {
 }
 
 /// Declares the files and folders an evaluation into `out` writes: the
-/// report files, and the folders written scene by scene (which must hold
-/// no input).
-pub fn declare_outputs(set: &mut OutputSet, out: &Path, with_sensitivity: bool) {
+/// report files and the folders written scene by scene (which must hold no
+/// input); a shard writes only its own folder's.
+pub fn declare_outputs(set: &mut OutputSet, out: &Path, with_sensitivity: bool, mode: EvalMode) {
+    if let EvalMode::Shard(shard) = mode {
+        let folder = shard.folder(out);
+        set.output_dir(format!("shard {shard}'s scenes/"), folder.join("scenes"))
+            .output_dir(format!("shard {shard}'s figures/"), folder.join("figures"));
+        return;
+    }
     for file in STUDY_FILES {
         set.output(format!("--out's {file}"), out.join(file));
     }
@@ -69,6 +94,15 @@ impl EvalPlan {
     /// learned method whose network cannot take the scenes' shape.
     pub fn check(&self) -> anyhow::Result<()> {
         let (mask, label) = (&self.mask, &self.mask_label);
+        if self.mode != EvalMode::Whole && (!self.sensitivity.is_empty() || self.ablation) {
+            anyhow::bail!(
+                "--sensitivity and --ablation run in one process: they are not sharded or \
+                 merged (run them without --shard and --merge)"
+            );
+        }
+        if let EvalMode::Merge { count: 0 } = self.mode {
+            anyhow::bail!("--merge 0: a study has at least one shard");
+        }
         if mask.rows() < SSIM_WIN || mask.cols() < SSIM_WIN {
             anyhow::bail!(
                 "mask {label} is {}×{}: scenes must be at least {SSIM_WIN}×{SSIM_WIN} pixels \
@@ -115,23 +149,73 @@ pub fn run_eval(
     checked: CheckedSet,
     observer: &mut dyn JobObserver,
 ) -> anyhow::Result<EvalOutcome> {
+    let results = match plan.mode {
+        EvalMode::Whole => run_scenes(plan, &plan.out, None, observer)?,
+        EvalMode::Shard(shard) => {
+            let folder = shard.folder(&plan.out);
+            let results = run_scenes(plan, &folder, Some(shard), observer)?;
+            // the shard's scene records and figures, all or none
+            observer.checkpoint()?;
+            let staging = checked.begin()?;
+            let pending = promote_pending(&folder)?;
+            observer.checkpoint()?;
+            staging.commit()?;
+            remove_pending(&pending)?;
+            return Ok(EvalOutcome {
+                summary: summarize(&results),
+                results,
+                sweeps: Sweeps::default(),
+            });
+        }
+        EvalMode::Merge { count } => {
+            let results = read_shards(plan, count, observer)?;
+            let staging = checked.begin()?;
+            copy_shards(plan, count, &results)?;
+            return write_report(plan, results, Sweeps::default(), staging, observer);
+        }
+    };
+    let sweeps = run_sweeps(plan, observer)?;
+    // the summary, tables, report and figures: all replaced, or none
+    observer.checkpoint()?;
+    let staging = checked.begin()?;
+    // the study's scene records and first-scene figures join the set
+    let pending = promote_pending(&plan.out)?;
+    let outcome = write_report(plan, results, sweeps, staging, observer)?;
+    remove_pending(&pending)?;
+    Ok(outcome)
+}
+
+/// The study's scenes (or one shard's) into `out`, each result on disk as
+/// it is made.
+fn run_scenes(
+    plan: &EvalPlan,
+    out: &Path,
+    shard: Option<Shard>,
+    observer: &mut dyn JobObserver,
+) -> anyhow::Result<Vec<SceneResult>> {
     let study = &plan.study;
     let steps_per_scene = study.steps_per_scene();
-    observer.progress_started("evaluating", steps_per_scene * plan.scenes.len() as u64);
+    let held = (0..plan.scenes.len())
+        .filter(|&i| shard.is_none_or(|s| s.holds(i)))
+        .count() as u64;
+    observer.progress_started("evaluating", steps_per_scene * held);
     let mut done = 0u64;
     let results = run_study(
         study,
         &plan.scenes,
         &plan.mask,
-        &plan.out,
-        plan.resume,
-        Some(&write_qualitative),
+        out,
+        RunOptions {
+            resume: plan.resume,
+            shard,
+            qualitative: Some(&write_qualitative),
+        },
         &mut |e| {
             // between steps every finished scene is on disk: a signal may
             // end the run here (rerun with resume to go on)
             observer.stop_point();
             match e {
-                Event::SceneStart { index, .. } => done = index as u64 * steps_per_scene,
+                Event::SceneStart { .. } => {}
                 Event::Step { .. } => {
                     done += 1;
                     observer.progress(done);
@@ -149,27 +233,77 @@ pub fn run_eval(
         },
     )?;
     observer.progress_finished();
+    Ok(results)
+}
+
+/// Every scene's result from the shard that holds it, checked to be this
+/// study's on exactly these inputs.
+fn read_shards(
+    plan: &EvalPlan,
+    count: usize,
+    observer: &mut dyn JobObserver,
+) -> anyhow::Result<Vec<SceneResult>> {
+    observer.progress_started("reading the shards", plan.scenes.len() as u64);
+    let mut results = Vec::with_capacity(plan.scenes.len());
+    for (i, source) in plan.scenes.iter().enumerate() {
+        observer.checkpoint()?;
+        let shard = Shard::of_scene(i, count);
+        let name = source.name();
+        let path = scene_path(&shard.folder(&plan.out), &name);
+        let scene = source.load().with_context(|| format!("scene {name}"))?;
+        let result =
+            stored_result(&path, &scene, &plan.mask, &plan.study, i as u64).with_context(|| {
+                format!(
+                    "--merge {count}: scene {name} of shard {shard} (run `--shard {shard}` \
+                     with the same flags first)"
+                )
+            })?;
+        results.push(result);
+        observer.progress(i as u64 + 1);
+    }
+    observer.progress_finished();
+    Ok(results)
+}
+
+/// The shards' scene records and first-scene figures into the study's own
+/// folders (inside the staging begun by the caller).
+fn copy_shards(plan: &EvalPlan, count: usize, results: &[SceneResult]) -> anyhow::Result<()> {
+    for (i, result) in results.iter().enumerate() {
+        let from = scene_path(&Shard::of_scene(i, count).folder(&plan.out), &result.scene);
+        let bytes =
+            std::fs::read(&from).with_context(|| format!("cannot read {}", from.display()))?;
+        cassi_io::write_atomic(scene_path(&plan.out, &result.scene), &bytes)?;
+    }
+    let figures = Shard::of_scene(0, count).folder(&plan.out).join("figures");
+    if figures.is_dir() {
+        copy_tree(&figures, &plan.out.join("figures"))?;
+    }
+    Ok(())
+}
+
+/// The summary, tables, report and figures of `results`, written inside
+/// `staging` and committed together.
+fn write_report(
+    plan: &EvalPlan,
+    results: Vec<SceneResult>,
+    sweeps: Sweeps,
+    staging: Staging,
+    observer: &mut dyn JobObserver,
+) -> anyhow::Result<EvalOutcome> {
     let summary = summarize(&results);
-    let sweeps = run_sweeps(plan, observer)?;
-    // the summary, tables, report and figures: all replaced, or none
-    observer.checkpoint()?;
-    let staging = checked.begin()?;
-    // the study's scene records and first-scene figures join the set
-    let pending = promote_pending(&plan.out)?;
     write_all(
         &plan.out,
         &Setup {
             scenes: &plan.scenes_label,
             mask: &plan.mask_label,
         },
-        study,
+        &plan.study,
         &results,
         &summary,
         &sweeps,
     )?;
     observer.checkpoint()?;
     staging.commit()?;
-    remove_pending(&pending)?;
     Ok(EvalOutcome {
         results,
         summary,
