@@ -44,6 +44,12 @@ impl From<Failure> for PyErr {
             Failure::Io(e) => {
                 let kind = match &e {
                     IoError::NotFound { .. } => Kind::NotFound,
+                    // a write into a folder that does not exist
+                    IoError::Read { cause, .. } | IoError::Write { cause, .. }
+                        if cause.kind() == std::io::ErrorKind::NotFound =>
+                    {
+                        Kind::NotFound
+                    }
                     IoError::Read { .. } | IoError::Write { .. } => Kind::Os,
                     _ => Kind::Value,
                 };

@@ -17,6 +17,7 @@ use numpy::{PyArray, PyArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
+use cassi_core::limits::check_elements;
 use cassi_core::linop::LinearOperator;
 use cassi_core::optics::{
     ModelOperator, NoiseModel, PhysicalSpec, SimulationSpec, validate_mismatch_for_mask,
@@ -490,7 +491,7 @@ fn layout(py: Python<'_>, name: &str) -> PyResult<CubeLayout> {
         other => Err(value_error(
             py,
             format!(
-                "layout {other:?}: expected 'auto', 'brc' (bands, rows, cols) or 'rcb' (rows, cols, bands)"
+                "layout '{other}': expected 'auto', 'brc' (bands, rows, cols) or 'rcb' (rows, cols, bands)"
             ),
         )),
     }
@@ -536,7 +537,7 @@ fn load<'py>(
         }
         other => Err(value_error(
             py,
-            format!("kind {other:?}: expected 'array', 'cube' or 'frame'"),
+            format!("kind '{other}': expected 'array', 'cube' or 'frame'"),
         )),
     }
 }
@@ -574,6 +575,77 @@ fn save(
             Ok(cassi_io::save_array(&path, name, &shape, data)?)
         }
     })
+}
+
+/// The library's procedural hyperspectral scene (what `cassi simulate
+/// --synthetic` uses): (bands, rows, cols) float32 in [0, 1], the band
+/// centres those of the standard instrument for `bands` bands (or
+/// `wavelengths_nm`), identical for a seed on every machine.
+#[pyfunction]
+#[pyo3(signature = (rows=256, cols=256, bands=28, seed=0, wavelengths_nm=None))]
+fn synthetic_scene<'py>(
+    py: Python<'py>,
+    rows: usize,
+    cols: usize,
+    bands: usize,
+    seed: u64,
+    wavelengths_nm: Option<Vec<f64>>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let wavelengths_nm = match wavelengths_nm {
+        Some(w) => w,
+        None => {
+            Instrument::with_bands(bands, 2.0)
+                .map_err(|e| value_error(py, e.to_string()))?
+                .wavelengths_nm
+        }
+    };
+    if wavelengths_nm.len() != bands {
+        return Err(value_error(
+            py,
+            format!(
+                "wavelengths_nm has {} entries, expected bands = {bands}",
+                wavelengths_nm.len()
+            ),
+        ));
+    }
+    let spec = cassi_core::synth::SceneSpec {
+        rows,
+        cols,
+        wavelengths_nm,
+        seed,
+    };
+    let cube = compute(py, || {
+        check_elements(
+            "the synthetic scene",
+            &[bands, rows, cols],
+            "bands × rows × cols",
+        )?;
+        Ok(cassi_core::synth::synthetic_scene(&spec)?)
+    })?;
+    arrays::cube_to_numpy(py, cube)
+}
+
+/// An i.i.d. random binary mask (rows, cols) with `open_fraction` of its
+/// pixels open (what `cassi simulate --random-mask` uses).
+#[pyfunction]
+#[pyo3(signature = (rows=256, cols=256, open_fraction=0.5, seed=1))]
+fn random_mask(
+    py: Python<'_>,
+    rows: usize,
+    cols: usize,
+    open_fraction: f64,
+    seed: u64,
+) -> PyResult<Bound<'_, PyAny>> {
+    let mask = compute(py, || {
+        check_elements("the random mask", &[rows, cols], "rows × cols")?;
+        Ok(cassi_core::synth::random_binary_mask(
+            rows,
+            cols,
+            open_fraction,
+            seed,
+        )?)
+    })?;
+    arrays::frame_to_numpy(py, mask)
 }
 
 /// The address of the first value the library reads for `x` (the same as
@@ -676,6 +748,8 @@ fn _cassi(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(metrics, m)?)?;
     m.add_function(wrap_pyfunction!(load, m)?)?;
     m.add_function(wrap_pyfunction!(save, m)?)?;
+    m.add_function(wrap_pyfunction!(synthetic_scene, m)?)?;
+    m.add_function(wrap_pyfunction!(random_mask, m)?)?;
     m.add_function(wrap_pyfunction!(_input_address, m)?)?;
     m.add_function(wrap_pyfunction!(_rust_reconstruct_seconds, m)?)?;
     m.add_function(wrap_pyfunction!(_rust_calibrate_seconds, m)?)?;
