@@ -1,0 +1,70 @@
+"""Ctrl-C (SIGINT) interrupts a long reconstruction or calibration promptly
+with KeyboardInterrupt."""
+
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+
+import numpy as np
+import pytest
+
+import cassi
+
+pytestmark = pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")
+
+
+def test_sigint_from_a_thread_stops_a_long_reconstruction():
+    mask = cassi.random_mask(128, 128, seed=1)
+    y = cassi.simulate(cassi.synthetic_scene(128, 128, 28, seed=1), mask, noise=False)
+    sent = []
+
+    def send():
+        sent.append(time.perf_counter())
+        os.kill(os.getpid(), signal.SIGINT)
+
+    timer = threading.Timer(0.5, send)
+    timer.start()
+    started = time.perf_counter()
+    with pytest.raises(KeyboardInterrupt):
+        # 100,000 iterations would take many minutes
+        cassi.reconstruct(y, mask, iterations=100_000)
+    ended = time.perf_counter()
+    timer.join()
+    assert sent, "the signal was never sent"
+    assert ended - sent[0] < 1.0, f"{ended - sent[0]:.2f} s after SIGINT"
+    assert ended - started < 5.0
+
+
+CHILD = r"""
+import sys, time
+import cassi
+mask = cassi.random_mask(256, 256, seed=1)
+scene = cassi.synthetic_scene(256, 256, 28, seed=1)
+y = cassi.simulate(scene, mask, "paper", model="subpixel")
+print("ready", flush=True)
+t = time.perf_counter()
+cal = cassi.calibrate(y, mask)
+print("finished", time.perf_counter() - t, flush=True)
+"""
+
+
+def test_sigint_stops_a_long_calibration_promptly():
+    child = subprocess.Popen([sys.executable, "-c", CHILD], stdout=subprocess.PIPE,
+                             stderr=subprocess.PIPE, text=True)
+    try:
+        assert child.stdout.readline().strip() == "ready"
+        time.sleep(1.0)  # well inside the calibration (several seconds on 2 cores)
+        child.send_signal(signal.SIGINT)
+        sent = time.perf_counter()
+        out, err = child.communicate(timeout=30)
+        took = time.perf_counter() - sent
+    finally:
+        if child.poll() is None:
+            child.kill()
+    assert "finished" not in out, f"the calibration ended before the signal: {out}"
+    assert "KeyboardInterrupt" in err, err
+    assert child.returncode != 0
+    assert took < 1.5, f"{took:.2f} s after SIGINT"
