@@ -188,8 +188,10 @@ enum Message {
 ///     InputError (a ValueError): wrong shapes (named, with the shape got
 ///         and wanted), NaN/±Inf, a measurement without light, a mask
 ///         without code, an unknown model or preset.
-///     KeyboardInterrupt: Ctrl-C; the call returns within ~0.1 s (the
-///         stage under way finishes in the background and is discarded).
+///     KeyboardInterrupt: Ctrl-C; the call returns within ~0.1 s. The
+///         library has no stop point inside a calibration, so the abandoned
+///         run goes on on its worker thread until it ends (seconds) and its
+///         result is discarded.
 ///
 /// The GIL is released while the calibration runs.
 #[pyfunction]

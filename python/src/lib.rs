@@ -164,6 +164,33 @@ impl PyOperator {
         Ok(out.into_any())
     }
 
+    /// Seconds of each of `repeats` applications of the library's operator
+    /// alone to `x` (checked and borrowed once, outside the timing): the
+    /// benchmark's reference for `forward`'s overhead.
+    #[pyo3(signature = (x, repeats=20))]
+    fn _rust_forward_seconds(
+        &self,
+        py: Python<'_>,
+        x: &Bound<'_, PyAny>,
+        repeats: usize,
+    ) -> PyResult<Vec<f64>> {
+        let (l, h, w) = self.op.cube_shape();
+        let input = arrays::finite_with_shape(x, "cube x", &[l, h, w], "(bands, rows, cols)")?;
+        let xs = input.slice();
+        let op = &self.op;
+        compute(py, || {
+            let mut y = vec![0f32; op.range_len()];
+            Ok((0..repeats)
+                .map(|_| {
+                    let t = Instant::now();
+                    op.apply(xs, &mut y);
+                    std::hint::black_box(&mut y);
+                    t.elapsed().as_secs_f64()
+                })
+                .collect())
+        })
+    }
+
     fn __repr__(&self) -> String {
         let (l, h, w) = self.op.cube_shape();
         let (r, c) = self.op.measurement_shape();
