@@ -73,6 +73,7 @@ def interleaved(python_call, rust_call, repeats):
 
 def summary(name, py, rs, what):
     p, r = statistics.median(py), statistics.median(rs)
+    q = lambda xs: statistics.quantiles(xs, n=4) if len(xs) >= 2 else [xs[0]] * 3
     return {
         "name": name,
         "what": what,
@@ -81,7 +82,12 @@ def summary(name, py, rs, what):
         "rust_s": rs,
         "python_median_s": p,
         "rust_median_s": r,
+        "python_min_s": min(py),
+        "rust_min_s": min(rs),
+        "python_quartiles_s": q(py),
+        "rust_quartiles_s": q(rs),
         "overhead_ratio": p / r,
+        "overhead_ratio_of_minima": min(py) / min(rs),
         "overhead_percent": 100.0 * (p / r - 1.0),
     }
 
@@ -101,7 +107,7 @@ def main():
     ap.add_argument("--quick", action="store_true", help="fewer repeats (a smoke run)")
     ap.add_argument("-o", "--output", default=str(REPO / "bench" / "results" / "python_bindings.json"))
     args = ap.parse_args()
-    gap_runs, cal_runs, fwd_runs = (2, 1, 20) if args.quick else (7, 5, 200)
+    gap_runs, cal_runs, fwd_runs = (2, 1, 20) if args.quick else (15, 9, 200)
 
     load_before = os.getloadavg()
     scene = cassi.synthetic_scene(256, 256, 28, seed=0)
@@ -110,8 +116,9 @@ def main():
     y_paper = cassi.simulate_physical(scene, mask, "paper", oversample=2)
     results = []
 
-    # warm-up: thread pools, page faults
-    cassi.reconstruct(y_nominal, mask, iterations=5)
+    # warm-up of both paths (thread pools, page faults); not timed
+    cassi.reconstruct(y_nominal, mask)
+    _cassi._rust_reconstruct_seconds(y_nominal, mask, "gap-tv", repeats=1)
     py, rs = interleaved(
         lambda: cassi.reconstruct(y_nominal, mask),
         lambda: _cassi._rust_reconstruct_seconds(y_nominal, mask, "gap-tv", repeats=1),
@@ -122,6 +129,9 @@ def main():
                            "cassi.reconstruct vs Method::solve in Rust"))
     print(json.dumps({k: v for k, v in results[-1].items() if not k.endswith("_s")}))
 
+    if not args.quick:
+        cassi.calibrate(y_paper, mask)
+        _cassi._rust_calibrate_seconds(y_paper, mask, repeats=1)
     py, rs = interleaved(
         lambda: cassi.calibrate(y_paper, mask),
         lambda: _cassi._rust_calibrate_seconds(y_paper, mask, repeats=1),
