@@ -77,6 +77,5 @@ def test_cli_calibration_file_drives_the_python_reconstruction(cli, tmp_path, in
     cube_cli = cassi.load(tmp_path / "cube.npy")
     cube_py = cassi.reconstruct(y, mask, bands=8, calibration=theirs)
     assert cube_py.shape == (8, 48, 48)
-    # the CLI writes the reconstruction clipped to [0, 1] or as is; either way the same solve
-    np.testing.assert_allclose(cube_cli, np.clip(cube_py, 0, 1) if cube_cli.max() <= 1 else cube_py,
-                               atol=1e-6)
+    # the same solve (the CLI writes the cube unclipped)
+    np.testing.assert_allclose(cube_cli, cube_py, atol=1e-5)
