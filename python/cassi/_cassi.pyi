@@ -53,7 +53,7 @@ class Operator:
         bands: int = 28,
         stride: float = 2.0,
         mismatch: MismatchLike = None,
-        model: Model = "rounded",
+        model: Optional[Model] = None,
         **params: float,
     ) -> None: ...
     @property
@@ -113,7 +113,7 @@ def simulate(
     mask: ArrayLike,
     mismatch: MismatchLike = None,
     *,
-    model: Model = "rounded",
+    model: Optional[Model] = None,
     stride: float = 2.0,
     noise: bool = True,
     photon_peak: Optional[float] = 1e5,

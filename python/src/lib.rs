@@ -41,7 +41,8 @@ use errors::{Failure, compute, value_error};
 ///     mismatch: None (nominal), "paper", a dict of parameters (keys of
 ///         `cassi.PARAMETERS`: dx, dy px; theta_deg °; a1 px/band;
 ///         alpha_deg °; blur_sigma_px px) or a Calibration.
-///     model: "rounded" (integer band offsets, the default) or "subpixel".
+///     model: "rounded" (integer band offsets) or "subpixel"; default: a
+///         Calibration's own model, else "rounded".
 ///     **params: single mismatch parameters by key, e.g. dx=1.5.
 ///
 /// `forward(x)` maps a cube (bands, rows, cols) to a measurement
@@ -58,17 +59,17 @@ pub struct PyOperator {
 #[pymethods]
 impl PyOperator {
     #[new]
-    #[pyo3(signature = (mask, bands=28, stride=2.0, mismatch=None, model="rounded", **params))]
+    #[pyo3(signature = (mask, bands=28, stride=2.0, mismatch=None, model=None, **params))]
     fn new(
         py: Python<'_>,
         mask: &Bound<'_, PyAny>,
         bands: usize,
         stride: f64,
         mismatch: Option<&Bound<'_, PyAny>>,
-        model: &str,
+        model: Option<&str>,
         params: Option<&Bound<'_, PyDict>>,
     ) -> PyResult<Self> {
-        let dispersion = params::model(py, model)?;
+        let dispersion = params::model_for(py, model, mismatch)?;
         let psi = params::mismatch(py, stride, mismatch, params)?;
         let mask = arrays::frame(mask, "mask")?;
         let op = compute(py, || {
@@ -229,7 +230,8 @@ fn noise_model(
 ///     scene: cube (bands, rows, cols), values in [0, 1].
 ///     mask: nominal coded aperture (rows, cols), the scene's size.
 ///     mismatch: as for `Operator` (None: nominal); **params override single keys.
-///     model: "rounded" or "subpixel".
+///     model: "rounded" or "subpixel" (default: a Calibration's own, else
+///         "rounded").
 ///     stride: nominal dispersion, px per band (the nominal a1).
 ///     noise: add detector noise (Poisson at `photon_peak` photo-electrons at
 ///         the maximum, None for none, plus Gaussian read noise `read_noise`
@@ -237,14 +239,14 @@ fn noise_model(
 ///
 /// Returns the measurement (rows, cols + dispersion reach), float32.
 #[pyfunction]
-#[pyo3(signature = (scene, mask, mismatch=None, *, model="rounded", stride=2.0, noise=true, photon_peak=Some(1e5), read_noise=0.01, seed=0, **params))]
+#[pyo3(signature = (scene, mask, mismatch=None, *, model=None, stride=2.0, noise=true, photon_peak=Some(1e5), read_noise=0.01, seed=0, **params))]
 #[allow(clippy::too_many_arguments)]
 fn simulate<'py>(
     py: Python<'py>,
     scene: &Bound<'py, PyAny>,
     mask: &Bound<'py, PyAny>,
     mismatch: Option<&Bound<'py, PyAny>>,
-    model: &str,
+    model: Option<&str>,
     stride: f64,
     noise: bool,
     photon_peak: Option<f64>,
@@ -254,7 +256,7 @@ fn simulate<'py>(
 ) -> PyResult<Bound<'py, PyAny>> {
     let spec = SimulationSpec {
         mismatch: params::mismatch(py, stride, mismatch, params)?,
-        model: params::model(py, model)?,
+        model: params::model_for(py, model, mismatch)?,
         noise: noise_model(py, noise, photon_peak, read_noise, seed)?,
     };
     let scene = arrays::cube(scene, "scene")?;

@@ -113,3 +113,35 @@ pub fn model(py: Python<'_>, name: &str) -> PyResult<DispersionModel> {
     name.parse::<DispersionModel>()
         .map_err(|e| value_error(py, format!("model: {e}")))
 }
+
+/// The dispersion model: `name`, else a `Calibration` mismatch's own, else
+/// rounded; a name that contradicts the calibration's model is refused
+/// rather than silently fitting another instrument.
+pub fn model_for(
+    py: Python<'_>,
+    name: Option<&str>,
+    mismatch: Option<&Bound<'_, PyAny>>,
+) -> PyResult<DispersionModel> {
+    let calibrated = mismatch
+        .and_then(|m| m.cast::<PyCalibration>().ok())
+        .map(|c| c.get().inner.model);
+    match (name, calibrated) {
+        (None, Some(m)) => Ok(m),
+        (None, None) => Ok(DispersionModel::default()),
+        (Some(n), None) => model(py, n),
+        (Some(n), Some(m)) => {
+            let chosen = model(py, n)?;
+            if chosen != m {
+                return Err(value_error(
+                    py,
+                    format!(
+                        "model '{n}' differs from the calibration's model '{}'; leave model out \
+                         to use the calibrated one",
+                        m.name()
+                    ),
+                ));
+            }
+            Ok(chosen)
+        }
+    }
+}

@@ -75,6 +75,11 @@ def test_calibrated_reconstruction_beats_the_nominal_model(case):
         cassi.reconstruct(y, mask, bands=8, calibration=cal, dx=1.0)
     with pytest.raises(ValueError, match="differs from the calibration's model"):
         cassi.reconstruct(y, mask, bands=8, calibration=cal, model="subpixel")
+    # an Operator of the calibration takes its model too, never silently another
+    op = cassi.Operator(mask, bands=8, mismatch=cal)
+    assert (op.model, op.mismatch) == (cal.model, cal.parameters)
+    with pytest.raises(ValueError, match="differs from the calibration's model 'rounded'"):
+        cassi.Operator(mask, bands=8, mismatch=cal, model="subpixel")
 
 
 def test_metrics_are_the_library_definitions(rng):
