@@ -1,0 +1,228 @@
+"""Type stubs of the compiled extension cassi._cassi (re-exported by cassi)."""
+
+from os import PathLike
+from typing import Any, Callable, Dict, List, Literal, Mapping, Optional, Sequence, Tuple, Union, overload
+
+import numpy as np
+import numpy.typing as npt
+
+ArrayLike = npt.ArrayLike
+F32Array = npt.NDArray[np.float32]
+Path = Union[str, "PathLike[str]"]
+Model = Literal["rounded", "subpixel"]
+#: None (nominal), "nominal", "paper", a mapping of PARAMETERS keys to values, or a Calibration
+MismatchLike = Union[None, str, Mapping[str, float], "Calibration"]
+
+__version__: str
+#: The mismatch parameters' keys, in the library's registry order:
+#: dx, dy (px), theta_deg (°), a1 (px/band), alpha_deg (°), blur_sigma_px (px).
+PARAMETERS: List[str]
+PARAMETER_UNITS: Dict[str, str]
+#: Every reconstruction method of the library's registry: (name, kind).
+METHODS: List[Tuple[str, str]]
+#: The methods this build can run (the learned ones need the nets feature).
+ITERATIVE_METHODS: List[str]
+PRESETS: List[str]
+METRIC_DEFINITIONS: str
+
+class CassiError(Exception):
+    """Base class of every error cassi raises."""
+
+class InputError(CassiError, ValueError):
+    """Input cassi cannot use: shape, range, NaN/±Inf, unknown name, file content."""
+
+class InputTypeError(CassiError, TypeError):
+    """An argument of a kind cassi cannot read (complex, object, string arrays)."""
+
+class FileNotFound(CassiError, FileNotFoundError):
+    """A file, or the folder of an output file, does not exist."""
+
+class FileError(CassiError, OSError):
+    """The operating system refused or failed a read or a write."""
+
+class Operator:
+    """The CASSI forward model y = B(σ) A(ψ) x of one instrument.
+
+    A C-contiguous float32 input is read in place; other real arrays are
+    converted. Shapes and finiteness are checked.
+    """
+
+    def __init__(
+        self,
+        mask: ArrayLike,
+        bands: int = 28,
+        stride: float = 2.0,
+        mismatch: MismatchLike = None,
+        model: Optional[Model] = None,
+        **params: float,
+    ) -> None: ...
+    @property
+    def cube_shape(self) -> Tuple[int, int, int]:
+        """(bands, rows, cols) of the cubes `forward` takes."""
+    @property
+    def measurement_shape(self) -> Tuple[int, int]:
+        """(rows, detector cols) of the measurements `forward` makes."""
+    @property
+    def bands(self) -> int: ...
+    @property
+    def stride(self) -> float: ...
+    @property
+    def model(self) -> Model: ...
+    @property
+    def mismatch(self) -> Dict[str, float]:
+        """ψ keyed by PARAMETERS."""
+    def forward(self, x: ArrayLike) -> F32Array:
+        """y = A x: cube (bands, rows, cols) → measurement (rows, detector cols)."""
+    def adjoint(self, y: ArrayLike) -> F32Array:
+        """x = Aᵀ y: measurement (rows, detector cols) → cube (bands, rows, cols)."""
+
+class Calibration:
+    """The result of `calibrate`."""
+
+    @property
+    def preset(self) -> str: ...
+    @property
+    def model(self) -> Model: ...
+    @property
+    def parameters(self) -> Dict[str, float]:
+        """The estimated ψ keyed by PARAMETERS (px, °, px/band)."""
+    @property
+    def standard_errors(self) -> Dict[str, Optional[float]]:
+        """Standard error per parameter; None where not estimated."""
+    @property
+    def trade_offs(self) -> List[Tuple[str, str, float]]:
+        """(key_a, key_b, correlation) of parameters pinned only in combination."""
+    @property
+    def stages(self) -> List[Dict[str, Any]]:
+        """Each stage: {name, evaluations, seconds, parameters, score}."""
+    @property
+    def score(self) -> float: ...
+    @property
+    def nominal_score(self) -> float: ...
+    @property
+    def seconds(self) -> float: ...
+    @property
+    def evaluations(self) -> int: ...
+    def to_json(self) -> str: ...
+    @staticmethod
+    def from_json(text: str) -> "Calibration":
+        """Reads `to_json` output or a `cassi calibrate -o calib.json` file."""
+
+def simulate(
+    scene: ArrayLike,
+    mask: ArrayLike,
+    mismatch: MismatchLike = None,
+    *,
+    model: Optional[Model] = None,
+    stride: float = 2.0,
+    noise: bool = True,
+    photon_peak: Optional[float] = 1e5,
+    read_noise: float = 0.01,
+    seed: int = 0,
+    **params: float,
+) -> F32Array:
+    """A snapshot of `scene` through the discrete instrument model (+ noise)."""
+
+def simulate_physical(
+    scene: ArrayLike,
+    mask: ArrayLike,
+    mismatch: MismatchLike = None,
+    *,
+    stride: float = 2.0,
+    oversample: int = 4,
+    blur_sigma_px: Optional[float] = None,
+    blur_slope_px_per_nm: float = 0.0,
+    detector: Optional[Tuple[int, int]] = None,
+    adc_bits: Optional[int] = None,
+    wavelengths_nm: Optional[Sequence[float]] = None,
+    noise: bool = True,
+    photon_peak: Optional[float] = 1e5,
+    read_noise: float = 0.01,
+    seed: int = 0,
+    **params: float,
+) -> F32Array:
+    """A snapshot through the physical (oversampled, blurred) instrument."""
+
+def calibrate(
+    y: ArrayLike,
+    mask: ArrayLike,
+    *,
+    bands: int = 28,
+    stride: float = 2.0,
+    model: Model = "subpixel",
+    preset: Literal["default", "paper"] = "default",
+    progress: Optional[Callable[[Dict[str, Any]], object]] = None,
+) -> Calibration:
+    """Self-calibration from the measurement and the nominal mask alone."""
+
+@overload
+def reconstruct(
+    y: ArrayLike,
+    mask: ArrayLike,
+    *,
+    method: str = "gap-tv",
+    calibration: Optional[Calibration] = None,
+    mismatch: MismatchLike = None,
+    model: Optional[Model] = None,
+    bands: int = 28,
+    stride: float = 2.0,
+    iterations: Optional[int] = None,
+    strength: Optional[float] = None,
+    progress: Optional[Callable[[Dict[str, Any]], object]] = None,
+    return_info: Literal[False] = False,
+    **params: float,
+) -> F32Array: ...
+@overload
+def reconstruct(
+    y: ArrayLike,
+    mask: ArrayLike,
+    *,
+    method: str = "gap-tv",
+    calibration: Optional[Calibration] = None,
+    mismatch: MismatchLike = None,
+    model: Optional[Model] = None,
+    bands: int = 28,
+    stride: float = 2.0,
+    iterations: Optional[int] = None,
+    strength: Optional[float] = None,
+    progress: Optional[Callable[[Dict[str, Any]], object]] = None,
+    return_info: Literal[True],
+    **params: float,
+) -> Tuple[F32Array, Dict[str, Any]]: ...
+def metrics(truth: ArrayLike, estimate: ArrayLike) -> Dict[str, float]:
+    """{psnr, psnr_band_mean, ssim, sam_deg} as the library defines them."""
+
+def load(
+    path: Path,
+    var: Optional[str] = None,
+    *,
+    kind: Literal["array", "cube", "frame"] = "array",
+    layout: Literal["auto", "brc", "rcb"] = "auto",
+) -> F32Array:
+    """A variable of a .mat (v5/v7.3), .npy or .npz file as float32."""
+
+def save(path: Path, array: ArrayLike, var: Optional[str] = None) -> None:
+    """Writes .npy/.npz/.mat (v5, single) by extension, atomically."""
+
+def synthetic_scene(
+    rows: int = 256,
+    cols: int = 256,
+    bands: int = 28,
+    seed: int = 0,
+    wavelengths_nm: Optional[Sequence[float]] = None,
+) -> F32Array:
+    """The library's procedural hyperspectral scene (bands, rows, cols)."""
+
+def random_mask(rows: int = 256, cols: int = 256, open_fraction: float = 0.5, seed: int = 1) -> F32Array:
+    """An i.i.d. random binary mask (rows, cols)."""
+
+def _input_address(x: ArrayLike) -> Tuple[int, bool]: ...
+def _rust_reconstruct_seconds(
+    y: ArrayLike, mask: ArrayLike, method: str = ..., bands: int = ..., stride: float = ...,
+    iterations: Optional[int] = ..., repeats: int = ...,
+) -> List[float]: ...
+def _rust_calibrate_seconds(
+    y: ArrayLike, mask: ArrayLike, bands: int = ..., stride: float = ..., model: str = ...,
+    preset: str = ..., repeats: int = ...,
+) -> List[float]: ...
+def _panic_for_test() -> None: ...

@@ -1,0 +1,284 @@
+//! `cassi.calibrate` and its result, `cassi.Calibration`.
+
+use std::sync::mpsc;
+use std::time::Duration;
+
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList};
+
+use cassi_core::Parameter;
+use cassi_core::calib::{self, CalibrationProblem, Preset, StageReport};
+use cassi_core::optics::{MaskCode, mask_code, validate_measurement};
+
+use crate::arrays;
+use crate::errors::{Failure, catch, value_error};
+use crate::params;
+
+/// The result of a self-calibration: the estimated mismatch, its standard
+/// errors, the parameter pairs the data pin only in combination, and what
+/// each stage did. Pass it to `reconstruct(..., calibration=cal)` or to
+/// `Operator(mask, mismatch=cal, model=cal.model)`.
+#[pyclass(name = "Calibration", module = "cassi", frozen)]
+pub struct PyCalibration {
+    pub inner: calib::Calibration,
+}
+
+fn stage_dict<'py>(py: Python<'py>, s: &StageReport) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("name", &s.name)?;
+    d.set_item("evaluations", s.evaluations)?;
+    d.set_item("seconds", s.seconds)?;
+    d.set_item("parameters", params::to_dict(py, &s.parameters)?)?;
+    d.set_item("score", s.score)?;
+    Ok(d)
+}
+
+#[pymethods]
+impl PyCalibration {
+    /// The preset that ran ("default" or "paper").
+    #[getter]
+    fn preset(&self) -> &str {
+        &self.inner.preset
+    }
+
+    /// The dispersion model fitted ("rounded" or "subpixel").
+    #[getter]
+    fn model(&self) -> &'static str {
+        self.inner.model.name()
+    }
+
+    /// The estimated mismatch ψ: {dx, dy, theta_deg, a1, alpha_deg,
+    /// blur_sigma_px} in pixels, degrees and pixels per band.
+    #[getter]
+    fn parameters<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        params::to_dict(py, &self.inner.parameters)
+    }
+
+    /// The standard error of each parameter (same keys and units), None
+    /// where it was not estimated.
+    #[getter]
+    fn standard_errors<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let d = PyDict::new(py);
+        for p in Parameter::ALL {
+            d.set_item(p.key(), self.inner.uncertainty.get(p))?;
+        }
+        Ok(d)
+    }
+
+    /// Pairs of parameters whose errors are correlated by at least 0.8
+    /// (the data pin their combination, not each): a list of
+    /// (key_a, key_b, correlation).
+    #[getter]
+    fn trade_offs(&self) -> Vec<(&'static str, &'static str, f64)> {
+        self.inner
+            .trade_offs
+            .iter()
+            .map(|t| (t.a.key(), t.b.key(), t.correlation))
+            .collect()
+    }
+
+    /// Each stage as {name, evaluations, seconds, parameters, score}.
+    #[getter]
+    fn stages<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
+        let list = PyList::empty(py);
+        for s in &self.inner.stages {
+            list.append(stage_dict(py, s)?)?;
+        }
+        Ok(list)
+    }
+
+    /// Proxy score of the estimate (the final proxy).
+    #[getter]
+    fn score(&self) -> f64 {
+        self.inner.score
+    }
+
+    /// Proxy score of the nominal parameters (the same proxy).
+    #[getter]
+    fn nominal_score(&self) -> f64 {
+        self.inner.nominal_score
+    }
+
+    /// Wall-clock seconds of the whole calibration.
+    #[getter]
+    fn seconds(&self) -> f64 {
+        self.inner.seconds
+    }
+
+    /// Score evaluations, all stages together.
+    #[getter]
+    fn evaluations(&self) -> usize {
+        self.inner.evaluations
+    }
+
+    /// The library's JSON form of the result (what `from_json` reads).
+    fn to_json(&self) -> PyResult<String> {
+        serde_json::to_string_pretty(&self.inner)
+            .map_err(|e| value_error_here(format!("serialising the calibration: {e}")))
+    }
+
+    /// A calibration from its JSON form (`to_json`, or the file `cassi
+    /// calibrate -o calib.json` writes).
+    #[staticmethod]
+    fn from_json(py: Python<'_>, text: &str) -> PyResult<Self> {
+        let inner: calib::Calibration = serde_json::from_str(text)
+            .map_err(|e| value_error(py, format!("not a cassi calibration: {e}")))?;
+        inner
+            .parameters
+            .validate()
+            .map_err(|e| value_error(py, e.to_string()))?;
+        Ok(Self { inner })
+    }
+
+    fn __repr__(&self) -> String {
+        let mut out = format!(
+            "Calibration(preset={:?}, model={:?}, {:.1} s, {} evaluations)\n  {}",
+            self.inner.preset,
+            self.inner.model.name(),
+            self.inner.seconds,
+            self.inner.evaluations,
+            Parameter::format_all(&self.inner.parameters)
+        );
+        for p in Parameter::ALL {
+            if let Some(u) = self.inner.uncertainty.get(p) {
+                out += &format!(
+                    "\n  {:<5} {} ± {:.prec$} {}",
+                    p.name(),
+                    p.format(p.get(&self.inner.parameters)),
+                    u,
+                    p.unit(),
+                    prec = p.decimals()
+                );
+            }
+        }
+        out
+    }
+}
+
+fn value_error_here(msg: String) -> PyErr {
+    Python::attach(|py| value_error(py, msg))
+}
+
+enum Message {
+    Stage(StageReport),
+    Done(Result<calib::Calibration, Failure>),
+}
+
+/// Self-calibration: estimates the mismatch ψ between the nominal model and
+/// the instrument that took the measurement `y`, from `y` and the nominal
+/// `mask` alone (no ground truth).
+///
+/// Args:
+///     y: the measurement, 2-D (rows, detector cols), rows = the mask's rows.
+///     mask: the nominal coded aperture, 2-D (rows, cols), values in [0, 1].
+///     bands: spectral bands of the scene (the standard instrument: 28).
+///     stride: nominal dispersion, detector pixels per band (2).
+///     model: the dispersion model fitted: "subpixel" (default: continuous
+///         a1 and α, with the optical blur σ and standard errors whose
+///         coverage is measured) or "rounded" (the paper's discrete model).
+///     preset: "default" (ours) or "paper" (the paper's Algorithm 1).
+///     progress: called with a dict {name, evaluations, seconds,
+///         parameters, score} as each stage finishes.
+///
+/// Returns:
+///     Calibration: parameters, standard_errors, trade_offs, stages,
+///     seconds, evaluations, score, nominal_score.
+///
+/// Raises:
+///     InputError (a ValueError): wrong shapes (named, with the shape got
+///         and wanted), NaN/±Inf, a measurement without light, a mask
+///         without code, an unknown model or preset.
+///     KeyboardInterrupt: Ctrl-C; the call returns within ~0.1 s. The
+///         library has no stop point inside a calibration, so the abandoned
+///         run goes on on its worker thread until it ends (seconds) and its
+///         result is discarded.
+///
+/// The GIL is released while the calibration runs.
+#[pyfunction]
+#[pyo3(signature = (y, mask, *, bands=28, stride=2.0, model="subpixel", preset="default", progress=None))]
+#[allow(clippy::too_many_arguments)]
+pub fn calibrate(
+    py: Python<'_>,
+    y: &Bound<'_, PyAny>,
+    mask: &Bound<'_, PyAny>,
+    bands: usize,
+    stride: f64,
+    model: &str,
+    preset: &str,
+    progress: Option<Bound<'_, PyAny>>,
+) -> PyResult<PyCalibration> {
+    let model = params::model(py, model)?;
+    let preset = Preset::by_name(preset, stride).map_err(|e| value_error(py, e.to_string()))?;
+    let measurement = arrays::frame(y, "measurement y")?;
+    let mask = arrays::frame(mask, "mask")?;
+    // the CLI's checks, before any work
+    let checks = || -> Result<(), Failure> {
+        validate_measurement(&measurement, "measurement y")?;
+        if let MaskCode::Uniform(v) = mask_code(&mask, "mask")? {
+            return Err(Failure::Core(cassi_core::CassiError::Meaningless {
+                what: "mask".into(),
+                reason: format!("every pixel transmits {v}: there is no code to calibrate against"),
+            }));
+        }
+        cassi_core::recon::Model::nominal(&mask, bands, stride, model)?;
+        CalibrationProblem {
+            measurement: &measurement,
+            nominal_mask: &mask,
+            bands,
+            model,
+        }
+        .validate()?;
+        Ok(())
+    };
+    catch(checks)?;
+
+    // The work runs on its own thread so that this one can answer Ctrl-C
+    // at once: the library's calibration has no stop point inside a stage.
+    let (tx, rx) = mpsc::channel::<Message>();
+    let worker = std::thread::Builder::new()
+        .name("cassi-calibrate".into())
+        .spawn(move || {
+            let stages = tx.clone();
+            let result = catch(|| {
+                let problem = CalibrationProblem {
+                    measurement: &measurement,
+                    nominal_mask: &mask,
+                    bands,
+                    model,
+                };
+                let mut on_stage = |s: &StageReport| {
+                    let _ = stages.send(Message::Stage(s.clone()));
+                };
+                Ok(calib::calibrate(&problem, &preset, &mut on_stage)?)
+            });
+            let _ = tx.send(Message::Done(result));
+        })
+        .map_err(|e| value_error(py, format!("cannot start the calibration thread: {e}")))?;
+    let mut rx = rx;
+    loop {
+        let (back, message) = py.detach(move || {
+            let m = rx.recv_timeout(Duration::from_millis(50));
+            (rx, m)
+        });
+        rx = back;
+        match message {
+            Ok(Message::Stage(s)) => {
+                if let Some(cb) = &progress {
+                    cb.call1((stage_dict(py, &s)?,))?;
+                }
+            }
+            Ok(Message::Done(result)) => {
+                let _ = worker.join();
+                return Ok(PyCalibration { inner: result? });
+            }
+            Err(mpsc::RecvTimeoutError::Timeout) => {}
+            Err(mpsc::RecvTimeoutError::Disconnected) => {
+                return Err(Failure::Internal(
+                    "the calibration thread ended without a result".into(),
+                )
+                .into());
+            }
+        }
+        py.check_signals()?;
+    }
+}

@@ -1,0 +1,152 @@
+"""Calibration recovers a known mismatch; the result drives reconstruction;
+progress callbacks and the GIL."""
+
+import threading
+import time
+
+import numpy as np
+import pytest
+
+import cassi
+
+TRUTH = {"dx": 1.3, "dy": -0.8, "theta_deg": 0.35, "a1": 2.0, "alpha_deg": 0.0, "blur_sigma_px": 0.0}
+
+
+@pytest.fixture(scope="module")
+def case():
+    scene = cassi.synthetic_scene(96, 96, 8, seed=5)
+    mask = cassi.random_mask(96, 96, seed=2)
+    y = cassi.simulate(scene, mask, TRUTH, model="rounded", noise=False)
+    return scene, mask, y
+
+
+def test_calibration_recovers_a_known_misalignment(case):
+    _, mask, y = case
+    seen = []
+    cal = cassi.calibrate(y, mask, bands=8, model="rounded", progress=seen.append)
+    e = cal.parameters
+    assert list(e) == cassi.PARAMETERS
+    assert abs(e["dx"] - TRUTH["dx"]) < 0.1, e
+    assert abs(e["dy"] - TRUTH["dy"]) < 0.1, e
+    assert abs(e["theta_deg"] - TRUTH["theta_deg"]) < 0.15, e
+    assert abs(e["a1"] - TRUTH["a1"]) < 0.03, e
+    assert cal.score < cal.nominal_score / 2
+    assert (cal.preset, cal.model) == ("default", "rounded")
+    # standard errors: the registry's keys; the rounded model states the pose's
+    se = cal.standard_errors
+    assert list(se) == cassi.PARAMETERS
+    assert all(se[k] is not None and se[k] > 0 for k in ["dx", "dy", "theta_deg"])
+    # the progress callback saw every stage, in order, as the result lists them
+    assert [s["name"] for s in seen] == [s["name"] for s in cal.stages]
+    assert len(seen) >= 3
+    assert cal.seconds > 0 and cal.evaluations >= sum(s["evaluations"] for s in cal.stages)
+    assert isinstance(cal.trade_offs, list)
+    # the JSON form round-trips
+    again = cassi.Calibration.from_json(cal.to_json())
+    assert again.parameters == cal.parameters and again.standard_errors == se
+    assert "dx" in repr(cal) and "±" in repr(cal)
+
+
+def test_subpixel_calibration_reports_trade_offs_and_blur(case):
+    scene, mask, _ = case
+    truth = dict(TRUTH, a1=2.05, alpha_deg=1.5)
+    y = cassi.simulate(scene, mask, truth, model="subpixel", noise=False)
+    cal = cassi.calibrate(y, mask, bands=8)  # subpixel is the default
+    e = cal.parameters
+    assert cal.model == "subpixel"
+    assert abs(e["a1"] - 2.05) < 0.02 and abs(e["alpha_deg"] - 1.5) < 0.5, e
+    assert e["blur_sigma_px"] < 0.1
+    assert all(v is not None and v > 0 for v in cal.standard_errors.values())
+    for a, b, corr in cal.trade_offs:
+        assert a in cassi.PARAMETERS and b in cassi.PARAMETERS and abs(corr) >= 0.8
+
+
+def test_calibrated_reconstruction_beats_the_nominal_model(case):
+    scene, mask, y = case
+    cal = cassi.calibrate(y, mask, bands=8, model="rounded")
+    assumed = cassi.reconstruct(y, mask, bands=8)
+    corrected = cassi.reconstruct(y, mask, bands=8, calibration=cal)
+    oracle = cassi.reconstruct(y, mask, bands=8, mismatch=TRUTH)
+    score = {k: cassi.metrics(scene, np.clip(c, 0, 1))["psnr"]
+             for k, c in [("assumed", assumed), ("corrected", corrected), ("oracle", oracle)]}
+    assert score["corrected"] > score["assumed"] + 3, score
+    assert score["corrected"] > score["oracle"] - 1.0, score
+    with pytest.raises(ValueError, match="not both"):
+        cassi.reconstruct(y, mask, bands=8, calibration=cal, dx=1.0)
+    with pytest.raises(ValueError, match="differs from the calibration's model"):
+        cassi.reconstruct(y, mask, bands=8, calibration=cal, model="subpixel")
+    # an Operator of the calibration takes its model too, never silently another
+    op = cassi.Operator(mask, bands=8, mismatch=cal)
+    assert (op.model, op.mismatch) == (cal.model, cal.parameters)
+    with pytest.raises(ValueError, match="differs from the calibration's model 'rounded'"):
+        cassi.Operator(mask, bands=8, mismatch=cal, model="subpixel")
+
+
+def test_metrics_are_the_library_definitions(rng):
+    truth = rng.random((4, 16, 16), dtype=np.float32)
+    noisy = truth + np.float32(0.1)
+    m = cassi.metrics(truth, noisy)
+    assert m["psnr"] == pytest.approx(20.0, abs=1e-4)  # MSE 0.01, peak 1
+    assert cassi.metrics(truth, truth)["psnr"] == float("inf")
+    assert cassi.metrics(truth, 2 * truth)["sam_deg"] == pytest.approx(0.0, abs=1e-3)
+    assert 0 < m["ssim"] < 1 and set(m) == {"psnr", "psnr_band_mean", "ssim", "sam_deg"}
+    assert "SSIM" in cassi.METRIC_DEFINITIONS
+    with pytest.raises(ValueError, match="shape"):
+        cassi.metrics(truth, truth[:3])
+
+
+def test_reconstruction_progress_and_info(case):
+    _, mask, y = case
+    seen = []
+    cube, info = cassi.reconstruct(y, mask, bands=8, iterations=7, progress=seen.append, return_info=True)
+    assert [s["iteration"] for s in seen] == list(range(1, 8))
+    assert all(s["max_iterations"] == 7 for s in seen)
+    assert info["iterations"] == 7 and info["method"] == "gap-tv" and cube.dtype == np.float32
+    for method in cassi.ITERATIVE_METHODS:
+        assert cassi.reconstruct(y, mask, bands=8, method=method, iterations=3).shape == (8, 96, 96)
+
+
+def test_an_error_in_the_progress_callback_stops_the_work(case):
+    _, mask, y = case
+    calls = []
+
+    def boom(info):
+        calls.append(info)
+        raise RuntimeError("stop here")
+
+    with pytest.raises(RuntimeError, match="stop here"):
+        cassi.reconstruct(y, mask, bands=8, iterations=50, progress=boom)
+    assert len(calls) == 1
+    with pytest.raises(RuntimeError, match="stop here"):
+        cassi.calibrate(y, mask, bands=8, model="rounded", progress=boom)
+
+
+def _count_for(seconds, work=None):
+    """How far a Python thread counts while `work` runs (or for `seconds`)."""
+    stop = threading.Event()
+    n = [0]
+
+    def count():
+        while not stop.is_set():
+            n[0] += 1
+
+    t = threading.Thread(target=count)
+    t.start()
+    started = time.perf_counter()
+    if work:
+        work()
+    else:
+        time.sleep(seconds)
+    elapsed = time.perf_counter() - started
+    stop.set()
+    t.join()
+    return n[0] / elapsed
+
+
+def test_the_gil_is_released_while_the_library_works(case):
+    _, mask, y = case
+    alone = _count_for(0.3)
+    during = _count_for(None, lambda: cassi.reconstruct(y, mask, bands=8, iterations=150))
+    # holding the GIL would stop the counter almost completely; 2 cores are
+    # shared with the solver's threads
+    assert during > 0.1 * alone, (during, alone)
