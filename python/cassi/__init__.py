@@ -17,6 +17,10 @@ real arrays are converted to float32; complex/object arrays are refused
 ValueError) with the variable, the shape got and the shape wanted named.
 Every error is a ``CassiError``. The GIL is released while the library
 works; Ctrl-C interrupts a calibration or reconstruction.
+
+Studies: ``evaluate`` runs the four-scenario study of ``cassi eval``; with
+``shard=(K, N)`` one share of it, and ``merge=N`` writes the report of the
+finished shards, so any engine (Dask, Ray, Slurm) can spread a study.
 """
 
 from ._cassi import (
@@ -32,6 +36,7 @@ from ._cassi import (
     calibrate,
     reconstruct,
     metrics,
+    evaluate,
     load,
     save,
     synthetic_scene,
@@ -58,6 +63,7 @@ __all__ = [
     "calibrate",
     "reconstruct",
     "metrics",
+    "evaluate",
     "load",
     "save",
     "synthetic_scene",

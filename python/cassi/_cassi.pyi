@@ -192,6 +192,35 @@ def reconstruct(
 def metrics(truth: ArrayLike, estimate: ArrayLike) -> Dict[str, float]:
     """{psnr, psnr_band_mean, ssim, sam_deg} as the library defines them."""
 
+def evaluate(
+    out: Path,
+    *,
+    scenes: Optional[Path] = None,
+    synthetic: Optional[int] = None,
+    size: int = 256,
+    limit: Optional[int] = None,
+    mask: Optional[Path] = None,
+    mask_var: Optional[str] = None,
+    methods: Sequence[str] = ("gap-tv",),
+    iterations: Optional[int] = None,
+    preset: str = "default",
+    mismatch: Union[None, str, Mapping[str, float], "Calibration"] = None,
+    model: Literal["rounded", "subpixel"] = "rounded",
+    stride: float = 2.0,
+    noise: bool = True,
+    photon_peak: Optional[float] = 1e5,
+    read_noise: float = 0.01,
+    seed: int = 0,
+    resume: bool = False,
+    shard: Union[None, str, Tuple[int, int]] = None,
+    merge: Optional[int] = None,
+    progress: Optional[Callable[[Dict[str, Any]], None]] = None,
+    **params: float,
+) -> Dict[str, Any]:
+    """The four-scenario study of `cassi eval` into `out`; its summary.
+    `shard=(K, N)` runs scenes K, K + N, … into out/shards/K-of-N/;
+    `merge=N` writes the report of N finished shards."""
+
 def load(
     path: Path,
     var: Optional[str] = None,

@@ -220,14 +220,7 @@ pub fn calibrate(
                 reason: format!("every pixel transmits {v}: there is no code to calibrate against"),
             }));
         }
-        cassi_core::recon::Model::nominal(&mask, bands, stride, model)?;
-        CalibrationProblem {
-            measurement: &measurement,
-            nominal_mask: &mask,
-            bands,
-            model,
-        }
-        .validate()?;
+        CalibrationProblem::nominal(&measurement, &mask, bands, stride, model)?.validate()?;
         Ok(())
     };
     catch(checks)?;
@@ -240,12 +233,8 @@ pub fn calibrate(
         .spawn(move || {
             let stages = tx.clone();
             let result = catch(|| {
-                let problem = CalibrationProblem {
-                    measurement: &measurement,
-                    nominal_mask: &mask,
-                    bands,
-                    model,
-                };
+                let problem =
+                    CalibrationProblem::nominal(&measurement, &mask, bands, stride, model)?;
                 let mut on_stage = |s: &StageReport| {
                     let _ = stages.send(Message::Stage(s.clone()));
                 };

@@ -23,6 +23,10 @@ pub enum Failure {
     Io(IoError),
     /// A panic caught at the boundary: a bug, never a crash of Python.
     Internal(String),
+    /// A whole job (a study) failed: its message carries the context chain
+    /// (which scene, which shard); the exception class follows the library
+    /// error underneath.
+    Study(anyhow::Error),
 }
 
 impl From<CassiError> for Failure {
@@ -41,26 +45,36 @@ impl From<Failure> for PyErr {
     fn from(f: Failure) -> Self {
         Python::attach(|py| match f {
             Failure::Core(e) => raise(py, Kind::Value, e.to_string()),
-            Failure::Io(e) => {
-                let kind = match &e {
-                    IoError::NotFound { .. } => Kind::NotFound,
-                    // a write into a folder that does not exist
-                    IoError::Read { cause, .. } | IoError::Write { cause, .. }
-                        if cause.kind() == std::io::ErrorKind::NotFound =>
-                    {
-                        Kind::NotFound
-                    }
-                    IoError::Read { .. } | IoError::Write { .. } => Kind::Os,
-                    _ => Kind::Value,
+            Failure::Study(e) => {
+                let kind = if let Some(io) = e.chain().find_map(|c| c.downcast_ref::<IoError>()) {
+                    io_kind(io)
+                } else {
+                    Kind::Value
                 };
-                raise(py, kind, e.to_string())
+                raise(py, kind, format!("{e:#}"))
             }
+            Failure::Io(e) => raise(py, io_kind(&e), e.to_string()),
             Failure::Internal(msg) => raise(
                 py,
                 Kind::Base,
                 format!("internal error (a bug in cassi; please report it): {msg}"),
             ),
         })
+    }
+}
+
+/// The exception class of a file error.
+fn io_kind(e: &IoError) -> Kind {
+    match e {
+        IoError::NotFound { .. } => Kind::NotFound,
+        // a write into a folder that does not exist
+        IoError::Read { cause, .. } | IoError::Write { cause, .. }
+            if cause.kind() == std::io::ErrorKind::NotFound =>
+        {
+            Kind::NotFound
+        }
+        IoError::Read { .. } | IoError::Write { .. } => Kind::Os,
+        _ => Kind::Value,
     }
 }
 

@@ -10,6 +10,7 @@ mod arrays;
 mod calibration;
 mod errors;
 mod params;
+mod study;
 
 use std::time::Instant;
 
@@ -739,12 +740,8 @@ fn _rust_calibrate_seconds(
     let y = arrays::frame(y, "measurement y")?;
     let mask = arrays::frame(mask, "mask")?;
     compute(py, || {
-        let problem = cassi_core::calib::CalibrationProblem {
-            measurement: &y,
-            nominal_mask: &mask,
-            bands,
-            model,
-        };
+        let problem =
+            cassi_core::calib::CalibrationProblem::nominal(&y, &mask, bands, stride, model)?;
         let mut times = Vec::with_capacity(repeats);
         for _ in 0..repeats {
             let t = Instant::now();
@@ -775,6 +772,7 @@ fn _cassi(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(calibration::calibrate, m)?)?;
     m.add_function(wrap_pyfunction!(reconstruct, m)?)?;
     m.add_function(wrap_pyfunction!(metrics, m)?)?;
+    m.add_function(wrap_pyfunction!(study::evaluate, m)?)?;
     m.add_function(wrap_pyfunction!(load, m)?)?;
     m.add_function(wrap_pyfunction!(save, m)?)?;
     m.add_function(wrap_pyfunction!(synthetic_scene, m)?)?;

@@ -11,8 +11,10 @@ use cassi_core::metrics::SSIM_WIN;
 use cassi_core::optics::NoiseModel;
 use cassi_core::recon::registry::names_of;
 use cassi_core::recon::{Method, MethodId, MethodKind};
-use cassi_core::synth::random_binary_mask;
-use cassi_eval::jobs::eval::{EvalMode, EvalOutcome, EvalPlan, declare_outputs, run_eval};
+use cassi_eval::jobs::eval::{
+    EvalMode, EvalOutcome, EvalPlan, SceneSet, declare_outputs, mask_from_file, random_study_mask,
+    run_eval,
+};
 use cassi_eval::learned::check_stride;
 use cassi_eval::method::{LearnedMethod, StudyMethod};
 use cassi_eval::protocol::Study;
@@ -249,32 +251,17 @@ pub fn run(args: &EvalArgs, reporter: &Reporter) -> anyhow::Result<()> {
         read_noise: 0.0,
         seed: 0,
     });
-    let mut scenes = if let Some(dir) = &args.scenes {
-        scenes_in(dir)?
-    } else {
-        let wavelengths_nm = Instrument::default().wavelengths_nm;
-        (0..args.count as u64)
-            .map(|seed| SceneSource::Synthetic {
-                seed,
-                rows: args.size,
-                cols: args.size,
-                wavelengths_nm: wavelengths_nm.clone(),
-            })
-            .collect()
-    };
-    if let Some(n) = args.limit {
-        scenes.truncate(n);
+    let SceneSet {
+        scenes,
+        label: scenes_label,
+    } = match &args.scenes {
+        Some(dir) => SceneSet::folder(dir)?,
+        None => SceneSet::synthetic(args.count, args.size),
     }
+    .limit(args.limit);
     let (mask, mask_label) = match &args.mask {
-        Some(p) => {
-            let mask = cassi_io::load_frame(p, args.mask_var.as_deref())?;
-            cassi_core::optics::validate_mask(&mask, &format!("mask {}", p.display()))?;
-            (mask, format!("`{}`", p.display()))
-        }
-        None => (
-            random_binary_mask(args.size, args.size, 0.5, 1)?,
-            format!("random binary {0}×{0}, 50 % open, seed 1", args.size),
-        ),
+        Some(p) => mask_from_file(p, args.mask_var.as_deref())?,
+        None => random_study_mask(args.size)?,
     };
     let study = Study {
         mismatch,
@@ -291,10 +278,6 @@ pub fn run(args: &EvalArgs, reporter: &Reporter) -> anyhow::Result<()> {
             .iter()
             .map(|p| Preset::by_name(p, args.stride))
             .collect::<Result<_, _>>()?
-    };
-    let scenes_label = match &args.scenes {
-        Some(d) => format!("`{}`", d.display()),
-        None => format!("embedded synthetic {0}×{0}×28, seeds 0…", args.size),
     };
     let plan = EvalPlan {
         study,

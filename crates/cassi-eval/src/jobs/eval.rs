@@ -7,7 +7,8 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 use cassi_core::calib::Preset;
 use cassi_core::metrics::SSIM_WIN;
-use cassi_core::optics::validate_mismatch_for_mask;
+use cassi_core::optics::{validate_mask, validate_mismatch_for_mask};
+use cassi_core::synth::random_binary_mask;
 use cassi_core::{Instrument, Mask};
 use cassi_io::{CheckedSet, OutputSet, Staging};
 
@@ -19,7 +20,7 @@ use crate::report::{STUDY_FILES, Setup, write_all};
 use crate::shard::Shard;
 use crate::study::{
     Event, RunOptions, SceneSource, copy_tree, promote_pending, remove_pending, run_study,
-    scene_path, stored_result,
+    scene_path, scenes_in, stored_result,
 };
 use crate::study_figures::write_qualitative;
 use crate::summary::{Summary, summarize};
@@ -66,6 +67,63 @@ pub struct EvalOutcome {
     pub results: Vec<SceneResult>,
     pub summary: Summary,
     pub sweeps: Sweeps,
+}
+
+/// The scenes of a study and how its report names them.
+pub struct SceneSet {
+    pub scenes: Vec<SceneSource>,
+    pub label: String,
+}
+
+impl SceneSet {
+    /// Every scene cube in `dir` (.npy, .npz, .mat), in name order.
+    pub fn folder(dir: &Path) -> anyhow::Result<Self> {
+        Ok(Self {
+            scenes: scenes_in(dir)?,
+            label: format!("`{}`", dir.display()),
+        })
+    }
+
+    /// `count` embedded synthetic scenes of `size`×`size`×28, seeds 0, 1, ….
+    pub fn synthetic(count: usize, size: usize) -> Self {
+        let wavelengths_nm = Instrument::default().wavelengths_nm;
+        Self {
+            scenes: (0..count as u64)
+                .map(|seed| SceneSource::Synthetic {
+                    seed,
+                    rows: size,
+                    cols: size,
+                    wavelengths_nm: wavelengths_nm.clone(),
+                })
+                .collect(),
+            label: format!("embedded synthetic {size}×{size}×28, seeds 0…"),
+        }
+    }
+
+    /// At most the first `n` scenes.
+    pub fn limit(mut self, n: Option<usize>) -> Self {
+        if let Some(n) = n {
+            self.scenes.truncate(n);
+        }
+        self
+    }
+}
+
+/// The study's nominal mask from `file` (variable `var`), checked, and how
+/// the report names it.
+pub fn mask_from_file(file: &Path, var: Option<&str>) -> anyhow::Result<(Mask, String)> {
+    let mask = cassi_io::load_frame(file, var)?;
+    validate_mask(&mask, &format!("mask {}", file.display()))?;
+    Ok((mask, format!("`{}`", file.display())))
+}
+
+/// The mask a synthetic study uses when given none: random binary
+/// `size`×`size`, 50 % open, seed 1.
+pub fn random_study_mask(size: usize) -> anyhow::Result<(Mask, String)> {
+    Ok((
+        random_binary_mask(size, size, 0.5, 1)?,
+        format!("random binary {size}×{size}, 50 % open, seed 1"),
+    ))
 }
 
 /// Declares the files and folders an evaluation into `out` writes: the
