@@ -1,6 +1,7 @@
 //! `cassi.calibrate` and its result, `cassi.Calibration`.
 
-use std::sync::mpsc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, mpsc};
 use std::time::Duration;
 
 use pyo3::prelude::*;
@@ -188,10 +189,8 @@ enum Message {
 ///     InputError (a ValueError): wrong shapes (named, with the shape got
 ///         and wanted), NaN/±Inf, a measurement without light, a mask
 ///         without code, an unknown model or preset.
-///     KeyboardInterrupt: Ctrl-C; the call returns within ~0.1 s. The
-///         library has no stop point inside a calibration, so the abandoned
-///         run goes on on its worker thread until it ends (seconds) and its
-///         result is discarded.
+///     KeyboardInterrupt: Ctrl-C; the calibration stops at its next score
+///         (the library's cancel flag) and the call returns.
 ///
 /// The GIL is released while the calibration runs.
 #[pyfunction]
@@ -226,7 +225,10 @@ pub fn calibrate(
     catch(checks)?;
 
     // The work runs on its own thread so that this one can answer Ctrl-C
-    // at once: the library's calibration has no stop point inside a stage.
+    // at once; it raises the problem's cancel flag, which fails the
+    // calibration's next score.
+    let cancel = Arc::new(AtomicBool::new(false));
+    let cancel_worker = Arc::clone(&cancel);
     let (tx, rx) = mpsc::channel::<Message>();
     let worker = std::thread::Builder::new()
         .name("cassi-calibrate".into())
@@ -234,7 +236,8 @@ pub fn calibrate(
             let stages = tx.clone();
             let result = catch(|| {
                 let problem =
-                    CalibrationProblem::nominal(&measurement, &mask, bands, stride, model)?;
+                    CalibrationProblem::nominal(&measurement, &mask, bands, stride, model)?
+                        .with_cancel(&cancel_worker);
                 let mut on_stage = |s: &StageReport| {
                     let _ = stages.send(Message::Stage(s.clone()));
                 };
@@ -268,6 +271,12 @@ pub fn calibrate(
                 .into());
             }
         }
-        py.check_signals()?;
+        if let Err(interrupt) = py.check_signals() {
+            cancel.store(true, Ordering::Relaxed);
+            // the worker stops at its next score; wait for it (without the
+            // GIL) so that no calibration outlives the call
+            let _ = py.detach(move || worker.join());
+            return Err(interrupt);
+        }
     }
 }

@@ -33,6 +33,9 @@ pub enum CassiError {
     /// measurement, a mask with no open pixel, …).
     #[error("{what}: {reason}")]
     Meaningless { what: String, reason: String },
+    /// Work stopped because its caller asked (a cancel flag was raised).
+    #[error("{what}: stopped on request")]
+    Cancelled { what: String },
 }
 
 pub type Result<T> = std::result::Result<T, CassiError>;

@@ -194,3 +194,53 @@ fn default_preset_recovers_a_known_mask_misalignment() {
         );
     }
 }
+
+/// A raised cancel flag stops either preset with `Cancelled` (no result
+/// made from failed scores); raised mid-run (after the first stage), the
+/// run ends with the same error instead of a result; a flag never raised
+/// changes nothing.
+#[test]
+fn a_raised_cancel_flag_stops_a_calibration() {
+    use cassi_core::CassiError;
+    use cassi_core::calib::{Preset, calibrate};
+    use std::sync::atomic::{AtomicBool, Ordering};
+
+    let truth = Mismatch {
+        dx: 0.7,
+        ..Mismatch::nominal(2.0)
+    };
+    let (y, mask) = setup(64, 8, truth, DispersionModel::Subpixel);
+    let raised = AtomicBool::new(true);
+    for preset in ["default", "paper"] {
+        let p = CalibrationProblem::nominal(&y, &mask, 8, 2.0, DispersionModel::Subpixel)
+            .unwrap()
+            .with_cancel(&raised);
+        let mut stages = 0;
+        let e = calibrate(&p, &Preset::by_name(preset, 2.0).unwrap(), &mut |_| {
+            stages += 1
+        })
+        .unwrap_err();
+        assert!(matches!(e, CassiError::Cancelled { .. }), "{preset}: {e}");
+    }
+
+    // raised once the first stage has finished
+    let flag = AtomicBool::new(false);
+    let p = CalibrationProblem::nominal(&y, &mask, 8, 2.0, DispersionModel::Subpixel)
+        .unwrap()
+        .with_cancel(&flag);
+    let r = calibrate_default(&p, &DefaultPreset::default(), &mut |_| {
+        flag.store(true, Ordering::Relaxed);
+    });
+    assert!(matches!(r, Err(CassiError::Cancelled { .. })), "{r:?}");
+    // and an unraised flag changes nothing
+    let quiet = AtomicBool::new(false);
+    let free = CalibrationProblem::nominal(&y, &mask, 8, 2.0, DispersionModel::Subpixel).unwrap();
+    let a = calibrate_default(&free, &DefaultPreset::default(), &mut |_| {}).unwrap();
+    let b = calibrate_default(
+        &free.with_cancel(&quiet),
+        &DefaultPreset::default(),
+        &mut |_| {},
+    )
+    .unwrap();
+    assert_eq!(a.parameters, b.parameters);
+}

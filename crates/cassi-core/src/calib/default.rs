@@ -119,6 +119,8 @@ pub fn calibrate_default(
         let (u, n) = curvature_uncertainty(problem, &best, scores.score(&best), &preset.proxy);
         (u, Vec::new(), n)
     };
+    // a cancelled run's stages ended on failed scores: no result from them
+    problem.check_cancelled()?;
     let score = scores.score(&best);
     let nominal_score = scores.score(&Mismatch::nominal(preset.stride));
     // + the uncertainty probes, the final and the nominal score

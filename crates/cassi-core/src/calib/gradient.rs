@@ -207,6 +207,7 @@ impl CalibrationProblem<'_> {
         proxy: &ProxyParams,
         params: &[Parameter],
     ) -> Result<(f64, Vec<f64>)> {
+        self.check_cancelled()?;
         psi.validate()?;
         // The unrolled forward-mode derivatives are written for the sharp
         // operator; a blurred model is fitted by the derivative-free stages.

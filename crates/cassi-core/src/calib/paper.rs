@@ -150,6 +150,8 @@ pub fn calibrate_paper(
     let best = a1_sweep(&mut run, problem, preset, best);
 
     let score = proxy_score(problem, &preset.selection_proxy);
+    // a cancelled run's stages ended on failed scores: no result from them
+    problem.check_cancelled()?;
     let final_score = score(&best);
     let (uncertainty, uncertainty_evals) =
         curvature_uncertainty(problem, &best, final_score, &preset.selection_proxy);

@@ -17,7 +17,9 @@ use serde::{Deserialize, Serialize};
 
 use super::smooth::{gaussian_taps, smooth_step};
 use crate::cube::{Mask, Measurement};
-use crate::error::{Result, shape_error};
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use crate::error::{CassiError, Result, shape_error};
 use crate::linop::LinearOperator;
 use crate::optics::{CassiOperator, DispersionModel, ModelOperator};
 use crate::params::Mismatch;
@@ -48,6 +50,10 @@ impl Default for ProxyParams {
 pub struct CalibrationProblem<'a> {
     pub measurement: &'a Measurement,
     pub nominal: Model<'a>,
+    /// Raised by the caller (another thread, a signal handler) to stop the
+    /// calibration: every score after it fails at once and the calibration
+    /// returns [`CassiError::Cancelled`](crate::CassiError::Cancelled).
+    pub cancel: Option<&'a AtomicBool>,
 }
 
 impl<'a> CalibrationProblem<'a> {
@@ -63,7 +69,26 @@ impl<'a> CalibrationProblem<'a> {
         Ok(Self {
             measurement,
             nominal: Model::nominal(nominal_mask, bands, stride, dispersion)?,
+            cancel: None,
         })
+    }
+
+    /// The same problem, stopped when `flag` is raised.
+    pub fn with_cancel(self, flag: &'a AtomicBool) -> Self {
+        Self {
+            cancel: Some(flag),
+            ..self
+        }
+    }
+
+    /// An error once the caller asked to stop.
+    pub fn check_cancelled(&self) -> Result<()> {
+        match self.cancel {
+            Some(flag) if flag.load(Ordering::Relaxed) => Err(CassiError::Cancelled {
+                what: "calibration".into(),
+            }),
+            _ => Ok(()),
+        }
     }
 
     pub fn nominal_mask(&self) -> &'a Mask {
@@ -82,8 +107,8 @@ impl<'a> CalibrationProblem<'a> {
     /// The same problem fitted with another dispersion family.
     pub fn with_model(&self, dispersion: DispersionModel) -> Self {
         Self {
-            measurement: self.measurement,
             nominal: self.nominal.with_dispersion(dispersion),
+            ..*self
         }
     }
 
@@ -108,6 +133,7 @@ impl<'a> CalibrationProblem<'a> {
 
     /// score(ψ) with the proxy `proxy` (ψ's blur included).
     pub fn score(&self, psi: &Mismatch, proxy: &ProxyParams) -> Result<f64> {
+        self.check_cancelled()?;
         let op = ModelOperator::new(self.nominal_mask(), self.bands(), psi, self.model())?;
         Ok(proxy_residual(&op, self.measurement, proxy))
     }

@@ -89,6 +89,7 @@ impl<'a> TextureFit<'a> {
     /// h(A_ψ x̃) on the measurement's frame (cropped or zero-padded).
     fn template(&self, psi: &Mismatch) -> Result<Vec<f32>> {
         let p = self.problem;
+        p.check_cancelled()?;
         let op = ModelOperator::new(p.nominal_mask(), p.bands(), psi, p.model())?;
         let (rows, det) = op.measurement_shape();
         let mut t = vec![0.0f32; op.range_len()];
