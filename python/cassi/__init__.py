@@ -46,6 +46,7 @@ from ._cassi import (
     METHODS,
     ITERATIVE_METHODS,
     PRESETS,
+    NETS_BUILT,
     METRIC_DEFINITIONS,
     __version__,
 )
@@ -73,6 +74,7 @@ __all__ = [
     "METHODS",
     "ITERATIVE_METHODS",
     "PRESETS",
+    "NETS_BUILT",
     "METRIC_DEFINITIONS",
     "__version__",
 ]

@@ -23,6 +23,7 @@ METHODS: List[Tuple[str, str]]
 #: The methods this build can run (the learned ones need the nets feature).
 ITERATIVE_METHODS: List[str]
 PRESETS: List[str]
+NETS_BUILT: bool
 METRIC_DEFINITIONS: str
 
 class CassiError(Exception):
@@ -161,6 +162,7 @@ def reconstruct(
     mask: ArrayLike,
     *,
     method: str = "gap-tv",
+    weights: Optional[Path] = None,
     calibration: Optional[Calibration] = None,
     mismatch: MismatchLike = None,
     model: Optional[Model] = None,
@@ -178,6 +180,7 @@ def reconstruct(
     mask: ArrayLike,
     *,
     method: str = "gap-tv",
+    weights: Optional[Path] = None,
     calibration: Optional[Calibration] = None,
     mismatch: MismatchLike = None,
     model: Optional[Model] = None,
@@ -202,6 +205,8 @@ def evaluate(
     mask: Optional[Path] = None,
     mask_var: Optional[str] = None,
     methods: Sequence[str] = ("gap-tv",),
+    weights: Optional[Mapping[str, Path]] = None,
+    weights_dir: Optional[Path] = None,
     iterations: Optional[int] = None,
     preset: str = "default",
     mismatch: Union[None, str, Mapping[str, float], "Calibration"] = None,

@@ -9,6 +9,7 @@
 mod arrays;
 mod calibration;
 mod errors;
+mod learned;
 mod params;
 mod study;
 
@@ -24,7 +25,7 @@ use cassi_core::optics::{
     ModelOperator, NoiseModel, PhysicalSpec, SimulationSpec, validate_mismatch_for_mask,
 };
 use cassi_core::recon::registry::METHODS;
-use cassi_core::recon::{Method, Model};
+use cassi_core::recon::{Method, MethodId, Model};
 use cassi_core::solvers::{Control, IterationInfo};
 use cassi_core::{Instrument, Mismatch, Parameter};
 use cassi_io::CubeLayout;
@@ -393,9 +394,12 @@ fn assumed(
 ///     y: measurement (rows, detector cols); a width differing from the
 ///         model's detector is cropped or zero-padded on the right.
 ///     mask: nominal coded aperture (rows, cols).
-///     method: a name of `cassi.METHODS` with an iterative solver
-///         ("gap-tv", "admm-tv", "pnp-tv"); the learned ones need a build
-///         with networks, which this one is not.
+///     method: a name of `cassi.METHODS`: an iterative solver ("gap-tv",
+///         "admm-tv", "pnp-tv") or, in a package built with the networks
+///         (`cassi.NETS_BUILT`), a learned one ("mst-s", "mst-l", "hdnet",
+///         "pnp-hsicnn") with `weights`.
+///     weights: a learned method's checkpoint (.pth state dict or
+///         .safetensors, as the MST toolbox and PnP-CASSI publish them).
 ///     calibration: a Calibration (its parameters and model), or None.
 ///     mismatch: instead of a calibration, as for `Operator`; **params too.
 ///     model: "rounded" (default) or "subpixel"; with a calibration, its own.
@@ -411,13 +415,14 @@ fn assumed(
 /// [0, 1] before scoring, as the library's metrics assume).
 /// Ctrl-C stops the solver at the next iteration (KeyboardInterrupt).
 #[pyfunction]
-#[pyo3(signature = (y, mask, *, method="gap-tv", calibration=None, mismatch=None, model=None, bands=28, stride=2.0, iterations=None, strength=None, progress=None, return_info=false, **params))]
+#[pyo3(signature = (y, mask, *, method="gap-tv", weights=None, calibration=None, mismatch=None, model=None, bands=28, stride=2.0, iterations=None, strength=None, progress=None, return_info=false, **params))]
 #[allow(clippy::too_many_arguments)]
 fn reconstruct<'py>(
     py: Python<'py>,
     y: &Bound<'py, PyAny>,
     mask: &Bound<'py, PyAny>,
     method: &str,
+    weights: Option<std::path::PathBuf>,
     calibration: Option<&Bound<'py, PyCalibration>>,
     mismatch: Option<&Bound<'py, PyAny>>,
     model: Option<&str>,
@@ -430,9 +435,20 @@ fn reconstruct<'py>(
     params: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let (psi, dispersion) = assumed(py, stride, calibration, mismatch, model, params)?;
-    let recipe = Method::by_name(method)
-        .map_err(|e| value_error(py, e.to_string()))?
-        .with_overrides(iterations, strength);
+    let id = MethodId::parse(method).map_err(|e| value_error(py, e.to_string()))?;
+    // an iterative recipe, or a learned method's checked weights
+    let (recipe, learned_weights) = match Method::defaults(id) {
+        Some(recipe) => {
+            if weights.is_some() {
+                return Err(value_error(
+                    py,
+                    format!("weights= is for the learned methods; {id} has none"),
+                ));
+            }
+            (Some(recipe.with_overrides(iterations, strength)), None)
+        }
+        None => (None, Some(learned::weights_for(py, id, weights)?)),
+    };
     let measurement = arrays::frame(y, "measurement y")?;
     let mask = arrays::frame(mask, "mask")?;
     let progress = progress.map(Bound::unbind);
@@ -467,23 +483,52 @@ fn reconstruct<'py>(
                 }
             })
         };
-        Ok(recipe.solve(&measurement, &model, &mut observer)?)
+        Ok(match (&recipe, &learned_weights) {
+            (Some(recipe), _) => {
+                let r = recipe.solve(&measurement, &model, &mut observer)?;
+                let details = (
+                    r.solution_iterations,
+                    format!("{:?}", r.stop),
+                    r.relative_residual,
+                    r.width_fitted,
+                );
+                (r.cube, Some(details))
+            }
+            (None, Some(w)) => {
+                let cube = learned::reconstruct(
+                    id,
+                    w,
+                    &measurement,
+                    &model,
+                    iterations,
+                    strength,
+                    &mut observer,
+                )?;
+                (cube, None)
+            }
+            (None, None) => unreachable!("a method is iterative or learned"),
+        })
     });
     if let Some(e) = pending {
         return Err(e);
     }
-    let r = result?;
+    let (cube, details) = result?;
     let seconds = started.elapsed().as_secs_f64();
     let info = PyDict::new(py);
     if return_info {
-        info.set_item("method", recipe.name())?;
-        info.set_item("iterations", r.solution_iterations)?;
-        info.set_item("stop", format!("{:?}", r.stop))?;
-        info.set_item("relative_residual", r.relative_residual)?;
-        info.set_item("width_fitted", r.width_fitted)?;
+        info.set_item("method", id.name())?;
+        // a network has no iterations (PnP-HSICNN's count is its schedule's)
+        let (iterations, stop, residual, width) = match details {
+            Some((i, stop, res, width)) => (Some(i), Some(stop), Some(res), width),
+            None => (None, None, None, None),
+        };
+        info.set_item("iterations", iterations)?;
+        info.set_item("stop", stop)?;
+        info.set_item("relative_residual", residual)?;
+        info.set_item("width_fitted", width)?;
         info.set_item("seconds", seconds)?;
     }
-    let cube = arrays::cube_to_numpy(py, r.cube)?;
+    let cube = arrays::cube_to_numpy(py, cube)?;
     if return_info {
         Ok((cube, info).into_pyobject(py)?.into_any())
     } else {
@@ -802,6 +847,7 @@ fn _cassi(m: &Bound<'_, PyModule>) -> PyResult<()> {
             .collect::<Vec<_>>(),
     )?;
     m.add("PRESETS", cassi_core::calib::PRESET_NAMES.to_vec())?;
+    m.add("NETS_BUILT", learned::BUILT)?;
     m.add(
         "METRIC_DEFINITIONS",
         cassi_core::metrics::METRIC_DEFINITIONS,

@@ -3,6 +3,7 @@
 //! study spreads over processes or machines with whatever engine runs the
 //! calls (Dask, Ray, a Slurm array).
 
+use std::collections::HashMap;
 use std::path::PathBuf;
 
 use pyo3::prelude::*;
@@ -15,12 +16,16 @@ use cassi_eval::jobs::JobObserver;
 use cassi_eval::jobs::eval::{
     EvalMode, EvalPlan, SceneSet, declare_outputs, mask_from_file, random_study_mask, run_eval,
 };
+use cassi_eval::learned::check_stride;
+use cassi_eval::method::{LearnedMethod, StudyMethod};
 use cassi_eval::protocol::Study;
 use cassi_eval::shard::Shard;
 use cassi_eval::study::SceneSource;
+use cassi_eval::weights::resolve_weights;
 use cassi_io::OutputSet;
 
 use crate::errors::{Failure, compute, type_error, value_error};
+use crate::learned;
 use crate::params;
 
 /// The shard from `"K/N"` or `(K, N)`.
@@ -99,8 +104,10 @@ impl JobObserver for PyObserver {
 /// or `synthetic` (that many embedded scenes of `size`×`size`×28, seeds
 /// 0, 1, …); `limit` keeps the first few. `mask`: a mask file (`mask_var`
 /// inside it), or None for a random binary `size`×`size` mask (synthetic
-/// scenes only). `methods`: iterative solvers (`cassi.ITERATIVE_METHODS`),
-/// `iterations` overriding their counts. The true instrument: `mismatch`
+/// scenes only). `methods`: iterative solvers (`cassi.ITERATIVE_METHODS`)
+/// and, with the networks built (`cassi.NETS_BUILT`), learned ones with
+/// their `weights` ({method: file}) or a `weights_dir` searched as the CLI
+/// does; `iterations` overrides the iterative counts. The true instrument: `mismatch`
 /// (default "paper"; a dict of `cassi.PARAMETERS` keys, or keywords
 /// `**params`), dispersion `model` ("rounded" or "subpixel"), nominal
 /// `stride`; detector noise as `cassi.simulate` takes it. `preset`: the
@@ -114,7 +121,7 @@ impl JobObserver for PyObserver {
 /// `progress`, if given, is called with {stage, done, total}. Ctrl-C stops
 /// the study at the next scene step (finished scenes stay for `resume`).
 #[pyfunction]
-#[pyo3(signature = (out, *, scenes=None, synthetic=None, size=256, limit=None, mask=None, mask_var=None, methods=vec!["gap-tv".to_string()], iterations=None, preset="default", mismatch=None, model="rounded", stride=2.0, noise=true, photon_peak=Some(1e5), read_noise=0.01, seed=0, resume=false, shard=None, merge=None, progress=None, **params))]
+#[pyo3(signature = (out, *, scenes=None, synthetic=None, size=256, limit=None, mask=None, mask_var=None, methods=vec!["gap-tv".to_string()], weights=None, weights_dir=None, iterations=None, preset="default", mismatch=None, model="rounded", stride=2.0, noise=true, photon_peak=Some(1e5), read_noise=0.01, seed=0, resume=false, shard=None, merge=None, progress=None, **params))]
 #[allow(clippy::too_many_arguments)]
 pub fn evaluate<'py>(
     py: Python<'py>,
@@ -126,6 +133,8 @@ pub fn evaluate<'py>(
     mask: Option<PathBuf>,
     mask_var: Option<String>,
     methods: Vec<String>,
+    weights: Option<HashMap<String, PathBuf>>,
+    weights_dir: Option<PathBuf>,
     iterations: Option<usize>,
     preset: &str,
     mismatch: Option<&Bound<'py, PyAny>>,
@@ -187,22 +196,29 @@ pub fn evaluate<'py>(
     noise
         .validate()
         .map_err(|e| value_error(py, e.to_string()))?;
-    let mut study_methods = Vec::new();
+    // learned methods' weights by method name, checked against the registry
+    let mut given = Vec::new();
+    for (name, path) in weights.unwrap_or_default() {
+        let id = MethodId::parse(&name).map_err(|e| value_error(py, format!("weights: {e}")))?;
+        given.push((id, path));
+    }
+    let mut study_methods: Vec<StudyMethod> = Vec::new();
     for name in &methods {
         let id = MethodId::parse(name).map_err(|e| value_error(py, e.to_string()))?;
-        let method = Method::defaults(id).ok_or_else(|| {
-            value_error(
-                py,
-                format!(
-                    "methods: {name} is a learned method; the Python package runs the \
-                     iterative ones ({})",
-                    cassi_core::recon::registry::names_of(cassi_core::recon::MethodKind::Iterative)
-                        .collect::<Vec<_>>()
-                        .join(", ")
-                ),
-            )
-        })?;
-        study_methods.push(method.with_overrides(iterations, None).into());
+        match Method::defaults(id) {
+            Some(method) => study_methods.push(method.with_overrides(iterations, None).into()),
+            None => {
+                learned::require_nets(py, id)?;
+                let file = resolve_weights(id, &given, weights_dir.as_deref())
+                    .map_err(|e| value_error(py, format!("{e:#}")))?;
+                check_stride(id, stride).map_err(|e| value_error(py, format!("{e:#}")))?;
+                let iterations = iterations.filter(|_| id.kind().has_iterations());
+                let loaded = py
+                    .detach(|| LearnedMethod::new(id, file, iterations).load())
+                    .map_err(|e| value_error(py, format!("{e:#}")))?;
+                study_methods.push(StudyMethod::Learned(loaded));
+            }
+        }
     }
     let preset = Preset::by_name(preset, stride).map_err(|e| value_error(py, e.to_string()))?;
     let progress = progress.map(Bound::unbind);
