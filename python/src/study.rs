@@ -119,7 +119,8 @@ impl JobObserver for PyObserver {
 /// and writes the report one process would have written (same scores,
 /// timings aside). `resume=True` reuses finished scenes of the same study.
 /// `progress`, if given, is called with {stage, done, total}. Ctrl-C stops
-/// the study at the next scene step (finished scenes stay for `resume`).
+/// the study once the scene in progress is written (finished scenes stay
+/// for `resume`).
 #[pyfunction]
 #[pyo3(signature = (out, *, scenes=None, synthetic=None, size=256, limit=None, mask=None, mask_var=None, methods=vec!["gap-tv".to_string()], weights=None, weights_dir=None, iterations=None, preset="default", mismatch=None, model="rounded", stride=2.0, noise=true, photon_peak=Some(1e5), read_noise=0.01, seed=0, resume=false, shard=None, merge=None, progress=None, **params))]
 #[allow(clippy::too_many_arguments)]

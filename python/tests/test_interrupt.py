@@ -84,3 +84,33 @@ def test_sigint_stops_a_long_calibration_promptly():
     assert "KeyboardInterrupt" in err, err
     assert child.returncode != 0
     assert took < 1.5, f"{took:.2f} s after SIGINT"
+
+
+def test_sigint_stops_a_study_after_the_scene_and_resume_goes_on(tmp_path):
+    """Ctrl-C during `evaluate` ends it once the scene in progress is
+    written (no report); `resume=True` reuses the finished scenes."""
+    sent = []
+
+    def send():
+        sent.append(time.perf_counter())
+        os.kill(os.getpid(), signal.SIGINT)
+
+    common = dict(synthetic=8, size=64, iterations=15)
+    timer = threading.Timer(0.5, send)
+    timer.start()
+    with pytest.raises(KeyboardInterrupt):
+        cassi.evaluate(tmp_path, **common)
+    ended = time.perf_counter()
+    timer.join()
+    assert sent, "the signal was never sent"
+    assert ended - sent[0] < 5.0, f"{ended - sent[0]:.2f} s after SIGINT"
+    assert not (tmp_path / "report.md").exists()
+    finished = sorted(p.name for p in (tmp_path / ".pending" / "scenes").glob("*.json"))
+    assert 0 < len(finished) < 8, finished
+    messages = []
+    cassi.evaluate(tmp_path, resume=True, **common,
+                   progress=lambda p: messages.append(p))
+    assert (tmp_path / "report.md").is_file()
+    assert len(list((tmp_path / "scenes").glob("*.json"))) == 8
+    evaluating = [m for m in messages if m["stage"] == "evaluating"]
+    assert evaluating and evaluating[-1]["done"] == evaluating[-1]["total"]

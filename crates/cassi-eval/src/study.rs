@@ -198,14 +198,17 @@ pub struct RunOptions<'a> {
 }
 
 /// Runs `study` on every scene (scene i uses noise seed i) or on one shard's
-/// share of them, writing each result to `<out>/scenes/`.
+/// share of them, writing each result to `<out>/scenes/`. `on_event` hears
+/// every event; an error it returns ends the study there (finished scenes
+/// stay on disk for a resumed run; a step's error ends it once that scene
+/// is written).
 pub fn run_study(
     study: &Study,
     scenes: &[SceneSource],
     mask: &Mask,
     out: &Path,
     options: RunOptions<'_>,
-    on_event: &mut dyn FnMut(Event<'_>),
+    on_event: &mut dyn FnMut(Event<'_>) -> anyhow::Result<()>,
 ) -> anyhow::Result<Vec<SceneResult>> {
     let RunOptions {
         resume,
@@ -237,14 +240,14 @@ pub fn run_study(
             };
             match earlier {
                 Earlier::Same(r) => {
-                    on_event(Event::Skipped { name: &name });
+                    on_event(Event::Skipped { name: &name })?;
                     results.push(*r);
                     continue;
                 }
                 Earlier::Different(reason) => on_event(Event::Recomputed {
                     name: &name,
                     reason,
-                }),
+                })?,
                 Earlier::None => {}
             }
         }
@@ -252,11 +255,16 @@ pub fn run_study(
             index: i,
             count: scenes.len(),
             name: &name,
-        });
+        })?;
         // the first scene also gets the qualitative figures
         let keep = qualitative.is_some() && i == 0;
+        // a step's callback cannot return: its first error is kept for
+        // after the scene
+        let mut stopped = None;
         let (result, kept) = run_scene(&name, &scene, mask, study, noise_seed, keep, &mut |step| {
-            on_event(Event::Step { name: step })
+            if stopped.is_none() {
+                stopped = on_event(Event::Step { name: step }).err();
+            }
         })
         .with_context(|| format!("scene {name}"))?;
         if let (Some(method), Some(draw)) = (study.methods.first().filter(|_| keep), qualitative) {
@@ -270,9 +278,12 @@ pub fn run_study(
             result,
         };
         write_record(&path, &record)?;
+        if let Some(e) = stopped {
+            return Err(e);
+        }
         on_event(Event::SceneDone {
             result: &record.result,
-        });
+        })?;
         results.push(record.result);
     }
     // pending records of scenes this run does not hold (an earlier,

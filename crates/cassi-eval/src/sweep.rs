@@ -56,7 +56,10 @@ pub fn sensitivity(
                     resume,
                     ..RunOptions::default()
                 },
-                &mut |e| on_event(scale, e),
+                &mut |e| {
+                    on_event(scale, e);
+                    Ok(())
+                },
             )?;
             Ok(SensitivityPoint {
                 scale,

@@ -269,8 +269,9 @@ fn run_scenes(
             qualitative: Some(&write_qualitative),
         },
         &mut |e| {
-            // between steps every finished scene is on disk: a signal may
-            // end the run here (rerun with resume to go on)
+            // between steps every finished scene is on disk: a front end
+            // may end the process here, or stop the study after the scene
+            // (rerun with resume to go on)
             observer.stop_point();
             match e {
                 Event::SceneStart { .. } => {}
@@ -288,6 +289,7 @@ fn run_scenes(
                 }
                 Event::SceneDone { result } => observer.say(&scene_line(result)),
             }
+            observer.checkpoint()
         },
     )?;
     observer.progress_finished();
