@@ -7,6 +7,7 @@
 //! refused. Every input is checked for NaN/±Inf and its shape before use.
 //! Output: arrays that own the library's buffers (no copy).
 
+use cassi_io::numpy_shape;
 use numpy::{
     IntoPyArray, PyArray1, PyArrayDescrMethods, PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn,
     PyUntypedArray, PyUntypedArrayMethods,
@@ -42,21 +43,6 @@ impl<'py> F32Array<'py> {
     /// The address of the first value (the zero-copy check in the tests).
     pub fn data_ptr(&self) -> usize {
         self.slice().as_ptr() as usize
-    }
-}
-
-/// `(a, b, c)` as Python prints a shape.
-pub fn shape_str(shape: &[usize]) -> String {
-    match shape {
-        [one] => format!("({one},)"),
-        _ => format!(
-            "({})",
-            shape
-                .iter()
-                .map(|d| d.to_string())
-                .collect::<Vec<_>>()
-                .join(", ")
-        ),
     }
 }
 
@@ -133,7 +119,7 @@ pub fn check_finite(py: Python<'_>, a: &F32Array<'_>, what: &str) -> PyResult<()
     let e = CassiError::NonFinite {
         what: what.to_string(),
         value: data[i],
-        location: format!("index {}", shape_str(&index)),
+        location: format!("index {}", numpy_shape(&index)),
     };
     Err(value_error(
         py,
@@ -176,7 +162,7 @@ pub fn shape_error(py: Python<'_>, what: &str, got: &[usize], expected: String) 
         py,
         CassiError::Shape {
             what: what.to_string(),
-            got: shape_str(got),
+            got: numpy_shape(got),
             expected,
         }
         .to_string(),
@@ -197,7 +183,7 @@ pub fn finite_with_shape<'py>(
             py,
             what,
             a.shape(),
-            format!("{} {why}", shape_str(expected)),
+            format!("{} {why}", numpy_shape(expected)),
         ));
     }
     check_finite(py, &a, what)?;

@@ -122,29 +122,19 @@ impl PyOperator {
     /// y = A x: a cube (bands, rows, cols) to a measurement (rows, detector cols).
     fn forward<'py>(&self, py: Python<'py>, x: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyAny>> {
         let (l, h, w) = self.op.cube_shape();
+        let (rows, cols) = self.op.measurement_shape();
         let input = arrays::finite_with_shape(
             x,
             "cube x",
             &[l, h, w],
             "(bands, rows, cols) for this operator",
         )?;
-        let (rows, cols) = self.op.measurement_shape();
-        let out = PyArray::<f32, _>::zeros(py, [rows, cols], false);
-        {
-            let mut rw = out.readwrite();
-            let y = rw.as_slice_mut().expect("a new array is contiguous");
-            let xs = input.slice();
-            let op = &self.op;
-            compute(py, || {
-                op.apply(xs, y);
-                Ok(())
-            })?;
-        }
-        Ok(out.into_any())
+        apply_into(py, &input, &[rows, cols], |x, y| self.op.apply(x, y))
     }
 
     /// x = Aᵀ y: a measurement (rows, detector cols) to a cube (bands, rows, cols).
     fn adjoint<'py>(&self, py: Python<'py>, y: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyAny>> {
+        let (l, h, w) = self.op.cube_shape();
         let (rows, cols) = self.op.measurement_shape();
         let input = arrays::finite_with_shape(
             y,
@@ -152,19 +142,7 @@ impl PyOperator {
             &[rows, cols],
             "(rows, detector cols) for this operator",
         )?;
-        let (l, h, w) = self.op.cube_shape();
-        let out = PyArray::<f32, _>::zeros(py, [l, h, w], false);
-        {
-            let mut rw = out.readwrite();
-            let x = rw.as_slice_mut().expect("a new array is contiguous");
-            let ys = input.slice();
-            let op = &self.op;
-            compute(py, || {
-                op.adjoint(ys, x);
-                Ok(())
-            })?;
-        }
-        Ok(out.into_any())
+        apply_into(py, &input, &[l, h, w], |y, x| self.op.adjoint(y, x))
     }
 
     /// Seconds of each of `repeats` applications of the library's operator
@@ -203,6 +181,27 @@ impl PyOperator {
             Parameter::format_all(&self.mismatch)
         )
     }
+}
+
+/// A new float32 array of `shape` filled by `f(input, out)` without the
+/// GIL (the input read in place).
+fn apply_into<'py>(
+    py: Python<'py>,
+    input: &arrays::F32Array<'_>,
+    shape: &[usize],
+    f: impl Fn(&[f32], &mut [f32]) + Sync,
+) -> PyResult<Bound<'py, PyAny>> {
+    let out = PyArray::<f32, _>::zeros(py, shape, false);
+    {
+        let mut rw = out.readwrite();
+        let dst = rw.as_slice_mut().expect("a new array is contiguous");
+        let src = input.slice();
+        compute(py, || {
+            f(src, dst);
+            Ok(())
+        })?;
+    }
+    Ok(out.into_any())
 }
 
 fn noise_model(

@@ -48,6 +48,7 @@ pub use escape::esc;
 pub use load::{
     Array, CubeLayout, load_array, load_cube, load_frame, save_array, save_cube, save_frame,
 };
+pub use npy::numpy_shape;
 pub use open::FileFormat;
 pub use output_set::{CheckedSet, OutputSet, Staging, output_exists};
 pub use png::{write_band_pngs, write_frame_png16, write_rgb_png};

@@ -580,10 +580,10 @@ impl Npz {
     }
 }
 
-/// Encodes `data` (C order of `shape`) as a little-endian float32 `.npy`.
-pub(crate) fn encode_f32(shape: &[usize], data: &[f32]) -> Vec<u8> {
-    let dims = match shape.len() {
-        1 => format!("({},)", shape[0]),
+/// `shape` as NumPy writes and prints it: `(3,)`, `(28, 256, 256)`.
+pub fn numpy_shape(shape: &[usize]) -> String {
+    match shape {
+        [one] => format!("({one},)"),
         _ => format!(
             "({})",
             shape
@@ -592,7 +592,12 @@ pub(crate) fn encode_f32(shape: &[usize], data: &[f32]) -> Vec<u8> {
                 .collect::<Vec<_>>()
                 .join(", ")
         ),
-    };
+    }
+}
+
+/// Encodes `data` (C order of `shape`) as a little-endian float32 `.npy`.
+pub(crate) fn encode_f32(shape: &[usize], data: &[f32]) -> Vec<u8> {
+    let dims = numpy_shape(shape);
     let mut text = format!("{{'descr': '<f4', 'fortran_order': False, 'shape': {dims}, }}");
     // Pad with spaces so that the data start is 64-byte aligned; end with '\n'.
     let total = 10 + text.len() + 1;
