@@ -11,6 +11,7 @@ use crate::linop::{
     AatNormaliser, LinearOperator, NonNegativeOperator, NormaliserKind, row_sum_majoriser,
 };
 use crate::params::Mismatch;
+use crate::simd::{Simd, kernel};
 
 /// Tolerance on the [0, 1] mask range (stored masks carry rounding noise).
 const MASK_RANGE_SLACK: f32 = 1e-3;
@@ -254,6 +255,7 @@ impl LinearOperator for CassiOperator {
         assert_eq!(y.len(), self.range_len(), "CassiOperator::apply: y length");
         // Each detector row gathers from the cube rows that land on it, so rows
         // are independent: no atomics, same result for any thread count.
+        let simd = Simd::detect(false);
         y.par_chunks_mut(self.det_cols)
             .with_min_len(8)
             .enumerate()
@@ -271,14 +273,9 @@ impl LinearOperator for CassiOperator {
                         let c0 = tap.col as usize;
                         let out = &mut yrow[c0..c0 + cols];
                         if tap.weight == 1.0 {
-                            for ((o, &xv), &mv) in out.iter_mut().zip(xrow).zip(mrow) {
-                                *o += mv * xv;
-                            }
+                            coded_row(simd, out, xrow, mrow);
                         } else {
-                            let wt = tap.weight;
-                            for ((o, &xv), &mv) in out.iter_mut().zip(xrow).zip(mrow) {
-                                *o += wt * (mv * xv);
-                            }
+                            weighted_coded_row(simd, out, xrow, mrow, tap.weight);
                         }
                     }
                 }
@@ -298,6 +295,7 @@ impl LinearOperator for CassiOperator {
             "CassiOperator::adjoint: x length"
         );
         let det_cols = self.det_cols;
+        let simd = Simd::detect(false);
         x.par_chunks_mut(cols)
             .with_min_len(16)
             .enumerate()
@@ -311,22 +309,49 @@ impl LinearOperator for CassiOperator {
                     let c0 = yr * det_cols + tap.col as usize;
                     let src = &y[c0..c0 + cols];
                     if tap.weight == 1.0 {
-                        for (o, &v) in xrow.iter_mut().zip(src) {
-                            *o += v;
-                        }
+                        add_row(simd, xrow, src);
                     } else {
-                        let wt = tap.weight;
-                        for (o, &v) in xrow.iter_mut().zip(src) {
-                            *o += wt * v;
-                        }
+                        weighted_add_row(simd, xrow, src, tap.weight);
                     }
                 }
-                for (o, &m) in xrow.iter_mut().zip(self.mask.row(r)) {
-                    *o *= m;
-                }
+                mask_row(simd, xrow, self.mask.row(r));
             });
     }
 }
+
+// The operator's row loops, compiled for the baseline target and for AVX
+// (picked at run time): the same arithmetic per element in either copy, so
+// results do not depend on the CPU.
+kernel!(coded_row, coded_row_port, coded_row_avx,
+(out: &mut [f32], x: &[f32], m: &[f32]) -> () = {
+    for ((o, &xv), &mv) in out.iter_mut().zip(x).zip(m) {
+        *o += mv * xv;
+    }
+});
+kernel!(weighted_coded_row, weighted_coded_row_port, weighted_coded_row_avx,
+(out: &mut [f32], x: &[f32], m: &[f32], w: f32) -> () = {
+    for ((o, &xv), &mv) in out.iter_mut().zip(x).zip(m) {
+        *o += w * (mv * xv);
+    }
+});
+kernel!(add_row, add_row_port, add_row_avx,
+(out: &mut [f32], src: &[f32]) -> () = {
+    for (o, &v) in out.iter_mut().zip(src) {
+        *o += v;
+    }
+});
+kernel!(weighted_add_row, weighted_add_row_port, weighted_add_row_avx,
+(out: &mut [f32], src: &[f32], w: f32) -> () = {
+    for (o, &v) in out.iter_mut().zip(src) {
+        *o += w * v;
+    }
+});
+kernel!(mask_row, mask_row_port, mask_row_avx,
+(out: &mut [f32], m: &[f32]) -> () = {
+    for (o, &mv) in out.iter_mut().zip(m) {
+        *o *= mv;
+    }
+});
 
 #[cfg(test)]
 mod tests {
