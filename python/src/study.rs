@@ -152,9 +152,15 @@ pub fn evaluate<'py>(
     params: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let scene_set = match (&scenes, synthetic) {
-        (Some(dir), None) => Some(dir.clone()),
+        (Some(_), None) if mask.is_none() => {
+            return Err(value_error(
+                py,
+                "scenes from a folder need their nominal mask (mask=...)",
+            ));
+        }
+        (Some(dir), None) => SceneSet::folder(dir).map_err(Failure::Study)?,
         (None, Some(0)) => return Err(value_error(py, "synthetic=0: a study needs a scene")),
-        (None, Some(_)) => None,
+        (None, Some(n)) => SceneSet::synthetic(n, size),
         _ => {
             return Err(value_error(
                 py,
@@ -162,12 +168,6 @@ pub fn evaluate<'py>(
             ));
         }
     };
-    if mask.is_none() && scene_set.is_some() {
-        return Err(value_error(
-            py,
-            "scenes from a folder need their nominal mask (mask=...)",
-        ));
-    }
     let mode = match (shard, merge) {
         (Some(_), Some(_)) => return Err(value_error(py, "give shard or merge, not both")),
         (Some(s), None) => EvalMode::Shard(shard_of(py, s)?),
@@ -231,21 +231,18 @@ pub fn evaluate<'py>(
     };
     let result = compute(py, || {
         let run = || -> anyhow::Result<_> {
-            let SceneSet {
-                scenes,
-                label: scenes_label,
-            } = match &scene_set {
-                Some(dir) => SceneSet::folder(dir)?,
-                None => SceneSet::synthetic(synthetic.unwrap_or(1), size),
-            }
-            .limit(limit);
-            // every file read and written, compared before any work
+            // every file read and written, compared before any work; every
+            // listed scene is protected, read or not (limit)
             let mut set = OutputSet::new();
-            for scene in &scenes {
+            for scene in &scene_set.scenes {
                 if let SceneSource::File { path } = scene {
                     set.input("a scene of scenes", path);
                 }
             }
+            let SceneSet {
+                scenes,
+                label: scenes_label,
+            } = scene_set.limit(limit);
             if let Some(p) = &mask {
                 set.input("mask", p);
             }

@@ -20,7 +20,7 @@ use cassi_eval::method::{LearnedMethod, StudyMethod};
 use cassi_eval::protocol::Study;
 use cassi_eval::report::REPORT_FILE;
 use cassi_eval::shard::Shard;
-use cassi_eval::study::{SceneSource, scenes_in};
+use cassi_eval::study::SceneSource;
 use cassi_eval::sweep::scaled_mismatch;
 use cassi_eval::weights::{NETS_BUILT, parse_weight_flags, resolve_weights};
 use cassi_io::{CheckedSet, OutputSet};
@@ -206,14 +206,11 @@ fn check_flags(args: &EvalArgs) -> anyhow::Result<()> {
 /// The files the study reads and writes, checked before any work: the
 /// report files in --out, and its folders written scene by scene (scenes/,
 /// figures/, sensitivity/), which must hold no input.
-fn check_files(args: &EvalArgs) -> anyhow::Result<CheckedSet> {
+fn check_files(args: &EvalArgs, scenes: &[SceneSource]) -> anyhow::Result<CheckedSet> {
     let mut set = OutputSet::new();
-    if let Some(dir) = &args.scenes {
-        // a folder that cannot be listed is reported where the scenes load
-        for scene in scenes_in(dir).unwrap_or_default() {
-            if let SceneSource::File { path } = scene {
-                set.input("a scene of --scenes", path);
-            }
+    for scene in scenes {
+        if let SceneSource::File { path } = scene {
+            set.input("a scene of --scenes", path);
         }
     }
     if let Some(p) = &args.mask {
@@ -241,7 +238,12 @@ fn check_files(args: &EvalArgs) -> anyhow::Result<CheckedSet> {
 
 pub fn run(args: &EvalArgs, reporter: &Reporter) -> anyhow::Result<()> {
     check_flags(args)?;
-    let checked = check_files(args)?;
+    let scene_set = match &args.scenes {
+        Some(dir) => SceneSet::folder(dir)?,
+        None => SceneSet::synthetic(args.count, args.size),
+    };
+    // every listed scene is protected, read or not (--limit)
+    let checked = check_files(args, &scene_set.scenes)?;
     let methods = study_methods(args)?;
     // the paper's mismatch, single values overridden by the flags
     let mismatch = args.mismatch.over(Mismatch::paper());
@@ -254,11 +256,7 @@ pub fn run(args: &EvalArgs, reporter: &Reporter) -> anyhow::Result<()> {
     let SceneSet {
         scenes,
         label: scenes_label,
-    } = match &args.scenes {
-        Some(dir) => SceneSet::folder(dir)?,
-        None => SceneSet::synthetic(args.count, args.size),
-    }
-    .limit(args.limit);
+    } = scene_set.limit(args.limit);
     let (mask, mask_label) = match &args.mask {
         Some(p) => mask_from_file(p, args.mask_var.as_deref())?,
         None => random_study_mask(args.size)?,

@@ -39,11 +39,6 @@ pub trait JobObserver {
     fn stop_point(&mut self) {}
 }
 
-/// An observer that shows nothing and never stops a job.
-pub struct Silent;
-
-impl JobObserver for Silent {}
-
 /// Runs `work` as one stage of `observer`.
 pub fn stage<T>(
     observer: &mut dyn JobObserver,
