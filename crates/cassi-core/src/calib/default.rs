@@ -13,7 +13,7 @@ use serde::{Deserialize, Serialize};
 use super::rounded_dispersion::{rounded_dispersion, rounding_intervals};
 use super::stages::{Scored, Stage, StageRunner, lowest};
 use super::subpixel_tilt::subpixel_tilt;
-use super::texture::TextureFit;
+use super::texture::{SceneEstimate, TextureFit};
 use super::uncertainty::{TradeOff, curvature_uncertainty, texture_uncertainty};
 use super::{Calibration, CalibrationProblem, ProxyParams, StageReport, Uncertainty};
 use super::{grid, init, nelder_mead};
@@ -112,7 +112,8 @@ pub fn calibrate_default(
         best = joint_refinement(&mut run, &scores, best);
     }
     let (uncertainty, trade_offs, uncertainty_evals) = if texture {
-        let found = texture_stage(&mut run, problem, preset, &best, &preset.proxy)?;
+        let estimate = SceneEstimate::Proxy { at: best };
+        let found = texture_stage(&mut run, problem, preset, &best, estimate)?;
         best = found.0;
         (found.1, found.2, found.3)
     } else {
@@ -445,10 +446,10 @@ fn texture_stage(
     problem: &CalibrationProblem<'_>,
     preset: &DefaultPreset,
     start: &Mismatch,
-    proxy: &ProxyParams,
+    estimate: SceneEstimate<'_>,
 ) -> Result<TextureResult> {
     let stage = run.start();
-    let fit = TextureFit::new(problem, start, proxy)?;
+    let fit = TextureFit::new(problem, estimate, &preset.proxy)?;
     let fit_score = |m: &Mismatch| fit.score(m);
     let mut best = *start;
     if preset.fit_blur {
@@ -478,6 +479,24 @@ fn texture_stage(
     let (uncertainty, trade_offs, u_evals) = texture_uncertainty(&fit, &found.parameters, &free);
     let best = run.finish(stage, "texture fit (incl. blur)", found);
     Ok((best, uncertainty, trade_offs, u_evals))
+}
+
+/// The texture stage alone from `start` with the scene estimate
+/// `estimate`: the ψ it finds. The calibration benchmark's error budget runs
+/// it with the true scene (what the blind fit would reach if its x̃ were
+/// exact); a known calibration target could be fitted the same way.
+pub fn texture_fit(
+    problem: &CalibrationProblem<'_>,
+    preset: &DefaultPreset,
+    start: &Mismatch,
+    estimate: SceneEstimate<'_>,
+) -> Result<Mismatch> {
+    problem.validate()?;
+    let mut ignore = |_: &StageReport| {};
+    let mut run = StageRunner::new(&mut ignore);
+    let (found, ..) = texture_stage(&mut run, problem, preset, start, estimate)?;
+    problem.check_cancelled()?;
+    Ok(found)
 }
 
 /// The blur widths the texture stage tries before its simplex: 0 … 1.5 px.

@@ -29,11 +29,12 @@ pub use uncertainty::{TRADE_OFF_CORRELATION, TradeOff};
 use serde::{Deserialize, Serialize};
 
 pub use adam::AdamSettings;
-pub use default::{DefaultPreset, calibrate_default};
+pub use default::{DefaultPreset, calibrate_default, texture_fit};
 pub use gradient::Parameter;
 pub use nelder_mead::nelder_mead;
 pub use paper::{GradientStage, PaperPreset, calibrate_paper};
 pub use score::{CalibrationProblem, ProxyParams};
+pub use texture::{SCENE_SMOOTH_PX, SceneEstimate};
 
 use crate::optics::DispersionModel;
 use crate::params::Mismatch;

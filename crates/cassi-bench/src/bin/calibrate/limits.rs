@@ -13,11 +13,19 @@
 //!   scene-known model at the true ψ (central differences; one-sided for σ
 //!   below its step), with the scale s as a nuisance parameter, under the
 //!   simulator's noise (Poisson at `photon_peak` e⁻ on the clean maximum,
-//!   Gaussian read noise in e⁻); CRB = sqrt(diag(F⁻¹)) of the six ψ rows.
+//!   Gaussian read noise in e⁻); CRB = sqrt(diag(F⁻¹)) of the six ψ rows;
+//! * the error budget of the blind texture fit: the same fit
+//!   ([`texture_fit`], from the blind estimate) with its scene estimate x̃
+//!   replaced step by step — the proxy reconstruction at the TRUE ψ
+//!   (smoothed as shipped: what remains once the front end's ψ no longer
+//!   shapes x̃), the true scene smoothed as shipped (what remains once x̃ is
+//!   the scene), the true scene unsmoothed (the texture objective itself).
 
 use std::time::Instant;
 
-use cassi_core::calib::nelder_mead;
+use cassi_core::calib::{
+    CalibrationProblem, DefaultPreset, SCENE_SMOOTH_PX, SceneEstimate, nelder_mead, texture_fit,
+};
 use cassi_core::linop::LinearOperator;
 use cassi_core::optics::{DispersionModel, ModelOperator};
 use cassi_core::{Cube, Mask, Measurement, Mismatch, Parameter};
@@ -271,6 +279,49 @@ pub fn measure(
     json!({ "oracle_scene": oracle, "crb": bound, "crb_seconds": t.elapsed().as_secs_f64() })
 }
 
+/// The error budget's steps: key and the scene estimate, given the truth.
+fn budget_steps<'s>(scene: &'s Cube, truth: &Mismatch) -> [(&'static str, SceneEstimate<'s>); 3] {
+    let given = |smooth_px| SceneEstimate::Given {
+        scene: scene.as_slice(),
+        smooth_px,
+    };
+    [
+        ("proxy_at_truth", SceneEstimate::Proxy { at: *truth }),
+        ("true_scene_smoothed", given(SCENE_SMOOTH_PX)),
+        ("true_scene", given(0.0)),
+    ]
+}
+
+/// The error budget of one case (see the module doc): per step the
+/// texture fit's estimate and error.
+pub fn error_budget(
+    problem: &CalibrationProblem<'_>,
+    preset: &DefaultPreset,
+    scene: &Cube,
+    blind: &Mismatch,
+    truth: &Mismatch,
+) -> anyhow::Result<Value> {
+    let mut out = serde_json::Map::new();
+    for (key, estimate) in budget_steps(scene, truth) {
+        let t = Instant::now();
+        let est = texture_fit(problem, preset, blind, estimate)?;
+        let err = |p: Parameter| p.get(&est) - p.get(truth);
+        out.insert(
+            key.into(),
+            json!({
+                "estimate": per_parameter(|p| json!(p.get(&est))),
+                "error": per_parameter(|p| json!(err(p))),
+                "all_within_tolerance": Parameter::ALL.iter().all(|&p| err(p).abs() <= tolerance(p)),
+                "seconds": t.elapsed().as_secs_f64(),
+            }),
+        );
+    }
+    Ok(Value::Object(out))
+}
+
+/// The error budget's keys, in order.
+const BUDGET_KEYS: [&str; 3] = ["proxy_at_truth", "true_scene_smoothed", "true_scene"];
+
 /// The one-line report of a case's limits.
 pub fn describe(limits: &Value) -> String {
     let o = &limits["oracle_scene"];
@@ -284,10 +335,15 @@ pub fn describe(limits: &Value) -> String {
             .iter()
             .map(|&p| format!("{} {}", p.name(), cell(group, p)))
             .collect();
-        format!("  {label:<7}{}", cells.join("  "))
+        format!("  {label:<7} {}", cells.join("  "))
     };
+    let budget: Vec<String> = BUDGET_KEYS
+        .iter()
+        .filter(|k| limits["error_budget"].get(**k).is_some())
+        .map(|k| line(&format!("x̃ {k}"), &limits["error_budget"][*k]["error"]))
+        .collect();
     format!(
-        "{}  | f {:.4e} (truth {:.4e}), {} evals in {} legs, {:.1} s\n{}",
+        "{}  | f {:.4e} (truth {:.4e}), {} evals in {} legs, {:.1} s\n{}{}",
         line("oracle", &o["error"]),
         o["objective"].as_f64().unwrap_or(f64::NAN),
         o["objective_at_truth"].as_f64().unwrap_or(f64::NAN),
@@ -295,6 +351,7 @@ pub fn describe(limits: &Value) -> String {
         o["nelder_mead_legs"],
         o["seconds"].as_f64().unwrap_or(f64::NAN),
         line("CRB", &limits["crb"]),
+        budget.iter().map(|l| format!("\n{l}")).collect::<String>(),
     )
 }
 
@@ -334,7 +391,15 @@ pub fn summarise(rows: &[&Value]) -> Option<Value> {
                 collect(&|r| r["limits"]["oracle_scene"]["error"][p.key()].as_f64());
             let bound: Vec<f64> = collect(&|r| r["limits"]["crb"][p.key()].as_f64());
             let within = oracle.iter().filter(|e| e.abs() <= tolerance(p)).count();
-            json!({
+            let budget: serde_json::Map<String, Value> = BUDGET_KEYS
+                .iter()
+                .map(|k| {
+                    let e: Vec<f64> =
+                        collect(&|r| r["limits"]["error_budget"][*k]["error"][p.key()].as_f64());
+                    (format!("texture_{k}_rmse"), json!(rmse(&e)))
+                })
+                .collect();
+            let mut cell = json!({
                 "blind_rmse": rmse(&blind),
                 "oracle_scene_rmse": rmse(&oracle),
                 "oracle_scene_max_abs_error": oracle.iter().fold(0.0f64, |a, e| a.max(e.abs())),
@@ -342,7 +407,11 @@ pub fn summarise(rows: &[&Value]) -> Option<Value> {
                 "median_crb": median(bound.clone()),
                 "max_crb": bound.iter().copied().reduce(f64::max),
                 "tolerance": tolerance(p),
-            })
+            });
+            if let Some(c) = cell.as_object_mut() {
+                c.extend(budget);
+            }
+            cell
         }),
     }))
 }
@@ -364,6 +433,22 @@ pub fn print(limits: &Value) {
             )
         })
         .collect();
+    let budget: Vec<String> = Parameter::ALL
+        .iter()
+        .map(|q| {
+            let c = &p[q.key()];
+            let steps: Vec<String> = BUDGET_KEYS
+                .iter()
+                .map(|k| num(&c[format!("texture_{k}_rmse")]))
+                .collect();
+            format!("{} {}", q.name(), steps.join("/"))
+        })
+        .collect();
+    eprintln!(
+        "{:<23} texture-fit RMSE with x̃ = proxy at true ψ / true scene smoothed / true scene: {}",
+        "",
+        budget.join("  ")
+    );
     eprintln!(
         "{:<23} limits (blind RMSE / scene-known RMSE / median CRB): {} | scene-known all-within {:.0}%",
         "",
