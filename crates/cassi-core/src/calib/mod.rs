@@ -24,7 +24,7 @@ mod subpixel_tilt;
 mod texture;
 mod uncertainty;
 
-pub use uncertainty::{TRADE_OFF_CORRELATION, TradeOff};
+pub use uncertainty::{TRADE_OFF_CORRELATION, TradeOff, model_error_floor};
 
 use serde::{Deserialize, Serialize};
 

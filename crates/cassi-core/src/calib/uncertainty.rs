@@ -78,7 +78,7 @@ pub const TRADE_OFF_CORRELATION: f64 = 0.8;
 /// reported on the held-out half (`bench/results/calibrate_physical_held_out.json`).
 /// The wide floors come from aligned instruments only: a camera that is
 /// both misaligned and this blurred is not covered by any measurement yet.
-pub(crate) fn model_error_floor(p: Parameter, blur_sigma_px: f64) -> f64 {
+pub fn model_error_floor(p: Parameter, blur_sigma_px: f64) -> f64 {
     let t =
         ((blur_sigma_px.abs() - SHARP_BLUR_PX) / (WIDE_BLUR_PX - SHARP_BLUR_PX)).clamp(0.0, 1.0);
     floor_sharp(p) + t * (floor_wide(p) - floor_sharp(p)).max(0.0)

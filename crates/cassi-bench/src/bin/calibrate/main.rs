@@ -52,7 +52,9 @@ use std::time::Instant;
 
 use anyhow::{Context, Result, anyhow, bail, ensure};
 use cassi_bench::{median, shared_data};
-use cassi_core::calib::{CalibrationProblem, DefaultPreset, PRESET_NAMES, Preset, calibrate};
+use cassi_core::calib::{
+    CalibrationProblem, DefaultPreset, PRESET_NAMES, Preset, calibrate, model_error_floor,
+};
 use cassi_core::metrics::psnr;
 use cassi_core::optics::{
     DispersionModel, NoiseModel, PhysicalSpec, SimulationSpec, simulate, simulate_physical,
@@ -477,6 +479,11 @@ fn run_case(args: &Args, case: &Case, name: &str, scene: &Cube, mask: &Mask) -> 
         "estimate": per_parameter(|p| json!(p.get(&est))),
         "error": per_parameter(|p| json!(err(p))),
         "uncertainty": per_parameter(|p| json!(cal.uncertainty.get(p))),
+        // the part of each standard error that is the model-error floor
+        // (bench/uncertainty_floors.py re-derives the floors from these)
+        "uncertainty_floor": per_parameter(|p| {
+            json!(texture_preset(args).map(|_| model_error_floor(p, est.blur_sigma_px)))
+        }),
         "within_tolerance": per_parameter(|p| json!(err(p).abs() <= tolerance(p))),
         "all_within_tolerance": Parameter::ALL.iter().all(|&p| err(p).abs() <= tolerance(p)),
         "max_normalised_error": max_normalised(&|p| err(p)).1,
@@ -510,21 +517,23 @@ fn run_case(args: &Args, case: &Case, name: &str, scene: &Cube, mask: &Mask) -> 
         };
         let mut lim = limits::measure(&y, &clean, scene, mask, &est, &truth, detector);
         // the budget runs the default preset's texture stage
-        if let (
-            Preset::Default(
-                preset @ DefaultPreset {
-                    texture_fit: true, ..
-                },
-            ),
-            DispersionModel::Subpixel,
-        ) = (&args.preset, args.model)
-        {
+        if let Some(preset) = texture_preset(args) {
             lim["error_budget"] = limits::error_budget(&problem, preset, scene, &est, &truth)?;
         }
         eprintln!("{}", limits::describe(&lim));
         record["limits"] = lim;
     }
     Ok(record)
+}
+
+/// The default preset when the run ends in its texture fit (subpixel
+/// model): then the standard errors are the texture fit's (block sandwich +
+/// model-error floor) and the error budget applies.
+fn texture_preset(args: &Args) -> Option<&DefaultPreset> {
+    match (&args.preset, args.model) {
+        (Preset::Default(p), DispersionModel::Subpixel) if p.texture_fit => Some(p),
+        _ => None,
+    }
 }
 
 fn fmt_signed(p: Parameter, v: f64) -> String {
