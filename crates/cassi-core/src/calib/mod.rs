@@ -24,7 +24,9 @@ mod subpixel_tilt;
 mod texture;
 mod uncertainty;
 
-pub use uncertainty::{TRADE_OFF_CORRELATION, TradeOff, model_error_floor};
+pub use uncertainty::{
+    SHARP_BLUR_PX, TRADE_OFF_CORRELATION, TradeOff, WIDE_BLUR_PX, model_error_floor,
+};
 
 use serde::{Deserialize, Serialize};
 

@@ -84,10 +84,10 @@ pub fn model_error_floor(p: Parameter, blur_sigma_px: f64) -> f64 {
     floor_sharp(p) + t * (floor_wide(p) - floor_sharp(p)).max(0.0)
 }
 
-/// Fitted blur up to which [`floor_sharp`] applies, and from which
-/// [`floor_wide`] does, px.
-const SHARP_BLUR_PX: f64 = 0.8;
-const WIDE_BLUR_PX: f64 = 1.0;
+/// Fitted blur up to which [`floor_sharp`] applies (the headline
+/// benchmark's range, 0–0.8 px), and from which [`floor_wide`] does, px.
+pub const SHARP_BLUR_PX: f64 = 0.8;
+pub const WIDE_BLUR_PX: f64 = 1.0;
 
 /// The floors set on blur 0–0.8 px (x̃ smoothed at
 /// [`SCENE_SMOOTH_PX`](super::texture::SCENE_SMOOTH_PX) = 3 px).
