@@ -40,13 +40,62 @@ pub fn smooth_step(
         Some(st) => data.par_chunks_mut(n).zip(st.par_chunks(n)).for_each_init(
             Vec::new,
             |tmp, (band, add)| {
-                smooth_band(simd, band, Add::Band(add), tmp, rows, cols, taps, clamp)
+                smooth_band(
+                    simd,
+                    band,
+                    None,
+                    0,
+                    Add::Band(add),
+                    tmp,
+                    rows,
+                    cols,
+                    taps,
+                    clamp,
+                )
             },
         ),
         None => data.par_chunks_mut(n).for_each_init(Vec::new, |tmp, band| {
-            smooth_band(simd, band, Add::Nothing, tmp, rows, cols, taps, clamp)
+            smooth_band(
+                simd,
+                band,
+                None,
+                0,
+                Add::Nothing,
+                tmp,
+                rows,
+                cols,
+                taps,
+                clamp,
+            )
         }),
     }
+}
+
+/// One (rows × cols) frame smoothed, blocks of rows in parallel (one band
+/// leaves [`smooth_bands`] a single thread); each block smooths the rows
+/// its vertical taps read again, so the result is the same bits.
+pub fn smooth_frame(frame: &[f32], rows: usize, cols: usize, taps: &[f32]) -> Vec<f32> {
+    let mut out = vec![0.0f32; rows * cols];
+    let simd = Simd::detect(false);
+    let block = 32;
+    out.par_chunks_mut(block * cols)
+        .enumerate()
+        .for_each_init(Vec::new, |tmp, (i, dst)| {
+            let src = Some(frame);
+            smooth_band(
+                simd,
+                dst,
+                src,
+                i * block,
+                Add::Nothing,
+                tmp,
+                rows,
+                cols,
+                taps,
+                false,
+            )
+        });
+    out
 }
 
 /// [`smooth_step`] with step = Aᵀ `y`, each row of it computed as the prior
@@ -70,7 +119,7 @@ pub(crate) fn smooth_adjoint_step(
                 band: k,
                 simd,
             };
-            smooth_band(simd, band, add, tmp, rows, cols, taps, clamp)
+            smooth_band(simd, band, None, 0, add, tmp, rows, cols, taps, clamp)
         });
 }
 
@@ -90,18 +139,24 @@ enum Add<'a> {
 }
 
 kernel!(smooth_band, smooth_band_port, smooth_band_avx,
-    (band: &mut [f32], add: Add<'_>, tmp: &mut Vec<f32>, rows: usize, cols: usize,
-     taps: &[f32], clamp: bool) -> () = smooth_band_body(band, add, tmp, rows, cols, taps, clamp));
+    (band: &mut [f32], from: Option<&[f32]>, first: usize, add: Add<'_>, tmp: &mut Vec<f32>,
+     rows: usize, cols: usize, taps: &[f32], clamp: bool) -> ()
+    = smooth_band_body(band, from, first, add, tmp, rows, cols, taps, clamp));
 
-/// One band: band ← clamp?(G(band + add)). Each pass writes every output
-/// once from the symmetric tap pairs (w₀·s[c] + Σⱼ wⱼ·(s[c−j] + s[c+j])):
-/// the profile had this step at 46 % of a calibration when it accumulated
-/// one tap per sweep over the row. The horizontal pass fills a ring of
-/// 2r + 1 rows just ahead of the vertical one (a whole-band buffer, 1.9 MB
-/// at 660×714, did not stay in the core's cache).
+/// One band: band ← clamp?(G(band + add)), in place (`from` `None`,
+/// `first` 0), or the output rows `first`… of G(`from`) into `band`. Each
+/// pass writes every output once from the symmetric tap pairs
+/// (w₀·s[c] + Σⱼ wⱼ·(s[c−j] + s[c+j])): the profile had this step at 46 % of
+/// a calibration when it accumulated one tap per sweep over the row. The
+/// horizontal pass fills a ring of 2r + 1 rows just ahead of the vertical
+/// one (a whole-band buffer, 1.9 MB at 660×714, did not stay in the core's
+/// cache).
+#[allow(clippy::too_many_arguments)]
 #[inline(always)]
 fn smooth_band_body(
     band: &mut [f32],
+    from: Option<&[f32]>,
+    first: usize,
     add: Add<'_>,
     tmp: &mut Vec<f32>,
     rows: usize,
@@ -119,11 +174,14 @@ fn smooth_band_body(
     let (src, tmp) = tmp.split_at_mut(cols + 2 * r);
     let (step_row, ring_rows) = tmp.split_at_mut(cols);
     let slot = |i: usize| (i % ring) * cols..(i % ring + 1) * cols;
-    let mut next = 0;
-    for row in 0..rows {
+    let mut next = first.saturating_sub(r);
+    for row in first..first + band.len() / cols {
         // horizontal, up to the last row this output row reads
         while next <= (row + r).min(rows - 1) {
-            let x = &band[next * cols..(next + 1) * cols];
+            let x = match from {
+                Some(f) => &f[next * cols..(next + 1) * cols],
+                None => &band[next * cols..(next + 1) * cols],
+            };
             let inner = &mut src[r..r + cols];
             let a = match add {
                 Add::Nothing => None,
@@ -159,7 +217,7 @@ fn smooth_band_body(
         }
         // vertical: whole rows, edge rows replicated
         let row_at = |i: isize| slot(i.clamp(0, rows as isize - 1) as usize);
-        let dst = &mut band[row * cols..(row + 1) * cols];
+        let dst = &mut band[(row - first) * cols..(row - first + 1) * cols];
         let ri = row as isize;
         symmetric_pass(
             dst,
@@ -299,6 +357,8 @@ mod tests {
             smooth_band(
                 simd,
                 &mut b,
+                None,
+                0,
                 Add::Band(&add),
                 &mut Vec::new(),
                 rows,
@@ -342,6 +402,25 @@ mod tests {
                 smooth_adjoint_step(&mut got, &op, &y, &taps, true);
                 assert_eq!(got, want, "{model:?} {rows}×{cols}");
             }
+        }
+    }
+
+    /// Row blocks in parallel give the bits of the whole-frame smoothing,
+    /// with a last block shorter than the rest and a radius past a block.
+    #[test]
+    fn the_frame_in_row_blocks_equals_the_whole_frame() {
+        let mut rng = crate::Rng::new(3);
+        for (rows, sigma) in [(75, 2.0f32), (33, 12.0), (5, 0.7)] {
+            let cols = 19;
+            let x: Vec<f32> = (0..rows * cols).map(|_| rng.uniform() as f32).collect();
+            let taps = gaussian_taps(sigma);
+            let mut want = x.clone();
+            smooth_bands(&mut want, rows, cols, &taps);
+            assert_eq!(
+                smooth_frame(&x, rows, cols, &taps),
+                want,
+                "{rows} rows, σ {sigma}"
+            );
         }
     }
 }
