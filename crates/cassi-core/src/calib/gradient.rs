@@ -602,7 +602,16 @@ mod tests {
                     line_search: None,
                 };
                 let (_, h, w) = op.cube_shape();
-                residual_with(&op, (h, w), &yf, outside, y.as_slice().len(), &norm, &PROXY)
+                residual_with(
+                    &op,
+                    Some(&op),
+                    (h, w),
+                    &yf,
+                    outside,
+                    y.as_slice().len(),
+                    &norm,
+                    &PROXY,
+                )
             };
             // the relaxed model bends sharply within ~1e-3 px of t = 0 (Φ is
             // small at some pixels), so the step moves the farthest band by

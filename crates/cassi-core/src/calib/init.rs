@@ -6,7 +6,9 @@
 //! peak sits at the shift. The peak also absorbs the mean extra dispersion
 //! of a drifted a1, which the refinement then separates.
 
-use super::smooth::{gaussian_taps, smooth_bands};
+use rayon::prelude::*;
+
+use super::smooth::{gaussian_taps, smooth_frame};
 use crate::cube::{Cube, Frame, Mask, Measurement};
 use crate::error::Result;
 use crate::optics::{CassiOperator, DispersionModel};
@@ -16,11 +18,10 @@ use crate::params::Mismatch;
 /// with the slowly varying scene divided out.
 pub(crate) fn high_pass(img: &Frame) -> Vec<f32> {
     let (rows, cols) = img.shape();
-    let mut low = img.as_slice().to_vec();
-    smooth_bands(&mut low, rows, cols, &gaussian_taps(2.0));
+    let low = smooth_frame(img.as_slice(), rows, cols, &gaussian_taps(2.0));
     let floor = 1e-3 * img.max().max(f32::MIN_POSITIVE);
     img.as_slice()
-        .iter()
+        .par_iter()
         .zip(&low)
         .map(|(&v, &l)| if l > floor { v / l - 1.0 } else { 0.0 })
         .collect()

@@ -8,8 +8,8 @@
 //! matching mask shift is (dx − δc, dy − δr) for one of the distinct
 //! (δc_k, δr_k): each is tried, and the midpoint of each consecutive pair
 //! (stage 2 can settle halfway between two groups). a1 is searched over the exact rounding
-//! intervals (coarse: those holding an a1 grid of step 0.01; fine: every
-//! interval within ±0.012 of the best); then α over a 0.25° grid at the best
+//! intervals (coarse: those holding an a1 grid; fine: every interval within
+//! a window around the best); then α over a grid at the best
 //! a1, where only angles that change the row pattern are scored (|α| ≲ 0.5°
 //! leaves every row offset at 0 for 28 bands).
 
@@ -66,7 +66,8 @@ pub(crate) fn rounded_dispersion(
     from: &Mismatch,
     bands: usize,
     (lo, hi): (f64, f64),
-    alpha_range_deg: f64,
+    (grid_step, fine_window): (f64, f64),
+    (alpha_range_deg, alpha_step_deg): (f64, f64),
 ) -> Vec<(f64, Mismatch)> {
     let mut tried: HashSet<Vec<(i64, i64)>> = HashSet::new();
     let mut scored: Vec<(f64, Mismatch)> = Vec::new();
@@ -114,7 +115,7 @@ pub(crate) fn rounded_dispersion(
     // a1 at the current α: coarse grid, then every interval near the best
     let intervals = rounding_intervals(bands, from.alpha_deg, lo, hi);
     let mid = |i: usize| 0.5 * (intervals[i].0 + intervals[i].1);
-    let steps = ((hi - lo) / 0.01).round().max(1.0) as usize;
+    let steps = ((hi - lo) / grid_step).round().max(1.0) as usize;
     for j in 0..=steps {
         let g = lo + (hi - lo) * j as f64 / steps as f64;
         if let Some(i) = intervals.iter().position(|&(a, b)| a <= g && g <= b) {
@@ -123,16 +124,16 @@ pub(crate) fn rounded_dispersion(
     }
     let centre = best_of(&scored).a1;
     for &(a, b) in &intervals {
-        if b >= centre - 0.012 && a <= centre + 0.012 {
+        if b >= centre - fine_window && a <= centre + fine_window {
             try_pattern(0.5 * (a + b), from.alpha_deg, from, &mut scored);
         }
     }
     // α at the best a1, shifts relative to its hypothesis (its columns are
     // aligned; α moves rows); patterns already scored are skipped
     let base = best_of(&scored);
-    let n = (alpha_range_deg / 0.25).round() as i64;
+    let n = (alpha_range_deg / alpha_step_deg).round() as i64;
     for i in -n..=n {
-        try_pattern(base.a1, 0.25 * i as f64, &base, &mut scored);
+        try_pattern(base.a1, alpha_step_deg * i as f64, &base, &mut scored);
     }
     scored.sort_by(|a, b| a.0.total_cmp(&b.0));
     scored
@@ -165,7 +166,8 @@ mod tests {
             seen.borrow_mut().push(*m);
             (m.a1 - 2.04).abs() + (m.dx + 1.0).abs()
         };
-        let scored = rounded_dispersion(&search, &from, 28, (1.98, 2.06), 1.0);
+        let scored =
+            rounded_dispersion(&search, &from, 28, (1.98, 2.06), (0.01, 0.012), (1.0, 0.25));
         // one evaluation per returned hypothesis
         assert_eq!(scored.len(), seen.borrow().len());
         let best = scored[0].1;

@@ -15,7 +15,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::smooth::{gaussian_taps, smooth_step};
+use super::smooth::{gaussian_taps, smooth_adjoint_step, smooth_step};
 use crate::cube::{Mask, Measurement};
 use std::sync::atomic::{AtomicBool, Ordering};
 
@@ -146,6 +146,7 @@ pub fn proxy_residual(op: &ModelOperator, measurement: &Measurement, proxy: &Pro
     let (_, h, w) = op.cube_shape();
     residual_with(
         op,
+        op.sharp(),
         (h, w),
         &y,
         outside,
@@ -168,16 +169,32 @@ pub(crate) fn proxy_reconstruction(
     SCRATCH.with_borrow_mut(|scratch| {
         scratch.resize(op.range_len(), op.domain_len());
         let ProxyScratch { r, yh, step, x } = scratch;
-        proxy_iterations(op, &y, &norm, &taps, proxy.iterations, r, yh, step, x, h, w);
+        proxy_iterations(
+            op,
+            op.sharp(),
+            &y,
+            &norm,
+            &taps,
+            proxy.iterations,
+            r,
+            yh,
+            step,
+            x,
+            h,
+            w,
+        );
         x.clone()
     })
 }
 
 /// [`proxy_residual`] for an operator on `(rows, cols)` band images, with
 /// the fitted measurement `y`, the energy `outside` the model's columns, the
-/// measurement's pixel count and the step's normaliser given.
+/// measurement's pixel count and the step's normaliser given (`sharp`: see
+/// [`proxy_iterations`]).
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn residual_with(
     op: &dyn LinearOperator,
+    sharp: Option<&CassiOperator>,
     (h, w): (usize, usize),
     y: &[f32],
     outside: f64,
@@ -189,7 +206,20 @@ pub(crate) fn residual_with(
     SCRATCH.with_borrow_mut(|scratch| {
         scratch.resize(op.range_len(), op.domain_len());
         let ProxyScratch { r, yh, step, x } = scratch;
-        proxy_iterations(op, y, norm, &taps, proxy.iterations, r, yh, step, x, h, w);
+        proxy_iterations(
+            op,
+            sharp,
+            y,
+            norm,
+            &taps,
+            proxy.iterations,
+            r,
+            yh,
+            step,
+            x,
+            h,
+            w,
+        );
         let inside: f64 = y
             .iter()
             .zip(yh.iter())
@@ -322,10 +352,13 @@ thread_local! {
     static SCRATCH: std::cell::RefCell<ProxyScratch> = std::cell::RefCell::new(ProxyScratch::default());
 }
 
-/// Runs the unrolled proxy; leaves A x̂ in `yh`.
+/// Runs the unrolled proxy; leaves A x̂ in `yh`. `sharp` is `op` when it is
+/// a CASSI operator: with τ = 1 its step is then computed inside the prior
+/// step ([`smooth_adjoint_step`], the same numbers).
 #[allow(clippy::too_many_arguments)]
 fn proxy_iterations(
     op: &dyn LinearOperator,
+    sharp: Option<&CassiOperator>,
     y: &[f32],
     norm: &StepNorm,
     taps: &[f32],
@@ -351,6 +384,10 @@ fn proxy_iterations(
         for i in 0..r.len() {
             yh[i] = y[i] - yh[i]; // yh holds the residual until the next apply
             r[i] = yh[i] * inv_phi[i];
+        }
+        if let (Some(sharp), None) = (sharp, norm.line_search) {
+            smooth_adjoint_step(x, sharp, r, taps, true);
+            continue;
         }
         op.adjoint(r, step);
         let tau = norm.tau(yh, r, step);

@@ -4,6 +4,7 @@
 
 use rayon::prelude::*;
 
+use crate::optics::CassiOperator;
 use crate::simd::{Simd, kernel};
 
 /// Normalised 1-D Gaussian taps of radius round(3σ) (at least 1): 5 taps
@@ -36,30 +37,127 @@ pub fn smooth_step(
     let n = rows * cols;
     let simd = Simd::detect(false);
     match step {
-        Some(st) => data
-            .par_chunks_mut(n)
-            .zip(st.par_chunks(n))
-            .for_each_init(Vec::new, |tmp, (band, add)| {
-                smooth_band(simd, band, Some(add), tmp, rows, cols, taps, clamp)
-            }),
+        Some(st) => data.par_chunks_mut(n).zip(st.par_chunks(n)).for_each_init(
+            Vec::new,
+            |tmp, (band, add)| {
+                smooth_band(
+                    simd,
+                    band,
+                    None,
+                    0,
+                    Add::Band(add),
+                    tmp,
+                    rows,
+                    cols,
+                    taps,
+                    clamp,
+                )
+            },
+        ),
         None => data.par_chunks_mut(n).for_each_init(Vec::new, |tmp, band| {
-            smooth_band(simd, band, None, tmp, rows, cols, taps, clamp)
+            smooth_band(
+                simd,
+                band,
+                None,
+                0,
+                Add::Nothing,
+                tmp,
+                rows,
+                cols,
+                taps,
+                clamp,
+            )
         }),
     }
 }
 
-kernel!(smooth_band, smooth_band_port, smooth_band_avx,
-    (band: &mut [f32], add: Option<&[f32]>, tmp: &mut Vec<f32>, rows: usize, cols: usize,
-     taps: &[f32], clamp: bool) -> () = smooth_band_body(band, add, tmp, rows, cols, taps, clamp));
+/// One (rows × cols) frame smoothed, blocks of rows in parallel (one band
+/// leaves [`smooth_bands`] a single thread); each block smooths the rows
+/// its vertical taps read again, so the result is the same bits.
+pub fn smooth_frame(frame: &[f32], rows: usize, cols: usize, taps: &[f32]) -> Vec<f32> {
+    let mut out = vec![0.0f32; rows * cols];
+    let simd = Simd::detect(false);
+    let block = 32;
+    out.par_chunks_mut(block * cols)
+        .enumerate()
+        .for_each_init(Vec::new, |tmp, (i, dst)| {
+            let src = Some(frame);
+            smooth_band(
+                simd,
+                dst,
+                src,
+                i * block,
+                Add::Nothing,
+                tmp,
+                rows,
+                cols,
+                taps,
+                false,
+            )
+        });
+    out
+}
 
-/// One band: band ← clamp?(G(band + add)). Each pass writes every output
-/// once from the symmetric tap pairs (w₀·s[c] + Σⱼ wⱼ·(s[c−j] + s[c+j])):
-/// the profile had this step at 46 % of a calibration when it accumulated
-/// one tap per sweep over the row.
+/// [`smooth_step`] with step = Aᵀ `y`, each row of it computed as the prior
+/// step reads it: the same result without writing and reading back a step
+/// cube (at 660×714×28 each cube pass is 53 MB of memory traffic).
+pub(crate) fn smooth_adjoint_step(
+    data: &mut [f32],
+    op: &CassiOperator,
+    y: &[f32],
+    taps: &[f32],
+    clamp: bool,
+) {
+    let (_, rows, cols) = op.cube_shape();
+    let simd = Simd::detect(false);
+    data.par_chunks_mut(rows * cols)
+        .enumerate()
+        .for_each_init(Vec::new, |tmp, (k, band)| {
+            let add = Add::Adjoint {
+                op,
+                y,
+                band: k,
+                simd,
+            };
+            smooth_band(simd, band, None, 0, add, tmp, rows, cols, taps, clamp)
+        });
+}
+
+/// What one band's prior step adds before smoothing.
+#[derive(Clone, Copy)]
+enum Add<'a> {
+    Nothing,
+    /// The band of a step cube.
+    Band(&'a [f32]),
+    /// The band of Aᵀ y, row by row ([`CassiOperator::adjoint_row`]).
+    Adjoint {
+        op: &'a CassiOperator,
+        y: &'a [f32],
+        band: usize,
+        simd: Simd,
+    },
+}
+
+kernel!(smooth_band, smooth_band_port, smooth_band_avx,
+    (band: &mut [f32], from: Option<&[f32]>, first: usize, add: Add<'_>, tmp: &mut Vec<f32>,
+     rows: usize, cols: usize, taps: &[f32], clamp: bool) -> ()
+    = smooth_band_body(band, from, first, add, tmp, rows, cols, taps, clamp));
+
+/// One band: band ← clamp?(G(band + add)), in place (`from` `None`,
+/// `first` 0), or the output rows `first`… of G(`from`) into `band`. Each
+/// pass writes every output once from the symmetric tap pairs
+/// (w₀·s[c] + Σⱼ wⱼ·(s[c−j] + s[c+j])): the profile had this step at 46 % of
+/// a calibration when it accumulated one tap per sweep over the row. The
+/// horizontal pass fills a ring of 2r + 1 rows just ahead of the vertical
+/// one (a whole-band buffer, 1.9 MB at 660×714, did not stay in the core's
+/// cache).
+#[allow(clippy::too_many_arguments)]
 #[inline(always)]
 fn smooth_band_body(
     band: &mut [f32],
-    add: Option<&[f32]>,
+    from: Option<&[f32]>,
+    first: usize,
+    add: Add<'_>,
     tmp: &mut Vec<f32>,
     rows: usize,
     cols: usize,
@@ -67,50 +165,64 @@ fn smooth_band_body(
     clamp: bool,
 ) {
     let r = taps.len() / 2;
-    let n = rows * cols;
     // the tap weights from the centre outwards
     let w = &taps[r..];
-    // a padded row: r edge-replicated values on each side
-    tmp.resize(cols + 2 * r + n, 0.0);
+    let ring = (2 * r + 1).min(rows);
+    // a padded row (r edge-replicated values on each side), a step row and
+    // the ring of horizontally smoothed rows
+    tmp.resize(cols + 2 * r + cols + ring * cols, 0.0);
     let (src, tmp) = tmp.split_at_mut(cols + 2 * r);
-    // horizontal
-    for row in 0..rows {
-        let x = &band[row * cols..(row + 1) * cols];
-        let inner = &mut src[r..r + cols];
-        match add {
-            Some(a) => {
-                for ((s, &xv), &av) in inner
-                    .iter_mut()
-                    .zip(x)
-                    .zip(&a[row * cols..(row + 1) * cols])
-                {
-                    *s = xv + av;
+    let (step_row, ring_rows) = tmp.split_at_mut(cols);
+    let slot = |i: usize| (i % ring) * cols..(i % ring + 1) * cols;
+    let mut next = first.saturating_sub(r);
+    for row in first..first + band.len() / cols {
+        // horizontal, up to the last row this output row reads
+        while next <= (row + r).min(rows - 1) {
+            let x = match from {
+                Some(f) => &f[next * cols..(next + 1) * cols],
+                None => &band[next * cols..(next + 1) * cols],
+            };
+            let inner = &mut src[r..r + cols];
+            let a = match add {
+                Add::Nothing => None,
+                Add::Band(a) => Some(&a[next * cols..(next + 1) * cols]),
+                Add::Adjoint {
+                    op,
+                    y,
+                    band: k,
+                    simd,
+                } => {
+                    op.adjoint_row(simd, y, k, next, step_row);
+                    Some(&step_row[..])
                 }
+            };
+            match a {
+                Some(a) => {
+                    for ((s, &xv), &av) in inner.iter_mut().zip(x).zip(a) {
+                        *s = xv + av;
+                    }
+                }
+                None => inner.copy_from_slice(x),
             }
-            None => inner.copy_from_slice(x),
+            let (first, last) = (src[r], src[r + cols - 1]);
+            src[..r].fill(first);
+            src[r + cols..].fill(last);
+            symmetric_pass(
+                &mut ring_rows[slot(next)],
+                |j| &src[r - j..r - j + cols],
+                |j| &src[r + j..r + j + cols],
+                w,
+            );
+            next += 1;
         }
-        let (first, last) = (src[r], src[r + cols - 1]);
-        src[..r].fill(first);
-        src[r + cols..].fill(last);
-        symmetric_pass(
-            &mut tmp[row * cols..(row + 1) * cols],
-            |j| &src[r - j..r - j + cols],
-            |j| &src[r + j..r + j + cols],
-            w,
-        );
-    }
-    // vertical: whole rows, edge rows replicated
-    let row_at = |i: isize| {
-        let i = i.clamp(0, rows as isize - 1) as usize;
-        i * cols..(i + 1) * cols
-    };
-    for row in 0..rows {
-        let dst = &mut band[row * cols..(row + 1) * cols];
+        // vertical: whole rows, edge rows replicated
+        let row_at = |i: isize| slot(i.clamp(0, rows as isize - 1) as usize);
+        let dst = &mut band[(row - first) * cols..(row - first + 1) * cols];
         let ri = row as isize;
         symmetric_pass(
             dst,
-            |j| &tmp[row_at(ri - j as isize)],
-            |j| &tmp[row_at(ri + j as isize)],
+            |j| &ring_rows[row_at(ri - j as isize)],
+            |j| &ring_rows[row_at(ri + j as isize)],
             w,
         );
         if clamp {
@@ -245,7 +357,9 @@ mod tests {
             smooth_band(
                 simd,
                 &mut b,
-                Some(&add),
+                None,
+                0,
+                Add::Band(&add),
                 &mut Vec::new(),
                 rows,
                 cols,
@@ -255,5 +369,58 @@ mod tests {
             b
         };
         assert_eq!(run(false), run(Simd::detect(false).avx));
+    }
+
+    /// The fused step gives the bits of the adjoint followed by the smoothing,
+    /// for both dispersion models, and with fewer rows than the ring.
+    #[test]
+    fn the_adjoint_step_equals_adjoint_then_smoothing() {
+        use crate::linop::LinearOperator;
+        use crate::optics::{Dispersion, DispersionModel};
+        use crate::params::DispersionParams;
+        let mut rng = crate::Rng::new(7);
+        for (rows, cols, sigma) in [(13, 29, 0.7f32), (4, 9, 1.0)] {
+            for model in [DispersionModel::Rounded, DispersionModel::Subpixel] {
+                let params = DispersionParams {
+                    a1: 2.3,
+                    alpha_deg: 9.0,
+                };
+                let d = Dispersion::new(5, params, model).unwrap();
+                let mask: Vec<f32> = (0..rows * cols).map(|_| rng.uniform() as f32).collect();
+                let mask = crate::cube::Frame::from_vec(rows, cols, mask).unwrap();
+                let op = CassiOperator::new(mask, d).unwrap();
+                let y: Vec<f32> = (0..op.range_len())
+                    .map(|_| rng.uniform() as f32 - 0.5)
+                    .collect();
+                let x: Vec<f32> = (0..op.domain_len()).map(|_| rng.uniform() as f32).collect();
+                let taps = gaussian_taps(sigma);
+                let mut step = vec![0.0; op.domain_len()];
+                op.adjoint(&y, &mut step);
+                let mut want = x.clone();
+                smooth_step(&mut want, Some(&step), rows, cols, &taps, true);
+                let mut got = x.clone();
+                smooth_adjoint_step(&mut got, &op, &y, &taps, true);
+                assert_eq!(got, want, "{model:?} {rows}×{cols}");
+            }
+        }
+    }
+
+    /// Row blocks in parallel give the bits of the whole-frame smoothing,
+    /// with a last block shorter than the rest and a radius past a block.
+    #[test]
+    fn the_frame_in_row_blocks_equals_the_whole_frame() {
+        let mut rng = crate::Rng::new(3);
+        for (rows, sigma) in [(75, 2.0f32), (33, 12.0), (5, 0.7)] {
+            let cols = 19;
+            let x: Vec<f32> = (0..rows * cols).map(|_| rng.uniform() as f32).collect();
+            let taps = gaussian_taps(sigma);
+            let mut want = x.clone();
+            smooth_bands(&mut want, rows, cols, &taps);
+            assert_eq!(
+                smooth_frame(&x, rows, cols, &taps),
+                want,
+                "{rows} rows, σ {sigma}"
+            );
+        }
     }
 }

@@ -49,6 +49,14 @@ impl ModelOperator {
         }
     }
 
+    /// The CASSI operator when there is no blur.
+    pub fn sharp(&self) -> Option<&CassiOperator> {
+        match self {
+            Self::Sharp(a) => Some(a),
+            Self::Blurred(_) => None,
+        }
+    }
+
     /// σ of the blur, pixels (0 for a sharp instrument).
     pub fn blur_sigma_px(&self) -> f64 {
         match self {

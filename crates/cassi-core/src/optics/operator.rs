@@ -172,33 +172,42 @@ impl CassiOperator {
     pub(crate) fn diag_product(&self, other: &CassiOperator) -> Frame {
         let (rows, det_cols) = self.measurement_shape();
         let cols = self.mask.cols();
+        // (tap, paired weight) in band and tap order
+        let taps: Vec<(&super::dispersion::Tap, f32)> = (0..self.bands())
+            .flat_map(|k| {
+                self.dispersion.taps(k).iter().map(move |tap| {
+                    let w: f32 = other
+                        .dispersion
+                        .taps(k)
+                        .iter()
+                        .filter(|t| t.row == tap.row && t.col == tap.col)
+                        .map(|t| tap.weight * t.weight)
+                        .sum();
+                    (tap, w)
+                })
+            })
+            .filter(|&(_, w)| w != 0.0)
+            .collect();
         let mut d = Frame::zeros(rows, det_cols);
-        for k in 0..self.bands() {
-            for tap in self.dispersion.taps(k) {
-                let w: f32 = other
-                    .dispersion
-                    .taps(k)
-                    .iter()
-                    .filter(|t| t.row == tap.row && t.col == tap.col)
-                    .map(|t| tap.weight * t.weight)
-                    .sum();
-                if w == 0.0 {
-                    continue;
-                }
-                for r in 0..rows {
-                    let Some(yr) = shifted_row(r, tap.row, rows) else {
+        // detector rows in parallel, each summing in band and tap order
+        d.as_mut_slice()
+            .par_chunks_mut(det_cols)
+            .with_min_len(8)
+            .enumerate()
+            .for_each(|(yr, drow)| {
+                for &(tap, w) in &taps {
+                    let Some(r) = shifted_row(yr, -tap.row, rows) else {
                         continue;
                     };
                     let c0 = tap.col as usize;
-                    let out = &mut d.row_mut(yr)[c0..c0 + cols];
+                    let out = &mut drow[c0..c0 + cols];
                     for ((o, &m), &m2) in
                         out.iter_mut().zip(self.mask.row(r)).zip(other.mask.row(r))
                     {
                         *o += w * m * m2;
                     }
                 }
-            }
-        }
+            });
         d
     }
 }
@@ -294,28 +303,35 @@ impl LinearOperator for CassiOperator {
             self.domain_len(),
             "CassiOperator::adjoint: x length"
         );
-        let det_cols = self.det_cols;
         let simd = Simd::detect(false);
         x.par_chunks_mut(cols)
             .with_min_len(16)
             .enumerate()
-            .for_each(|(i, xrow)| {
-                let (k, r) = (i / rows, i % rows);
-                xrow.fill(0.0);
-                for tap in self.dispersion.taps(k) {
-                    let Some(yr) = shifted_row(r, tap.row, rows) else {
-                        continue;
-                    };
-                    let c0 = yr * det_cols + tap.col as usize;
-                    let src = &y[c0..c0 + cols];
-                    if tap.weight == 1.0 {
-                        add_row(simd, xrow, src);
-                    } else {
-                        weighted_add_row(simd, xrow, src, tap.weight);
-                    }
-                }
-                mask_row(simd, xrow, self.mask.row(r));
-            });
+            .for_each(|(i, xrow)| self.adjoint_row(simd, y, i / rows, i % rows, xrow));
+    }
+}
+
+impl CassiOperator {
+    /// Row `r` of band `k` of Aᵀ `y` into `xrow`: what
+    /// [`LinearOperator::adjoint`] writes there, for callers that use the
+    /// rows as they come (the proxy's prior step) instead of a whole cube.
+    #[inline]
+    pub(crate) fn adjoint_row(&self, simd: Simd, y: &[f32], k: usize, r: usize, xrow: &mut [f32]) {
+        let (rows, cols) = (self.mask.rows(), self.mask.cols());
+        xrow.fill(0.0);
+        for tap in self.dispersion.taps(k) {
+            let Some(yr) = shifted_row(r, tap.row, rows) else {
+                continue;
+            };
+            let c0 = yr * self.det_cols + tap.col as usize;
+            let src = &y[c0..c0 + cols];
+            if tap.weight == 1.0 {
+                add_row(simd, xrow, src);
+            } else {
+                weighted_add_row(simd, xrow, src, tap.weight);
+            }
+        }
+        mask_row(simd, xrow, self.mask.row(r));
     }
 }
 
