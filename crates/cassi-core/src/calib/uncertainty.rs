@@ -74,8 +74,10 @@ pub const TRADE_OFF_CORRELATION: f64 = 0.8;
 /// aligned cases (blur 0–0.8 px; the sandwich alone covered 0 % of dx at
 /// 1σ), [`floor_wide`] from its `wide_blur` row (aligned, σ 1.0 and
 /// 1.5 px: the sharp floors covered 11 % of dx, 33 % of a1 at 1σ);
-/// linear in σ̂ between [`SHARP_BLUR_PX`] and [`WIDE_BLUR_PX`]. Coverage is
-/// reported on the held-out half (`bench/results/calibrate_physical_held_out.json`).
+/// linear in σ̂ between [`SHARP_BLUR_PX`] and [`WIDE_BLUR_PX`]. Derived by
+/// `bench/uncertainty_floors.py bench/results/calibrate_physical_tuning.json`
+/// (rounded up); coverage is reported on the held-out half
+/// (`bench/results/calibrate_physical_held_out.json`).
 /// The wide floors come from aligned instruments only: a camera that is
 /// both misaligned and this blurred is not covered by any measurement yet.
 pub fn model_error_floor(p: Parameter, blur_sigma_px: f64) -> f64 {
@@ -93,12 +95,12 @@ pub const WIDE_BLUR_PX: f64 = 1.0;
 /// [`SCENE_SMOOTH_PX`](super::texture::SCENE_SMOOTH_PX) = 3 px).
 fn floor_sharp(p: Parameter) -> f64 {
     match p {
-        Parameter::Dx => 0.29,
-        Parameter::Dy => 0.121,
-        Parameter::ThetaDeg => 0.039,
-        Parameter::A1 => 0.0053,
-        Parameter::AlphaDeg => 0.2,
-        Parameter::BlurSigmaPx => 0.097,
+        Parameter::Dx => 0.27,
+        Parameter::Dy => 0.112,
+        Parameter::ThetaDeg => 0.034,
+        Parameter::A1 => 0.0071,
+        Parameter::AlphaDeg => 0.194,
+        Parameter::BlurSigmaPx => 0.111,
     }
 }
 
@@ -106,12 +108,12 @@ fn floor_sharp(p: Parameter) -> f64 {
 /// tuning cases: one had no positive-definite Hessian).
 fn floor_wide(p: Parameter) -> f64 {
     match p {
-        Parameter::Dx => 0.79,
-        Parameter::Dy => 0.18,
-        Parameter::ThetaDeg => 0.04,
-        Parameter::A1 => 0.054,
-        Parameter::AlphaDeg => 0.29,
-        Parameter::BlurSigmaPx => 0.148,
+        Parameter::Dx => 0.78,
+        Parameter::Dy => 0.29,
+        Parameter::ThetaDeg => 0.072,
+        Parameter::A1 => 0.063,
+        Parameter::AlphaDeg => 0.52,
+        Parameter::BlurSigmaPx => 0.18,
     }
 }
 
