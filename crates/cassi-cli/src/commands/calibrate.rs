@@ -120,8 +120,8 @@ fn uncertainty_lines(cal: &Calibration) -> String {
 }
 
 /// A note when the fitted blur is beyond the headline benchmark's range:
-/// there the standard errors carry the floors measured on blurrier aligned
-/// instruments, which the calibration misplaced by a large fraction of a pixel.
+/// there the standard errors carry the floors measured on blurrier
+/// instruments, which the calibration misplaced by up to a pixel or more.
 fn wide_blur_note(cal: &Calibration) -> String {
     let blur = cal.parameters.blur_sigma_px;
     if cal.uncertainty.get(Parameter::BlurSigmaPx).is_none() || blur.abs() <= SHARP_BLUR_PX {
@@ -129,8 +129,8 @@ fn wide_blur_note(cal: &Calibration) -> String {
     }
     format!(
         "  note: the fitted blur ({blur:.2} px) is beyond the benchmark's 0–{SHARP_BLUR_PX} px; on \
-         aligned simulated instruments this blurred the calibration reported spurious offsets, \
-         so the ± above carry a model-error floor of {:.2} px in dx (README: wide blur)\n",
+         simulated instruments this blurred the calibration reported offsets that were not \
+         there, so the ± above carry a model-error floor of {:.2} px in dx (README: wide blur)\n",
         model_error_floor(Parameter::Dx, blur)
     )
 }

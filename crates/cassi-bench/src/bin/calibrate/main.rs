@@ -19,10 +19,12 @@
 //! `--inverse-crime` a separately labelled `inverse_crime` row per random
 //! case: its sharp ψ simulated by the discrete subpixel operator. With
 //! `--wide-blur` (on by default) a separately labelled `wide_blur` row:
-//! aligned instruments with σ ∈ {1.0, 1.5} px, the blur the real TSA
-//! snapshots show (1.3–1.6 px), outside the issue's 0–0.8 px range (seed
-//! `base + 400 + 2·(scene index) + j`). The `physical_all` summary holds
-//! the random and aligned-blur rows only.
+//! σ ∈ {1.0, 1.5} px, the blur the real TSA snapshots show (1.3–1.6 px),
+//! outside the issue's 0–0.8 px range, once on an aligned instrument (seed
+//! `base + 400 + 2·(scene index) + j`) and once with a random pose and
+//! dispersion drawn as for `random` (seed `base + 450 + 2·(scene index) +
+//! j`). The `physical_all` summary holds the random and aligned-blur rows
+//! only.
 //!
 //! With `--recon`, GAP-TV (shipped `gap-tv`, subpixel model, blur from ψ)
 //! reconstructs each case with the nominal ψ (II), the calibrated ψ (III)
@@ -78,6 +80,7 @@ const ALIGNED_SIGMAS: [f64; 3] = [0.3, 0.5, 0.7];
 /// The wide-blur row's σ and where its seeds start (after every half's slots).
 const WIDE_SIGMAS: [f64; 2] = [1.0, 1.5];
 const WIDE_SEED_OFFSET: u64 = 400;
+const WIDE_RANDOM_SEED_OFFSET: u64 = 450;
 const STRIDE: f64 = 2.0;
 const OVERSAMPLE: usize = 4;
 const DETECTOR: (usize, usize) = (256, 310);
@@ -340,16 +343,23 @@ fn scene_cases(args: &Args, half: Half, scene: usize, index: u64) -> Vec<Case> {
     }
     if args.wide_blur {
         for (j, sigma) in WIDE_SIGMAS.into_iter().enumerate() {
-            cases.push(Case {
-                half,
-                scene,
-                kind: Kind::WideBlur,
-                seed: half.seed_base() + WIDE_SEED_OFFSET + 2 * index + j as u64,
-                truth: Mismatch {
-                    blur_sigma_px: sigma,
-                    ..Mismatch::nominal(STRIDE)
-                },
-            });
+            let aligned_seed = half.seed_base() + WIDE_SEED_OFFSET + 2 * index + j as u64;
+            let random_seed = half.seed_base() + WIDE_RANDOM_SEED_OFFSET + 2 * index + j as u64;
+            for (seed, pose) in [
+                (aligned_seed, Mismatch::nominal(STRIDE)),
+                (random_seed, random_mismatch(random_seed)),
+            ] {
+                cases.push(Case {
+                    half,
+                    scene,
+                    kind: Kind::WideBlur,
+                    seed,
+                    truth: Mismatch {
+                        blur_sigma_px: sigma,
+                        ..pose
+                    },
+                });
+            }
         }
     }
     cases
@@ -803,8 +813,10 @@ fn main() -> Result<()> {
             "random": "dx, dy U(±2.5) px, θ U(±0.8)°, a1 U(1.93, 2.07), α U(±1)°, σ U(0, 0.8) px",
             "aligned_blur": { "mismatch": "nominal (stride 2)", "blur_sigma_px": ALIGNED_SIGMAS },
             "inverse_crime": "the random case's sharp ψ through the discrete subpixel operator (simulate), same noise",
-            "wide_blur": { "mismatch": "nominal (stride 2)", "blur_sigma_px": WIDE_SIGMAS,
-                           "seed": format!("seed_base + {WIDE_SEED_OFFSET} + 2·(scene index in half) + j"),
+            "wide_blur": { "mismatch": "nominal (stride 2), and a random pose and dispersion drawn as for random",
+                           "blur_sigma_px": WIDE_SIGMAS,
+                           "seed": format!("aligned: seed_base + {WIDE_SEED_OFFSET} + 2·(scene index in half) + j; \
+                                            random: seed_base + {WIDE_RANDOM_SEED_OFFSET} + 2·(scene index in half) + j"),
                            "note": "outside the issue's σ range; the real TSA snapshots' fitted blur is 1.3–1.6 px" },
         },
         "tolerances": per_parameter(|p| json!(tolerance(p))),
