@@ -91,6 +91,10 @@ class Calibration:
     def standard_errors(self) -> Dict[str, Optional[float]]:
         """Standard error per parameter; None where not estimated."""
     @property
+    def intervals_95(self) -> Dict[str, Optional[float]]:
+        """Half-width of the 95 % interval per parameter (heavy-tailed errors:
+        wider than 2 × the standard error); None where not estimated."""
+    @property
     def trade_offs(self) -> List[Tuple[str, str, float]]:
         """(key_a, key_b, correlation) of parameters pinned only in combination."""
     @property

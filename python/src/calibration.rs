@@ -66,6 +66,19 @@ impl PyCalibration {
         Ok(d)
     }
 
+    /// The half-width of each parameter's 95 % interval (same keys and
+    /// units; not twice the standard error: the errors are heavy-tailed),
+    /// None where it was not estimated (the `paper` preset, the rounded
+    /// model).
+    #[getter]
+    fn intervals_95<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let d = PyDict::new(py);
+        for p in Parameter::ALL {
+            d.set_item(p.key(), self.inner.interval_95.get(p))?;
+        }
+        Ok(d)
+    }
+
     /// Pairs of parameters whose errors are correlated by at least 0.8
     /// (the data pin their combination, not each): a list of
     /// (key_a, key_b, correlation).
@@ -142,13 +155,17 @@ impl PyCalibration {
         );
         for p in Parameter::ALL {
             if let Some(u) = self.inner.uncertainty.get(p) {
+                let prec = p.decimals();
+                let interval = self
+                    .inner
+                    .interval_95
+                    .get(p)
+                    .map_or(String::new(), |w| format!(" (95 %: ± {w:.prec$})"));
                 out += &format!(
-                    "\n  {:<5} {} ± {:.prec$} {}",
+                    "\n  {:<5} {} ± {u:.prec$} {}{interval}",
                     p.name(),
                     p.format(p.get(&self.inner.parameters)),
-                    u,
                     p.unit(),
-                    prec = p.decimals()
                 );
             }
         }

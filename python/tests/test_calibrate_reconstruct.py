@@ -36,6 +36,9 @@ def test_calibration_recovers_a_known_misalignment(case):
     se = cal.standard_errors
     assert list(se) == cassi.PARAMETERS
     assert all(se[k] is not None and se[k] > 0 for k in ["dx", "dy", "theta_deg"])
+    # the rounded model has no texture fit: no 95 % interval
+    assert list(cal.intervals_95) == cassi.PARAMETERS
+    assert all(v is None for v in cal.intervals_95.values())
     # the progress callback saw every stage, in order, as the result lists them
     assert [s["name"] for s in seen] == [s["name"] for s in cal.stages]
     assert len(seen) >= 3
@@ -56,7 +59,12 @@ def test_subpixel_calibration_reports_trade_offs_and_blur(case):
     assert cal.model == "subpixel"
     assert abs(e["a1"] - 2.05) < 0.02 and abs(e["alpha_deg"] - 1.5) < 0.5, e
     assert e["blur_sigma_px"] < 0.1
-    assert all(v is not None and v > 0 for v in cal.standard_errors.values())
+    se, wide = cal.standard_errors, cal.intervals_95
+    assert all(v is not None and v > 0 for v in se.values())
+    # the 95 % half-width carries its own (larger) floor: wider than 2 σ's floor alone
+    assert all(wide[k] is not None and wide[k] > se[k] for k in cassi.PARAMETERS), (wide, se)
+    assert "95 %" in repr(cal)
+    assert cassi.Calibration.from_json(cal.to_json()).intervals_95 == wide
     for a, b, corr in cal.trade_offs:
         assert a in cassi.PARAMETERS and b in cassi.PARAMETERS and abs(corr) >= 0.8
 

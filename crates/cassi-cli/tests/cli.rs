@@ -73,7 +73,7 @@ fn demo_calibrates_a_physical_instrument_with_covering_error_bars() {
     );
     assert!(report["recovery_ratio"].as_f64().unwrap() > 0.9);
     // every parameter, the blur included, is estimated with a standard
-    // error, and the truth lies within two of them
+    // error and a 95 % half-width, and the truth lies within both
     let cal = &report["calibration"];
     let truth = &report["simulation"]["simulation"]["mismatch"];
     assert_eq!(truth["blur_sigma_px"], 0.5);
@@ -86,6 +86,13 @@ fn demo_calibrates_a_physical_instrument_with_covering_error_bars() {
         assert!(
             (est - t).abs() <= 2.0 * sigma,
             "{key}: estimate {est}, truth {t}, stated σ {sigma}"
+        );
+        let half_width = cal["interval_95"][key]
+            .as_f64()
+            .unwrap_or_else(|| panic!("no 95 % interval for {key}: {cal}"));
+        assert!(
+            (est - t).abs() <= half_width && half_width > sigma,
+            "{key}: estimate {est}, truth {t}, 95 % ± {half_width}, σ {sigma}"
         );
     }
     // and the pose is within a third of a pixel regardless of what it states

@@ -192,6 +192,15 @@ fn default_preset_recovers_a_known_mask_misalignment() {
             "{:?}",
             cal.uncertainty
         );
+        // the texture fit (subpixel) also states 95 % half-widths, wider
+        // than its standard errors; the rounded model states none
+        for p in Parameter::ALL {
+            match (model, cal.interval_95.get(p), cal.uncertainty.get(p)) {
+                (DispersionModel::Subpixel, Some(w), Some(u)) => assert!(w > u, "{p:?}: {w} ≤ {u}"),
+                (DispersionModel::Rounded, None, _) => {}
+                other => panic!("{p:?}: {other:?}"),
+            }
+        }
     }
 }
 

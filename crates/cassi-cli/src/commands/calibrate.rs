@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use cassi_core::Parameter;
 use cassi_core::calib::{
     Calibration, CalibrationProblem, Preset, SHARP_BLUR_PX, StageReport, calibrate,
-    model_error_floor,
+    interval_95_floor, model_error_floor,
 };
 use cassi_core::optics::{DispersionModel, warp_mask};
 use clap::Args;
@@ -100,19 +100,23 @@ pub fn run(args: &CalibrateArgs, reporter: &Reporter) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// One line per estimated parameter with its standard error, then the pairs
-/// that trade off.
+/// One line per estimated parameter with its standard error and, where
+/// estimated, the half-width of its 95 % interval, then the pairs that
+/// trade off.
 fn uncertainty_lines(cal: &Calibration) -> String {
     let mut out = String::new();
     for p in Parameter::ALL {
         if let Some(u) = cal.uncertainty.get(p) {
+            let prec = p.decimals();
+            let interval = cal
+                .interval_95
+                .get(p)
+                .map_or(String::new(), |w| format!("   (95 %: ± {w:.prec$})"));
             out += &format!(
-                "  {:<5} {} ± {:.prec$} {}\n",
+                "  {:<5} {} ± {u:.prec$} {}{interval}\n",
                 p.name(),
                 p.format(p.get(&cal.parameters)),
-                u,
                 p.unit(),
-                prec = p.decimals()
             );
         }
     }
@@ -130,8 +134,10 @@ fn wide_blur_note(cal: &Calibration) -> String {
     format!(
         "  note: the fitted blur ({blur:.2} px) is beyond the benchmark's 0–{SHARP_BLUR_PX} px; on \
          simulated instruments this blurred the calibration reported offsets that were not \
-         there, so the ± above carry a model-error floor of {:.2} px in dx (README: wide blur)\n",
-        model_error_floor(Parameter::Dx, blur)
+         there, so the ± above carry a model-error floor of {:.2} px in dx, {:.2} px in its 95 % \
+         interval (README: wide blur)\n",
+        model_error_floor(Parameter::Dx, blur),
+        interval_95_floor(Parameter::Dx, blur)
     )
 }
 

@@ -142,12 +142,12 @@ fn describe_instrument(instrument: DemoInstrument, physical: Option<&PhysicalSpe
     }
 }
 
-/// Estimated vs true parameters with the stated standard error, one line
-/// each, then the pairs that trade off.
+/// Estimated vs true parameters with the stated standard error and 95 %
+/// half-width, one line each, then the pairs that trade off.
 fn parameter_table(truth: &Mismatch, cal: &Calibration, model: DispersionModel) -> String {
     let mut out = format!(
-        "  {:<14} {:>9} {:>9} {:>9} {:>9}  {}",
-        "parameter", "true", "estimated", "error", "± σ", "|error| / σ"
+        "  {:<14} {:>9} {:>9} {:>9} {:>9}  {:<11} {:>9}",
+        "parameter", "true", "estimated", "error", "± σ", "|error| / σ", "95 % ±"
     );
     for p in Parameter::ALL {
         let (name, t, e) = (p.label(), p.get(truth), p.get(&cal.parameters));
@@ -160,8 +160,11 @@ fn parameter_table(truth: &Mismatch, cal: &Calibration, model: DispersionModel) 
         }
         out += &format!("\n  {name:<14} {t:>9.4} {e:>9.4} {:>+9.4}", e - t);
         match cal.uncertainty.get(p) {
-            Some(u) => out += &format!(" {u:>9.4}  {:.1}", (e - t).abs() / u),
+            Some(u) => out += &format!(" {u:>9.4}  {:<11.1}", (e - t).abs() / u),
             None => out += "         –  (no standard error)",
+        }
+        if let Some(w) = cal.interval_95.get(p) {
+            out += &format!(" {w:>9.4}");
         }
     }
     let trade_offs = super::calibrate::trade_off_lines(cal);

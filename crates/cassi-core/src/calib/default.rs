@@ -14,7 +14,7 @@ use super::rounded_dispersion::{rounded_dispersion, rounding_intervals};
 use super::stages::{Scored, Stage, StageRunner, lowest};
 use super::subpixel_tilt::subpixel_tilt;
 use super::texture::{SceneEstimate, TextureFit};
-use super::uncertainty::{TradeOff, curvature_uncertainty, texture_uncertainty};
+use super::uncertainty::{UncertaintyEstimate, curvature_uncertainty, texture_uncertainty};
 use super::{Calibration, CalibrationProblem, ProxyParams, StageReport, Uncertainty};
 use super::{grid, init, nelder_mead};
 use crate::error::Result;
@@ -177,21 +177,27 @@ pub fn calibrate_default(
     if problem.model() == DispersionModel::Rounded || proxy_refines_dispersion {
         best = joint_refinement(&mut run, &scores, best);
     }
-    let (uncertainty, trade_offs, uncertainty_evals) = if texture {
+    let u = if texture {
         let estimate = SceneEstimate::Proxy { at: best };
-        let found = texture_stage(&mut run, problem, preset, &best, estimate)?;
-        best = found.0;
-        (found.1, found.2, found.3)
+        let (found, u) = texture_stage(&mut run, problem, preset, &best, estimate)?;
+        best = found;
+        u
     } else {
-        let (u, n) = curvature_uncertainty(problem, &best, scores.score(&best), &preset.proxy);
-        (u, Vec::new(), n)
+        let (standard, evaluations) =
+            curvature_uncertainty(problem, &best, scores.score(&best), &preset.proxy);
+        UncertaintyEstimate {
+            standard,
+            interval_95: Uncertainty::default(),
+            trade_offs: Vec::new(),
+            evaluations,
+        }
     };
     // a cancelled run's stages ended on failed scores: no result from them
     problem.check_cancelled()?;
     let score = scores.score(&best);
     let nominal_score = scores.score(&Mismatch::nominal(preset.stride));
     // + the uncertainty probes, the final and the nominal score
-    let evaluations = run.evaluations() + uncertainty_evals + 2;
+    let evaluations = run.evaluations() + u.evaluations + 2;
     let seconds = run.seconds();
     Ok(Calibration {
         preset: "default".into(),
@@ -199,8 +205,9 @@ pub fn calibrate_default(
         parameters: best,
         score,
         nominal_score,
-        uncertainty,
-        trade_offs,
+        uncertainty: u.standard,
+        interval_95: u.interval_95,
+        trade_offs: u.trade_offs,
         stages: run.into_reports(),
         seconds,
         evaluations,
@@ -498,9 +505,8 @@ fn joint_refinement(run: &mut StageRunner<'_>, scores: &Scores<'_>, best: Mismat
     run.finish(stage, "joint refinement", found)
 }
 
-/// What the texture stage found: ψ, its standard errors, the trade-offs and
-/// the scores the uncertainty spent.
-type TextureResult = (Mismatch, Uncertainty, Vec<TradeOff>, usize);
+/// What the texture stage found: ψ and its uncertainty.
+type TextureResult = (Mismatch, UncertaintyEstimate);
 
 /// Stage 5, the texture fit (`texture.rs`) from `start`: σ on a coarse grid, then
 /// Nelder–Mead over the model's identifiable parameters and σ, then the
@@ -543,9 +549,9 @@ fn texture_stage(
     let steps: Vec<f64> = free.iter().map(|&p| texture_step(p)).collect();
     let tol: Vec<f64> = steps.iter().map(|s| s / 50.0).collect();
     let found = nelder_mead::minimise(&objective, &steps, preset.max_evaluations, &tol, 1e-9);
-    let (uncertainty, trade_offs, u_evals) = texture_uncertainty(&fit, &found.parameters, &free);
+    let uncertainty = texture_uncertainty(&fit, &found.parameters, &free);
     let best = run.finish(stage, "texture fit (incl. blur)", found);
-    Ok((best, uncertainty, trade_offs, u_evals))
+    Ok((best, uncertainty))
 }
 
 /// The texture stage alone from `start` with the scene estimate

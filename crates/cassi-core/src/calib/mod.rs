@@ -25,7 +25,8 @@ mod texture;
 mod uncertainty;
 
 pub use uncertainty::{
-    SHARP_BLUR_PX, TRADE_OFF_CORRELATION, TradeOff, WIDE_BLUR_PX, model_error_floor,
+    SHARP_BLUR_PX, TRADE_OFF_CORRELATION, TradeOff, WIDE_BLUR_PX, interval_95_floor,
+    model_error_floor,
 };
 
 use serde::{Deserialize, Serialize};
@@ -68,12 +69,19 @@ pub struct Calibration {
     /// `default` preset: the block sandwich of its texture fit (spatially
     /// correlated residuals counted per image block, not per pixel) with a
     /// model-error floor in quadrature, set on the physical benchmark's
-    /// tuning half for ≥ 68 % / 95 % coverage at 1σ / 2σ and checked on the
-    /// held-out half (`bench/results/calibrate_physical_held_out.json`).
+    /// tuning half for 68 % coverage and checked on the held-out half
+    /// (`bench/results/calibrate_physical_held_out.json`).
     /// The `paper` preset: the proxy score's curvature, treating it as a
     /// mean squared residual of N independent pixels (it is not; it does
     /// not cover). `None` where not estimated.
     pub uncertainty: Uncertainty,
+    /// Half-width of the 95 % interval per parameter (the `default` preset's
+    /// texture fit; empty otherwise and in records written before it). Not
+    /// 2 × `uncertainty`: the errors are heavy-tailed (a rare fit lands up
+    /// to a pixel off along the dx–a1 ridge), so it carries its own floor,
+    /// set on the tuning half for 95 % coverage.
+    #[serde(default, skip_serializing_if = "Uncertainty::is_empty")]
+    pub interval_95: Uncertainty,
     /// Pairs of parameters whose estimates are correlated by at least
     /// [`TRADE_OFF_CORRELATION`]: the data pin their combination, not each.
     #[serde(default)]
@@ -93,6 +101,11 @@ impl Uncertainty {
     /// The standard error of `p`, if it was estimated.
     pub fn get(&self, p: Parameter) -> Option<f64> {
         self.0.get(&p).copied().flatten()
+    }
+
+    /// No parameter listed.
+    pub fn is_empty(&self) -> bool {
+        self.0.is_empty()
     }
 }
 

@@ -24,7 +24,7 @@ use super::grid::{self, linspace};
 use super::objective::Objective;
 use super::stages::{Scored, StageRunner, lowest};
 use super::uncertainty::curvature_uncertainty;
-use super::{Calibration, CalibrationProblem, ProxyParams, StageReport};
+use super::{Calibration, CalibrationProblem, ProxyParams, StageReport, Uncertainty};
 use crate::error::Result;
 use crate::params::Mismatch;
 use crate::params::Parameter::{A1, AlphaDeg, Dx, Dy, ThetaDeg};
@@ -165,6 +165,7 @@ pub fn calibrate_paper(
         score: final_score,
         nominal_score,
         uncertainty,
+        interval_95: Uncertainty::default(),
         trade_offs: Vec::new(),
         stages: run.into_reports(),
         seconds,

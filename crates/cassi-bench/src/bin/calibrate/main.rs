@@ -11,7 +11,7 @@
 //! draw and its noise) is `base + 20·(scene index in the half) + slot`, with
 //! base 14 000 (tuning) or 14 500 (held-out), slot k for the k-th random case
 //! and 17 + j for the j-th aligned-blur case, so a case keeps its seed
-//! whatever `--scenes`, `--cases` or `--no-aligned` select.
+//! whatever `--scenes`, `--cases`, `--first-case` or `--no-aligned` select.
 //!
 //! Case kinds: `random` (dx, dy ∈ ±2.5 px, θ ∈ ±0.8°, a1 ∈ 1.93–2.07,
 //! α ∈ ±1°, σ ∈ 0–0.8 px, drawn from `Rng::new(seed)` in that order),
@@ -26,6 +26,12 @@
 //! j`). The `physical_all` summary holds the random and aligned-blur rows
 //! only.
 //!
+//! Each case records the calibration's standard errors (`uncertainty`, with
+//! the model-error floor inside them, `uncertainty_floor`) and the
+//! half-widths of its 95 % intervals (`interval_95`); the summaries give
+//! their coverage (|error| ≤ 1σ, ≤ 2σ, ≤ the 95 % half-width).
+//! `bench/uncertainty_floors.py` derives the floors from a tuning-half run.
+//!
 //! With `--recon`, GAP-TV (shipped `gap-tv`, subpixel model, blur from ψ)
 //! reconstructs each case with the nominal ψ (II), the calibrated ψ (III)
 //! and the true ψ (IV); ρ = (III − II)/(IV − II) is the share of the
@@ -37,7 +43,7 @@
 //! scene-known model at the true ψ and the simulator's noise level.
 //!
 //! Run: `cargo run --release -p cassi-bench --bin calibrate --
-//! [--half tuning|held-out|both] [--scenes N] [--cases K] [--no-aligned]
+//! [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--no-aligned]
 //! [--no-inverse-crime] [--model rounded|subpixel] [--preset NAME]
 //! [--no-texture] [--no-recon] [--no-limits] [--out PATH] [--verbose]`
 //! (`--no-texture`: the default preset without its texture fit, as it was
@@ -129,6 +135,9 @@ struct Args {
     half_name: String,
     scenes: Option<usize>,
     cases: usize,
+    /// The first random case's slot (`--first-case`): later slots are
+    /// seeds no earlier run used.
+    first_case: usize,
     aligned: bool,
     inverse_crime: bool,
     wide_blur: bool,
@@ -141,14 +150,14 @@ struct Args {
     verbose: bool,
 }
 
-const USAGE: &str = "calibrate [--half tuning|held-out|both] [--scenes N] [--cases K] \
+const USAGE: &str = "calibrate [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] \
                      [--no-aligned] [--no-inverse-crime] [--no-wide-blur] [--model rounded|subpixel] \
                      [--preset NAME] [--no-texture] [--no-recon] [--no-limits] [--out PATH] \
                      [--verbose]";
 
 fn parse_args(argv: &[String]) -> Result<Args> {
     let mut half_name = "held-out".to_string();
-    let (mut scenes, mut cases) = (None, 2usize);
+    let (mut scenes, mut cases, mut first_case) = (None, 2usize, 0usize);
     let (mut aligned, mut inverse_crime, mut recon, mut verbose) = (true, true, true, false);
     let mut wide_blur = true;
     let mut limits = true;
@@ -177,10 +186,10 @@ fn parse_args(argv: &[String]) -> Result<Args> {
             "--cases" => {
                 let v = value()?;
                 cases = v.parse().with_context(|| format!("--cases {v}"))?;
-                ensure!(
-                    cases as u64 <= ALIGNED_SLOT,
-                    "--cases {cases}: at most {ALIGNED_SLOT} random cases per scene"
-                );
+            }
+            "--first-case" => {
+                let v = value()?;
+                first_case = v.parse().with_context(|| format!("--first-case {v}"))?;
             }
             "--no-aligned" => aligned = false,
             "--inverse-crime" => inverse_crime = true,
@@ -210,6 +219,11 @@ fn parse_args(argv: &[String]) -> Result<Args> {
         "both" => vec![Half::Tuning, Half::HeldOut],
         other => bail!("--half {other}: expected tuning, held-out or both"),
     };
+    ensure!(
+        (first_case + cases) as u64 <= ALIGNED_SLOT,
+        "--first-case {first_case} --cases {cases}: random cases use slots 0 to {}",
+        ALIGNED_SLOT - 1
+    );
     ensure!(
         cases > 0 || aligned || wide_blur,
         "--cases 0 with --no-aligned leaves no case to run"
@@ -241,6 +255,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
         half_name,
         scenes,
         cases,
+        first_case,
         aligned,
         inverse_crime,
         wide_blur,
@@ -312,7 +327,7 @@ fn random_mismatch(seed: u64) -> Mismatch {
 fn scene_cases(args: &Args, half: Half, scene: usize, index: u64) -> Vec<Case> {
     let base = half.seed_base() + SLOTS_PER_SCENE * index;
     let mut cases = Vec::new();
-    for k in 0..args.cases as u64 {
+    for k in (args.first_case..args.first_case + args.cases).map(|k| k as u64) {
         let seed = base + k;
         let truth = random_mismatch(seed);
         let case = |kind, truth| Case {
@@ -494,6 +509,7 @@ fn run_case(args: &Args, case: &Case, name: &str, scene: &Cube, mask: &Mask) -> 
         "uncertainty_floor": per_parameter(|p| {
             json!(texture_preset(args).map(|_| model_error_floor(p, est.blur_sigma_px)))
         }),
+        "interval_95": per_parameter(|p| json!(cal.interval_95.get(p))),
         "within_tolerance": per_parameter(|p| json!(err(p).abs() <= tolerance(p))),
         "all_within_tolerance": Parameter::ALL.iter().all(|&p| err(p).abs() <= tolerance(p)),
         "max_normalised_error": max_normalised(&|p| err(p)).1,
@@ -593,12 +609,19 @@ fn summarise(rows: &[&Value]) -> Value {
             .filter_map(|r| Some((field(r, "error", p)?, field(r, "uncertainty", p)?)))
             .collect();
         let cover = |k: f64| with_sigma.iter().filter(|(e, s)| e.abs() <= k * s).count();
+        let with_interval: Vec<(f64, f64)> = rows
+            .iter()
+            .filter_map(|r| Some((field(r, "error", p)?, field(r, "interval_95", p)?)))
+            .collect();
+        let in_interval = with_interval.iter().filter(|(e, w)| e.abs() <= *w).count();
         json!({
             "rmse": rmse, "max_abs_error": max_abs, "tolerance": tolerance(p),
             "within_tolerance": share(within, n),
             "coverage": { "cases_with_sigma": with_sigma.len(),
                           "within_1_sigma": share(cover(1.0), with_sigma.len()),
-                          "within_2_sigma": share(cover(2.0), with_sigma.len()) },
+                          "within_2_sigma": share(cover(2.0), with_sigma.len()),
+                          "cases_with_interval_95": with_interval.len(),
+                          "within_interval_95": share(in_interval, with_interval.len()) },
         })
     });
     let all_within = rows
@@ -677,7 +700,9 @@ fn summaries(rows: &[Value], halves: &[Half]) -> Vec<Value> {
 }
 
 fn print_summary(summary: &[Value]) {
-    eprintln!("\nsummary (RMSE | share within tolerance | 1σ/2σ coverage where σ reported)");
+    eprintln!(
+        "\nsummary (RMSE | share within tolerance | coverage 1σ/2σ/95 % interval where stated)"
+    );
     for s in summary {
         let p = &s["parameters"];
         let cells: Vec<String> = Parameter::ALL
@@ -689,12 +714,13 @@ fn print_summary(summary: &[Value]) {
                         .map_or("–".into(), |x| format!("{:.0}%", 100.0 * x))
                 };
                 format!(
-                    "{} {:.4} {} [{}/{}]",
+                    "{} {:.4} {} [{}/{}/{}]",
                     q.name(),
                     c["rmse"].as_f64().unwrap_or(f64::NAN),
                     pct(&c["within_tolerance"]),
                     pct(&c["coverage"]["within_1_sigma"]),
-                    pct(&c["coverage"]["within_2_sigma"])
+                    pct(&c["coverage"]["within_2_sigma"]),
+                    pct(&c["coverage"]["within_interval_95"])
                 )
             })
             .collect();
