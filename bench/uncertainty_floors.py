@@ -152,6 +152,23 @@ def main():
                 w = covered(wide_rows, sharp, wide, level[0])
                 line += f" {wide:9.4g} {100 * w:9.0f} % ({len(wide_rows)})"
             print(line)
+    error_correlation(run)
+
+
+def error_correlation(run):
+    """Σ eₐ·e_b / √(Σ eₐ² Σ e_b²) over every tuning case: `error_correlation` in
+    calib/uncertainty.rs (the floors' covariance, from which the trade-offs are read)."""
+    params = list(run["cases"][0]["error"].keys())
+    rows = [c["error"] for c in run["cases"] if c["kind"] in HEADLINE + WIDE]
+    print(f"\nerror correlation over {len(rows)} cases")
+    print(" " * 14 + "".join(f"{q[:8]:>9}" for q in params))
+    for p in params:
+        cells = []
+        for q in params:
+            num = sum(r[p] * r[q] for r in rows)
+            den = math.sqrt(sum(r[p] ** 2 for r in rows) * sum(r[q] ** 2 for r in rows))
+            cells.append(f"{num / den:+9.2f}")
+        print(f"{p:<14}" + "".join(cells))
 
 
 if __name__ == "__main__":

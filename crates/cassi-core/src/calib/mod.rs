@@ -84,6 +84,9 @@ pub struct Calibration {
     pub interval_95: Uncertainty,
     /// Pairs of parameters whose estimates are correlated by at least
     /// [`TRADE_OFF_CORRELATION`]: the data pin their combination, not each.
+    /// The `default` preset reads them from its whole stated covariance:
+    /// the sandwich's plus the floors', correlated as the errors were on the
+    /// benchmark's tuning half (dy with α, dx with a1, θ with α).
     #[serde(default)]
     pub trade_offs: Vec<TradeOff>,
     pub stages: Vec<StageReport>,

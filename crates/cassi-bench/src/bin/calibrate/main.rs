@@ -28,7 +28,8 @@
 //!
 //! Each case records the calibration's standard errors (`uncertainty`, with
 //! the model-error floor inside them, `uncertainty_floor`) and the
-//! half-widths of its 95 % intervals (`interval_95`); the summaries give
+//! half-widths of its 95 % intervals (`interval_95`) and the pairs it said
+//! trade off (`trade_offs`); the summaries give
 //! their coverage (|error| ≤ 1σ, ≤ 2σ, ≤ the 95 % half-width).
 //! `bench/uncertainty_floors.py` derives the floors from a tuning-half run.
 //!
@@ -510,6 +511,8 @@ fn run_case(args: &Args, case: &Case, name: &str, scene: &Cube, mask: &Mask) -> 
             json!(texture_preset(args).map(|_| model_error_floor(p, est.blur_sigma_px)))
         }),
         "interval_95": per_parameter(|p| json!(cal.interval_95.get(p))),
+        // the pairs the calibration said trade off (error correlation ≥ 0.8)
+        "trade_offs": cal.trade_offs,
         "within_tolerance": per_parameter(|p| json!(err(p).abs() <= tolerance(p))),
         "all_within_tolerance": Parameter::ALL.iter().all(|&p| err(p).abs() <= tolerance(p)),
         "max_normalised_error": max_normalised(&|p| err(p)).1,
