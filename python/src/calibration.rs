@@ -8,7 +8,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
 use cassi_core::Parameter;
-use cassi_core::calib::{self, CalibrationProblem, Preset, StageReport};
+use cassi_core::calib::{self, CalibrationProblem, Preset, StageReport, Uncertainty};
 use cassi_core::optics::{MaskCode, mask_code, validate_measurement};
 
 use crate::arrays;
@@ -59,11 +59,7 @@ impl PyCalibration {
     /// where it was not estimated.
     #[getter]
     fn standard_errors<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let d = PyDict::new(py);
-        for p in Parameter::ALL {
-            d.set_item(p.key(), self.inner.uncertainty.get(p))?;
-        }
-        Ok(d)
+        per_parameter(py, &self.inner.uncertainty)
     }
 
     /// The half-width of each parameter's 95 % interval (same keys and
@@ -72,11 +68,7 @@ impl PyCalibration {
     /// model).
     #[getter]
     fn intervals_95<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let d = PyDict::new(py);
-        for p in Parameter::ALL {
-            d.set_item(p.key(), self.inner.interval_95.get(p))?;
-        }
-        Ok(d)
+        per_parameter(py, &self.inner.interval_95)
     }
 
     /// Pairs of parameters whose errors are correlated by at least 0.8
@@ -153,24 +145,23 @@ impl PyCalibration {
             self.inner.evaluations,
             Parameter::format_all(&self.inner.parameters)
         );
-        for p in Parameter::ALL {
-            if let Some(u) = self.inner.uncertainty.get(p) {
-                let prec = p.decimals();
-                let interval = self
-                    .inner
-                    .interval_95
-                    .get(p)
-                    .map_or(String::new(), |w| format!(" (95 %: ± {w:.prec$})"));
-                out += &format!(
-                    "\n  {:<5} {} ± {u:.prec$} {}{interval}",
-                    p.name(),
-                    p.format(p.get(&self.inner.parameters)),
-                    p.unit(),
-                );
-            }
+        for line in Parameter::ALL
+            .iter()
+            .filter_map(|&p| self.inner.uncertainty_line(p))
+        {
+            out += &format!("\n  {line}");
         }
         out
     }
+}
+
+/// {key: value or None} over every parameter.
+fn per_parameter<'py>(py: Python<'py>, u: &Uncertainty) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    for p in Parameter::ALL {
+        d.set_item(p.key(), u.get(p))?;
+    }
+    Ok(d)
 }
 
 fn value_error_here(msg: String) -> PyErr {

@@ -105,20 +105,11 @@ pub fn run(args: &CalibrateArgs, reporter: &Reporter) -> anyhow::Result<()> {
 /// trade off.
 fn uncertainty_lines(cal: &Calibration) -> String {
     let mut out = String::new();
-    for p in Parameter::ALL {
-        if let Some(u) = cal.uncertainty.get(p) {
-            let prec = p.decimals();
-            let interval = cal
-                .interval_95
-                .get(p)
-                .map_or(String::new(), |w| format!("   (95 %: ± {w:.prec$})"));
-            out += &format!(
-                "  {:<5} {} ± {u:.prec$} {}{interval}\n",
-                p.name(),
-                p.format(p.get(&cal.parameters)),
-                p.unit(),
-            );
-        }
+    for line in Parameter::ALL
+        .iter()
+        .filter_map(|&p| cal.uncertainty_line(p))
+    {
+        out += &format!("  {line}\n");
     }
     out + &trade_off_lines(cal) + &wide_blur_note(cal)
 }

@@ -94,6 +94,26 @@ pub struct Calibration {
     pub evaluations: usize,
 }
 
+impl Calibration {
+    /// "dx    -0.567 ± 0.881 px   (95 %: ± 2.012)": `p`'s estimate with its
+    /// standard error and, where stated, its 95 % half-width; `None` where
+    /// no standard error was estimated. What the CLI and the Python repr print.
+    pub fn uncertainty_line(&self, p: Parameter) -> Option<String> {
+        let u = self.uncertainty.get(p)?;
+        let prec = p.decimals();
+        let interval = self
+            .interval_95
+            .get(p)
+            .map_or(String::new(), |w| format!("   (95 %: ± {w:.prec$})"));
+        Some(format!(
+            "{:<5} {} ± {u:.prec$} {}{interval}",
+            p.name(),
+            p.format(p.get(&self.parameters)),
+            p.unit(),
+        ))
+    }
+}
+
 /// A standard error per parameter, `None` where it was not estimated;
 /// written as `{"dx": …, "dy": …, "theta_deg": …, "a1": …, "alpha_deg": …}`.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]

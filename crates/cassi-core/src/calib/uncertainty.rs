@@ -170,14 +170,12 @@ fn floor95_wide(p: Parameter) -> f64 {
 /// θ with α. The block sandwich alone flagged dy–α in 2 of 20 fresh held-out
 /// cases whose dy and α errors correlated at −0.98.
 fn error_correlation(a: Parameter, b: Parameter) -> f64 {
-    use Parameter::{A1, AlphaDeg, BlurSigmaPx, Dx, Dy, ThetaDeg};
-    let index = |p: Parameter| match p {
-        Dx => 0,
-        Dy => 1,
-        ThetaDeg => 2,
-        A1 => 3,
-        AlphaDeg => 4,
-        BlurSigmaPx => 5,
+    // rows and columns in `Parameter::ALL` order
+    let index = |p: Parameter| {
+        Parameter::ALL
+            .iter()
+            .position(|&q| q == p)
+            .expect("ALL lists every parameter")
     };
     const R: [[f64; 6]; 6] = [
         // dx    dy     θ      a1     α      blur
