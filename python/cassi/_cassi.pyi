@@ -9,7 +9,7 @@ import numpy.typing as npt
 ArrayLike = npt.ArrayLike
 F32Array = npt.NDArray[np.float32]
 Path = Union[str, "PathLike[str]"]
-Model = Literal["rounded", "subpixel"]
+Model = Literal["rounded", "subpixel", "dispersed-mask"]
 #: None (nominal), "nominal", "paper", a mapping of PARAMETERS keys to values, or a Calibration
 MismatchLike = Union[None, str, Mapping[str, float], "Calibration"]
 

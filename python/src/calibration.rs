@@ -42,7 +42,7 @@ impl PyCalibration {
         &self.inner.preset
     }
 
-    /// The dispersion model fitted ("rounded" or "subpixel").
+    /// The dispersion model fitted ("rounded", "subpixel" or "dispersed-mask").
     #[getter]
     fn model(&self) -> &'static str {
         self.inner.model.name()
@@ -184,7 +184,11 @@ enum Message {
 ///     stride: nominal dispersion, detector pixels per band (2).
 ///     model: the dispersion model fitted: "subpixel" (default: continuous
 ///         a1 and α, with the optical blur σ and standard errors whose
-///         coverage is measured) or "rounded" (the paper's discrete model).
+///         coverage is measured), "dispersed-mask" (subpixel with the mask
+///         sampled once where each band lands: the more faithful model,
+///         slower; its standard errors reuse the subpixel floors, their
+///         coverage not yet measured) or "rounded" (the paper's discrete
+///         model).
 ///     preset: "default" (ours) or "paper" (the paper's Algorithm 1).
 ///     progress: called with a dict {name, evaluations, seconds,
 ///         parameters, score} as each stage finishes.

@@ -43,7 +43,9 @@ use errors::{Failure, compute, value_error};
 ///     mismatch: None (nominal), "paper", a dict of parameters (keys of
 ///         `cassi.PARAMETERS`: dx, dy px; theta_deg °; a1 px/band;
 ///         alpha_deg °; blur_sigma_px px) or a Calibration.
-///     model: "rounded" (integer band offsets) or "subpixel"; default: a
+///     model: "rounded" (integer band offsets), "subpixel" or
+///         "dispersed-mask" (subpixel, the mask sampled where each band
+///         lands); default: a
 ///         Calibration's own model, else "rounded".
 ///     **params: single mismatch parameters by key, e.g. dx=1.5.
 ///
@@ -231,7 +233,7 @@ fn noise_model(
 ///     scene: cube (bands, rows, cols), values in [0, 1].
 ///     mask: nominal coded aperture (rows, cols), the scene's size.
 ///     mismatch: as for `Operator` (None: nominal); **params override single keys.
-///     model: "rounded" or "subpixel" (default: a Calibration's own, else
+///     model: "rounded", "subpixel" or "dispersed-mask" (default: a Calibration's own, else
 ///         "rounded").
 ///     stride: nominal dispersion, px per band (the nominal a1).
 ///     noise: add detector noise (Poisson at `photon_peak` photo-electrons at

@@ -147,6 +147,17 @@ fn default_preset_recovers_a_known_mask_misalignment() {
                 ..Mismatch::nominal(2.0)
             },
         ),
+        (
+            DispersionModel::DispersedMask,
+            Mismatch {
+                dx: 1.3,
+                dy: -0.8,
+                theta_deg: 0.35,
+                a1: 2.05,
+                alpha_deg: 1.5,
+                ..Mismatch::nominal(2.0)
+            },
+        ),
     ];
     for (model, truth) in cases {
         let (y, mask) = setup(96, 8, truth, model);
@@ -162,7 +173,7 @@ fn default_preset_recovers_a_known_mask_misalignment() {
         );
         match model {
             DispersionModel::Rounded => assert!((e.a1 - truth.a1).abs() < 0.03, "{e:?}"),
-            DispersionModel::Subpixel => {
+            DispersionModel::Subpixel | DispersionModel::DispersedMask => {
                 assert!((e.a1 - truth.a1).abs() < 0.02, "{e:?}");
                 assert!((e.alpha_deg - truth.alpha_deg).abs() < 0.5, "{e:?}");
             }
@@ -179,7 +190,7 @@ fn default_preset_recovers_a_known_mask_misalignment() {
         // does not fit the blur
         assert_eq!(cal.stages.len(), 5);
         let stated = |p: &Parameter| match model {
-            DispersionModel::Subpixel => true,
+            DispersionModel::Subpixel | DispersionModel::DispersedMask => true,
             DispersionModel::Rounded => {
                 matches!(p, Parameter::Dx | Parameter::Dy | Parameter::ThetaDeg)
             }
@@ -196,7 +207,9 @@ fn default_preset_recovers_a_known_mask_misalignment() {
         // than its standard errors; the rounded model states none
         for p in Parameter::ALL {
             match (model, cal.interval_95.get(p), cal.uncertainty.get(p)) {
-                (DispersionModel::Subpixel, Some(w), Some(u)) => assert!(w > u, "{p:?}: {w} ≤ {u}"),
+                (DispersionModel::Subpixel | DispersionModel::DispersedMask, Some(w), Some(u)) => {
+                    assert!(w > u, "{p:?}: {w} ≤ {u}")
+                }
                 (DispersionModel::Rounded, None, _) => {}
                 other => panic!("{p:?}: {other:?}"),
             }

@@ -185,7 +185,7 @@ pub fn prepare(
     };
     let measurement = match study.instrument {
         DispersionModel::Rounded => simulate(scene, mask, &spec)?,
-        DispersionModel::Subpixel => {
+        DispersionModel::Subpixel | DispersionModel::DispersedMask => {
             cassi_core::optics::simulate_oversampled(scene, mask, &spec, 2)?
         }
     };

@@ -126,7 +126,7 @@ pub fn markdown(
         s,
         "- Instrument dispersion model: `{}`{}",
         study.instrument.name(),
-        if study.instrument == cassi_core::optics::DispersionModel::Subpixel {
+        if study.instrument.is_subpixel() {
             " (measurements simulated on a 2× finer grid and binned, so the oracle is no inverse crime)"
         } else {
             ""

@@ -25,8 +25,10 @@ pub struct CalibrateArgs {
     #[arg(long, default_value = "default", value_parser = cassi_core::calib::PRESET_NAMES)]
     pub preset: String,
     /// Dispersion model of candidate instruments: `subpixel` (continuous a1
-    /// and α, the default for real instruments) or `rounded` (whole-pixel
-    /// band offsets, the reference code's model).
+    /// and α, the default for real instruments), `dispersed-mask` (subpixel
+    /// with the mask sampled once where each band lands: closer to a real
+    /// camera, slower to build; default preset only) or `rounded`
+    /// (whole-pixel band offsets, the reference code's model).
     #[arg(long, default_value = "subpixel")]
     pub model: DispersionModel,
     /// Output calibration JSON (for `cassi reconstruct --calibration`).
@@ -111,7 +113,18 @@ fn uncertainty_lines(cal: &Calibration) -> String {
     {
         out += &format!("  {line}\n");
     }
-    out + &trade_off_lines(cal) + &wide_blur_note(cal)
+    out + &trade_off_lines(cal) + &wide_blur_note(cal) + &unmeasured_coverage_note(cal)
+}
+
+/// The floors inside the ± were set on the subpixel model's benchmark; for
+/// the dispersed-mask model their coverage has not been measured yet.
+fn unmeasured_coverage_note(cal: &Calibration) -> String {
+    if !cal.model.samples_mask_per_band() || cal.uncertainty.get(Parameter::Dx).is_none() {
+        return String::new();
+    }
+    "  note: the dispersed-mask model's ± reuse the subpixel model's floors; their coverage \
+     on the held-out benchmark has not been measured for this model\n"
+        .into()
 }
 
 /// A note when the fitted blur is beyond the headline benchmark's range:

@@ -169,8 +169,8 @@ pub fn calibrate_default(
     // (the inverse-crime benchmark) the texture stage moved dx by 0.17–0.35 px
     // and invented a blur of up to 0.24 px where the proxy stages end within
     // 0.04 px.
-    let texture = preset.texture_fit && problem.model() == DispersionModel::Subpixel;
-    let proxy_refines_dispersion = problem.model() == DispersionModel::Subpixel && !texture;
+    let texture = preset.texture_fit && problem.model().is_subpixel();
+    let proxy_refines_dispersion = problem.model().is_subpixel() && !texture;
     if proxy_refines_dispersion {
         best = subpixel_tilt_stage(&mut run, &scores, best);
     }
@@ -490,7 +490,7 @@ fn joint_refinement(run: &mut StageRunner<'_>, scores: &Scores<'_>, best: Mismat
             vec![0.002, 0.002, 0.002],
             preset.max_evaluations / 2,
         ),
-        DispersionModel::Subpixel => (
+        DispersionModel::Subpixel | DispersionModel::DispersedMask => (
             vec![Dx, Dy, ThetaDeg, AlphaDeg, A1],
             vec![0.05, 0.05, 0.05, 0.1, (0.25 * (a1_hi - a1_lo)).max(1e-4)],
             vec![0.005, 0.005, 0.005, 0.01, 0.0005],
@@ -539,7 +539,7 @@ fn texture_stage(
         .into_iter()
         // the rounded model's score is flat in a1 and α within a rounding
         // pattern: the proxy stages chose it
-        .filter(|&p| problem.model() == DispersionModel::Subpixel || !matches!(p, A1 | AlphaDeg))
+        .filter(|&p| problem.model().is_subpixel() || !matches!(p, A1 | AlphaDeg))
         .filter(|&p| preset.fit_blur || p != BlurSigmaPx)
         .collect();
     // σ enters as |σ|: the simplex may cross 0 on a sharp instrument

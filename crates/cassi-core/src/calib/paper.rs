@@ -136,6 +136,15 @@ pub fn calibrate_paper(
     on_stage: &mut dyn FnMut(&StageReport),
 ) -> Result<Calibration> {
     problem.validate()?;
+    if problem.model().samples_mask_per_band() {
+        // its gradient stages differentiate a mask shared by every band
+        return Err(crate::error::CassiError::Meaningless {
+            what: "the paper preset with the dispersed-mask model".into(),
+            reason: "its gradient stages need the rounded or subpixel model; \
+                     calibrate the dispersed-mask model with the default preset"
+                .into(),
+        });
+    }
     let mut run = StageRunner::new(on_stage);
     let coarse = coarse_grid(&mut run, problem, preset);
     let grid_best = fine_grids(&mut run, problem, preset, &coarse);

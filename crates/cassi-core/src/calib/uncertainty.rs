@@ -3,7 +3,6 @@
 
 use super::texture::{TextureFit, block_contributions};
 use super::{CalibrationProblem, ProxyParams, Uncertainty};
-use crate::optics::DispersionModel;
 use crate::params::{Mismatch, Parameter};
 
 /// σ_i = sqrt(2 f₀ / (N · f_ii)) from central second differences f_ii; also
@@ -28,7 +27,7 @@ pub(crate) fn curvature_uncertainty(
         let c = (fp + fm - 2.0 * f0) / (h * h);
         (c > 0.0).then(|| (2.0 * f0 / (n * c)).sqrt())
     };
-    let subpixel = problem.model() == DispersionModel::Subpixel;
+    let subpixel = problem.model().is_subpixel();
     let u = Uncertainty(
         Parameter::ALL
             .iter()

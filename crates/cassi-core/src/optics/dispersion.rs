@@ -6,6 +6,15 @@
 //!   paper's simulation); a1 and α act only through the rounding pattern.
 //! - `Subpixel`: each band's light is split bilinearly between the
 //!   neighbouring detector pixels, so fractional a1 and α act physically.
+//! - `DispersedMask`: the same split of the scene, but the mask is sampled
+//!   once where each band lands — the crisp mask moved by the pose and the
+//!   band's own sub-pixel offset — instead of being sampled on the mask
+//!   grid and then split again with the band (`Subpixel` interpolates the
+//!   mask twice, which blurs its code by an amount that changes with the
+//!   band's fractional offset). A camera integrates the dispersed crisp
+//!   mask once per detector pixel; against the 4× oversampled simulator
+//!   this model's residual at the true ψ is 1.4–1.9 % instead of 1.9–4.0 %
+//!   (six tuning cases) and its scene-known fits land closer to the truth.
 //!
 //! Each band is described by a few [`Tap`]s (integer offset + weight); the
 //! operator only ever sees taps, so both models share one code path.
@@ -23,6 +32,10 @@ pub enum DispersionModel {
     Rounded,
     /// Linear interpolation between neighbouring detector pixels.
     Subpixel,
+    /// `Subpixel` with the mask sampled where each band lands (one
+    /// interpolation of the mask per band): the model for real cameras.
+    #[serde(rename = "dispersed-mask")]
+    DispersedMask,
 }
 
 impl DispersionModel {
@@ -37,7 +50,22 @@ impl DispersionModel {
         match self {
             Self::Rounded => "rounded",
             Self::Subpixel => "subpixel",
+            Self::DispersedMask => "dispersed-mask",
         }
+    }
+
+    /// Every model, in the order the command line lists them.
+    pub const ALL: [DispersionModel; 3] = [Self::Rounded, Self::Subpixel, Self::DispersedMask];
+
+    /// Whether fractional offsets act (everything but `Rounded`): a1 and α
+    /// are then continuous parameters.
+    pub fn is_subpixel(self) -> bool {
+        self != Self::Rounded
+    }
+
+    /// Whether the mask is sampled per band where that band lands.
+    pub fn samples_mask_per_band(self) -> bool {
+        self == Self::DispersedMask
     }
 }
 
@@ -47,8 +75,9 @@ impl std::str::FromStr for DispersionModel {
         match s {
             "rounded" => Ok(Self::Rounded),
             "subpixel" => Ok(Self::Subpixel),
+            "dispersed-mask" => Ok(Self::DispersedMask),
             other => Err(format!(
-                "unknown dispersion model '{other}' (expected 'rounded' or 'subpixel')"
+                "unknown dispersion model '{other}' (expected 'rounded', 'subpixel' or 'dispersed-mask')"
             )),
         }
     }
@@ -183,7 +212,7 @@ impl Dispersion {
         (-s * alpha.sin(), s * alpha.cos())
     }
 
-    /// `Subpixel` only: the derivative of every band's bilinear tap weights
+    /// `Subpixel` and `DispersedMask`: the derivative of every band's bilinear tap weights
     /// when band k's continuous offset moves at `rates[k]` = (d col, d row),
     /// at the four neighbouring pixels (a weight that is zero now may not
     /// stay zero). One-sided (to the right/below) where an offset sits on
@@ -191,7 +220,7 @@ impl Dispersion {
     /// off this detector's columns are dropped: that light leaves the
     /// detector. `None` for `Rounded`, whose weights are piecewise constant.
     pub(crate) fn weight_derivatives(&self, rates: &[(f64, f64)]) -> Option<Dispersion> {
-        if self.model != DispersionModel::Subpixel {
+        if self.model == DispersionModel::Rounded {
             return None;
         }
         let taps = self
@@ -233,7 +262,7 @@ fn band_taps(dc: f64, dr: f64, model: DispersionModel) -> Vec<Tap> {
             col: dc.round_ties_even() as i32,
             weight: 1.0,
         }],
-        DispersionModel::Subpixel => {
+        DispersionModel::Subpixel | DispersionModel::DispersedMask => {
             let (c0, r0) = (dc.floor(), dr.floor());
             let (fc, fr) = (dc - c0, dr - r0);
             let (c0, r0) = (c0 as i32, r0 as i32);

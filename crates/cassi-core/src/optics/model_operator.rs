@@ -141,7 +141,7 @@ mod tests {
             blur_sigma_px: 0.6,
             ..Mismatch::paper()
         };
-        for model in [DispersionModel::Rounded, DispersionModel::Subpixel] {
+        for model in DispersionModel::ALL {
             let blurred = ModelOperator::new(&mask, 4, &psi, model).unwrap();
             assert_eq!(blurred.blur_sigma_px(), 0.6);
             assert!(adjoint_mismatch(&blurred, 1) < 1e-5);

@@ -1,5 +1,8 @@
 //! The single-disperser CASSI operator y = Σ_k shift_k(m̃ ⊙ x_k) and its
-//! exact adjoint, behind [`LinearOperator`].
+//! exact adjoint, behind [`LinearOperator`]. For the dispersed-mask model
+//! the mask multiplies where the light lands instead:
+//! y = Σ_k M_k ⊙ shift_k(x_k), M_k the mask moved by the pose and band k's
+//! offset, sampled once on the detector grid.
 
 use rayon::prelude::*;
 
@@ -25,6 +28,9 @@ pub struct CassiOperator {
     mask: Mask,
     dispersion: Dispersion,
     det_cols: usize,
+    /// Per band, the mask where that band's light lands (rows × det_cols,
+    /// band-major): `None` multiplies by `mask` at the source pixel.
+    landing: Option<Vec<f32>>,
 }
 
 /// Checks a mask is finite and in [0, 1] (transmission), naming `what`.
@@ -60,6 +66,7 @@ impl CassiOperator {
             mask,
             dispersion,
             det_cols,
+            landing: None,
         })
     }
 
@@ -84,7 +91,39 @@ impl CassiOperator {
         }
         validate_mask(nominal_mask, "nominal mask")?;
         let dispersion = Dispersion::new(bands, mismatch.dispersion(), model)?;
-        Self::new(warp_mask(nominal_mask, &mismatch.pose()), dispersion)
+        let mut op = Self::new(warp_mask(nominal_mask, &mismatch.pose()), dispersion)?;
+        if model.samples_mask_per_band() {
+            let (rows, det_cols) = op.measurement_shape();
+            crate::limits::check_elements(
+                "the dispersed-mask model's band masks",
+                &[bands, rows, det_cols],
+                "one mask per band on the detector grid",
+            )?;
+            let offsets: Vec<(f64, f64)> = (0..bands).map(|k| op.dispersion.offset(k)).collect();
+            let landing = super::warp::landing_masks(
+                nominal_mask,
+                &mismatch.pose(),
+                &offsets,
+                rows,
+                det_cols,
+            );
+            op.landing = Some(landing);
+        }
+        Ok(op)
+    }
+
+    /// The mask that multiplies band `k`'s light from source row `r` on its
+    /// way to detector row `yr` at detector column `c0` onward (`cols` long).
+    #[inline]
+    fn mask_slice(&self, k: usize, r: usize, yr: usize, c0: usize) -> &[f32] {
+        match &self.landing {
+            None => self.mask.row(r),
+            Some(l) => {
+                let (rows, cols) = (self.mask.rows(), self.mask.cols());
+                let start = (k * rows + yr) * self.det_cols + c0;
+                &l[start..start + cols]
+            }
+        }
     }
 
     pub fn mask(&self) -> &Mask {
@@ -158,10 +197,15 @@ impl CassiOperator {
                 .iter()
                 .all(|t| t.col >= 0 && t.col as usize <= self.dispersion.extra_cols())
         }));
+        debug_assert!(
+            self.landing.is_none(),
+            "the dispersed-mask model has no derivative operator"
+        );
         Self {
             mask,
             dispersion,
             det_cols: self.det_cols,
+            landing: None,
         }
     }
 
@@ -173,7 +217,7 @@ impl CassiOperator {
         let (rows, det_cols) = self.measurement_shape();
         let cols = self.mask.cols();
         // (tap, paired weight) in band and tap order
-        let taps: Vec<(&super::dispersion::Tap, f32)> = (0..self.bands())
+        let taps: Vec<(usize, &super::dispersion::Tap, f32)> = (0..self.bands())
             .flat_map(|k| {
                 self.dispersion.taps(k).iter().map(move |tap| {
                     let w: f32 = other
@@ -183,10 +227,10 @@ impl CassiOperator {
                         .filter(|t| t.row == tap.row && t.col == tap.col)
                         .map(|t| tap.weight * t.weight)
                         .sum();
-                    (tap, w)
+                    (k, tap, w)
                 })
             })
-            .filter(|&(_, w)| w != 0.0)
+            .filter(|&(_, _, w)| w != 0.0)
             .collect();
         let mut d = Frame::zeros(rows, det_cols);
         // detector rows in parallel, each summing in band and tap order
@@ -195,14 +239,16 @@ impl CassiOperator {
             .with_min_len(8)
             .enumerate()
             .for_each(|(yr, drow)| {
-                for &(tap, w) in &taps {
+                for &(k, tap, w) in &taps {
                     let Some(r) = shifted_row(yr, -tap.row, rows) else {
                         continue;
                     };
                     let c0 = tap.col as usize;
                     let out = &mut drow[c0..c0 + cols];
-                    for ((o, &m), &m2) in
-                        out.iter_mut().zip(self.mask.row(r)).zip(other.mask.row(r))
+                    for ((o, &m), &m2) in out
+                        .iter_mut()
+                        .zip(self.mask_slice(k, r, yr, c0))
+                        .zip(other.mask_slice(k, r, yr, c0))
                     {
                         *o += w * m * m2;
                     }
@@ -278,8 +324,8 @@ impl LinearOperator for CassiOperator {
                             continue;
                         };
                         let xrow = &band[r * cols..(r + 1) * cols];
-                        let mrow = self.mask.row(r);
                         let c0 = tap.col as usize;
+                        let mrow = self.mask_slice(k, r, yr, c0);
                         let out = &mut yrow[c0..c0 + cols];
                         if tap.weight == 1.0 {
                             coded_row(simd, out, xrow, mrow);
@@ -319,6 +365,19 @@ impl CassiOperator {
     pub(crate) fn adjoint_row(&self, simd: Simd, y: &[f32], k: usize, r: usize, xrow: &mut [f32]) {
         let (rows, cols) = (self.mask.rows(), self.mask.cols());
         xrow.fill(0.0);
+        if self.landing.is_some() {
+            // the mask differs per tap: multiply before summing
+            for tap in self.dispersion.taps(k) {
+                let Some(yr) = shifted_row(r, tap.row, rows) else {
+                    continue;
+                };
+                let c0 = tap.col as usize;
+                let src = &y[yr * self.det_cols + c0..yr * self.det_cols + c0 + cols];
+                let m = self.mask_slice(k, r, yr, c0);
+                weighted_coded_row(simd, xrow, src, m, tap.weight);
+            }
+            return;
+        }
         for tap in self.dispersion.taps(k) {
             let Some(yr) = shifted_row(r, tap.row, rows) else {
                 continue;
@@ -415,6 +474,92 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// The dispersed-mask model: exact adjoint and diag(A Aᵀ) for poses and
+    /// dispersions with fractional offsets.
+    #[test]
+    fn dispersed_mask_adjoint_and_diagonal_hold() {
+        let nominal = random_mask(9, 11, 4);
+        for (dx, dy, theta, a1, alpha) in [
+            (0.3, -0.6, 0.4, 2.07, 0.8),
+            (-1.5, 0.0, 0.0, 1.6, -3.0),
+            (0.0, 0.0, 0.0, 2.0, 0.0),
+        ] {
+            let m = Mismatch {
+                dx,
+                dy,
+                theta_deg: theta,
+                a1,
+                alpha_deg: alpha,
+                ..Mismatch::nominal(2.0)
+            };
+            let op = CassiOperator::with_mismatch(&nominal, 5, &m, DispersionModel::DispersedMask)
+                .unwrap();
+            let e = adjoint_mismatch(&op, 3);
+            assert!(e < 1e-5, "{m:?}: adjoint mismatch {e}");
+            let diag = op.diag_aat();
+            let mut unit = vec![0.0f32; op.range_len()];
+            let mut col = vec![0.0f32; op.domain_len()];
+            for j in 0..op.range_len() {
+                unit.fill(0.0);
+                unit[j] = 1.0;
+                op.adjoint(&unit, &mut col);
+                let want: f32 = col.iter().map(|v| v * v).sum();
+                assert!((diag.as_slice()[j] - want).abs() < 1e-5, "{m:?} j={j}");
+            }
+        }
+    }
+
+    /// Where every offset is whole the two subpixel models are one operator;
+    /// a fractional offset makes the subpixel model interpolate the mask a
+    /// second time, which the dispersed-mask model does not: one open mask
+    /// pixel moved half a pixel by the pose and half a pixel by band 1's
+    /// dispersion lands whole on the next pixel, not spread over three.
+    #[test]
+    fn dispersed_mask_samples_the_mask_once_where_the_band_lands() {
+        let nominal = random_mask(8, 10, 6);
+        let whole = Mismatch {
+            dx: 1.0,
+            dy: -2.0,
+            a1: 3.0,
+            ..Mismatch::nominal(2.0)
+        };
+        let a =
+            CassiOperator::with_mismatch(&nominal, 4, &whole, DispersionModel::Subpixel).unwrap();
+        let b = CassiOperator::with_mismatch(&nominal, 4, &whole, DispersionModel::DispersedMask)
+            .unwrap();
+        let x = Cube::from_vec(4, 8, 10, (0..320).map(|i| (i % 7) as f32 / 6.0).collect()).unwrap();
+        assert_eq!(a.forward(&x).unwrap(), b.forward(&x).unwrap());
+
+        let mut mask = Frame::zeros(5, 5);
+        mask.set(2, 1, 1.0);
+        let half = Mismatch {
+            dx: 0.5,
+            a1: 0.5,
+            ..Mismatch::nominal(2.0)
+        };
+        let mut x = Cube::zeros(2, 5, 5);
+        for v in x.band_mut(1) {
+            *v = 1.0;
+        }
+        let y = |model| {
+            CassiOperator::with_mismatch(&mask, 2, &half, model)
+                .unwrap()
+                .forward(&x)
+                .unwrap()
+        };
+        let (single, double) = (
+            y(DispersionModel::DispersedMask),
+            y(DispersionModel::Subpixel),
+        );
+        // pose 0.5 + band 1's 0.5: the open square now covers column 2 exactly
+        assert!((single.get(2, 2) - 1.0).abs() < 1e-6, "{single:?}");
+        assert_eq!(single.as_slice().iter().filter(|&&v| v > 1e-6).count(), 1);
+        // the subpixel model spreads it 1/4, 1/2, 1/4 over columns 1–3
+        assert!((double.get(2, 2) - 0.5).abs() < 1e-6, "{double:?}");
+        assert!((double.get(2, 1) - 0.25).abs() < 1e-6, "{double:?}");
+        assert!((double.get(2, 3) - 0.25).abs() < 1e-6, "{double:?}");
     }
 
     #[test]

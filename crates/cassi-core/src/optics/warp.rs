@@ -122,6 +122,82 @@ pub fn warp_mask(mask: &Mask, pose: &MaskPose) -> Mask {
     out
 }
 
+/// The mask each band sees where its light lands (the dispersed-mask
+/// model): for band k the nominal mask moved by `pose` and then by
+/// `offsets[k]` = (col, row), sampled bilinearly (zero outside) on a
+/// `rows × cols` detector grid with the mask's origin; band-major. Only the
+/// columns `[lo_k, lo_k + width)` of band k are filled (`lo_k` =
+/// ⌊offset col⌋, `width` = mask cols + 1: where that band's light can
+/// land); the rest stay 0 and are never read.
+pub(crate) fn landing_masks(
+    mask: &Mask,
+    pose: &MaskPose,
+    offsets: &[(f64, f64)],
+    rows: usize,
+    cols: usize,
+) -> Vec<f32> {
+    let map = SourceMap::new(mask.rows(), mask.cols(), pose);
+    let (mr, mc) = (mask.rows() as i64, mask.cols() as i64);
+    let m = mask.as_slice();
+    let width = mask.cols() + 1;
+    let mut out = vec![0.0f32; offsets.len() * rows * cols];
+    out.par_chunks_mut(cols.max(1))
+        .with_min_len(16)
+        .enumerate()
+        .for_each(|(i, out_row)| {
+            let (k, row) = (i / rows, i % rows);
+            let (dc, dr) = offsets[k];
+            let lo = (fast_floor(dc).max(0) as usize).min(cols);
+            let hi = (lo + width).min(cols);
+            // source of detector pixel (col, row) for band k: the pose's
+            // source of (col − dc, row − dr)
+            let qr = row as f64 - dr - map.cy - map.dy;
+            let base_c = map.sin * qr + map.cx;
+            let base_r = map.cos * qr + map.cy;
+            for (col, o) in out_row.iter_mut().enumerate().take(hi).skip(lo) {
+                let qc = col as f64 - dc - map.cx - map.dx;
+                let (uc, ur) = (map.cos * qc + base_c, -map.sin * qc + base_r);
+                let (i0, j0) = (fast_floor(uc), fast_floor(ur));
+                if i0 < -1 || j0 < -1 || i0 >= mc || j0 >= mr {
+                    continue;
+                }
+                let (fc, fr) = (uc - i0 as f64, ur - j0 as f64);
+                let (m00, m01, m10, m11) = if i0 >= 0 && j0 >= 0 && i0 + 1 < mc && j0 + 1 < mr {
+                    let at = (j0 * mc + i0) as usize;
+                    let below = at + mc as usize;
+                    (m[at], m[at + 1], m[below], m[below + 1])
+                } else {
+                    let at = |j: i64, i: i64| -> f32 {
+                        if i >= 0 && j >= 0 && i < mc && j < mr {
+                            m[(j * mc + i) as usize]
+                        } else {
+                            0.0
+                        }
+                    };
+                    (
+                        at(j0, i0),
+                        at(j0, i0 + 1),
+                        at(j0 + 1, i0),
+                        at(j0 + 1, i0 + 1),
+                    )
+                };
+                let (m00, m01, m10, m11) = (m00 as f64, m01 as f64, m10 as f64, m11 as f64);
+                let top = m00 + fc * (m01 - m00);
+                let bottom = m10 + fc * (m11 - m10);
+                *o = (top + fr * (bottom - top)) as f32;
+            }
+        });
+    out
+}
+
+/// ⌊x⌋ for |x| < 2⁶²: without SSE4.1 `f64::floor` is a library call, and
+/// the band masks take two per sample.
+#[inline]
+fn fast_floor(x: f64) -> i64 {
+    let i = x as i64;
+    if (i as f64) > x { i - 1 } else { i }
+}
+
 /// W(m; ψ) with ∂W/∂dx, ∂W/∂dy and ∂W/∂θ (per degree). Exact derivatives of
 /// the bilinear interpolant (one-sided where a sample point sits exactly on
 /// a pixel edge, where the interpolant has a kink).

@@ -2,7 +2,7 @@
 //! allow. Per case, two measurements with the TRUE scene known:
 //!
 //! * the oracle-scene fit: ψ minimising f(ψ) = min_s ‖y − s·A_ψ x‖² / N
-//!   (A_ψ the subpixel [`ModelOperator`] with ψ's blur, its output cropped
+//!   (A_ψ the calibrated model's [`ModelOperator`] with ψ's blur, its output cropped
 //!   or zero-padded to the detector; s in closed form), Nelder–Mead over all
 //!   six parameters (σ as |σ|) from the blind estimate, restarted at its
 //!   best point while a restart still lowers f. The physical
@@ -57,19 +57,14 @@ struct SceneKnown<'a> {
     scene: &'a Cube,
     rows: usize,
     cols: usize,
+    model: DispersionModel,
 }
 
 impl SceneKnown<'_> {
     /// A_ψ x cropped / zero-padded to rows × cols, or `None` for a ψ the
     /// operator rejects.
     fn model(&self, psi: &Mismatch) -> Option<Vec<f64>> {
-        let op = ModelOperator::new(
-            self.mask,
-            self.scene.bands(),
-            psi,
-            DispersionModel::Subpixel,
-        )
-        .ok()?;
+        let op = ModelOperator::new(self.mask, self.scene.bands(), psi, self.model).ok()?;
         let (mr, mc) = op.measurement_shape();
         let mut full = vec![0.0f32; mr * mc];
         op.apply(self.scene.as_slice(), &mut full);
@@ -265,6 +260,7 @@ pub fn measure(
     blind: &Mismatch,
     truth: &Mismatch,
     noise: DetectorNoise,
+    family: DispersionModel,
 ) -> Value {
     let (rows, cols) = y.shape();
     let model = SceneKnown {
@@ -272,6 +268,7 @@ pub fn measure(
         scene,
         rows,
         cols,
+        model: family,
     };
     let oracle = oracle_fit(&model, &as_f64(y), blind, truth);
     let t = Instant::now();

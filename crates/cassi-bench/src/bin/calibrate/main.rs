@@ -17,7 +17,7 @@
 //! α ∈ ±1°, σ ∈ 0–0.8 px, drawn from `Rng::new(seed)` in that order),
 //! `aligned_blur` (no mismatch, σ ∈ {0.3, 0.5, 0.7}), and with
 //! `--inverse-crime` a separately labelled `inverse_crime` row per random
-//! case: its sharp ψ simulated by the discrete subpixel operator. With
+//! case: its sharp ψ simulated by the calibrated model's discrete operator. With
 //! `--wide-blur` (on by default) a separately labelled `wide_blur` row:
 //! σ ∈ {1.0, 1.5} px, the blur the real TSA snapshots show (1.3–1.6 px),
 //! outside the issue's 0–0.8 px range, once on an aligned instrument (seed
@@ -33,7 +33,7 @@
 //! their coverage (|error| ≤ 1σ, ≤ 2σ, ≤ the 95 % half-width).
 //! `bench/uncertainty_floors.py` derives the floors from a tuning-half run.
 //!
-//! With `--recon`, GAP-TV (shipped `gap-tv`, subpixel model, blur from ψ)
+//! With `--recon`, GAP-TV (shipped `gap-tv`, the calibrated model, blur from ψ)
 //! reconstructs each case with the nominal ψ (II), the calibrated ψ (III)
 //! and the true ψ (IV); ρ = (III − II)/(IV − II) is the share of the
 //! oracle's gain the calibration recovers.
@@ -45,7 +45,7 @@
 //!
 //! Run: `cargo run --release -p cassi-bench --bin calibrate --
 //! [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--no-aligned]
-//! [--no-inverse-crime] [--model rounded|subpixel] [--preset NAME]
+//! [--no-inverse-crime] [--model rounded|subpixel|dispersed-mask] [--preset NAME]
 //! [--no-texture] [--no-recon] [--no-limits] [--out PATH] [--verbose]`
 //! (`--no-texture`: the default preset without its texture fit, as it was
 //! before issue #14 — the "before" row); without flags it
@@ -152,7 +152,7 @@ struct Args {
 }
 
 const USAGE: &str = "calibrate [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] \
-                     [--no-aligned] [--no-inverse-crime] [--no-wide-blur] [--model rounded|subpixel] \
+                     [--no-aligned] [--no-inverse-crime] [--no-wide-blur] [--model rounded|subpixel|dispersed-mask] \
                      [--preset NAME] [--no-texture] [--no-recon] [--no-limits] [--out PATH] \
                      [--verbose]";
 
@@ -405,6 +405,7 @@ fn measure(
     scene: &Cube,
     mask: &Mask,
     noise: Option<&NoiseModel>,
+    model: DispersionModel,
 ) -> Result<Measurement> {
     Ok(match case.kind {
         Kind::Random | Kind::AlignedBlur | Kind::WideBlur => {
@@ -426,7 +427,7 @@ fn measure(
         Kind::InverseCrime => {
             let spec = SimulationSpec {
                 mismatch: case.truth.sharp(),
-                model: DispersionModel::Subpixel,
+                model,
                 noise: noise.copied(),
             };
             simulate(scene, mask, &spec)?
@@ -446,22 +447,22 @@ fn per_parameter(f: impl Fn(Parameter) -> Value) -> Value {
 }
 
 /// GAP-TV PSNR (dB) of `scene` from `y` with the model ψ = `params`.
-fn recon_psnr(y: &Measurement, mask: &Mask, scene: &Cube, params: &Mismatch) -> Result<f64> {
+fn recon_psnr(
+    y: &Measurement,
+    mask: &Mask,
+    scene: &Cube,
+    params: &Mismatch,
+    model: DispersionModel,
+) -> Result<f64> {
     let method = Method::by_name("gap-tv")?;
-    let model = Model::new(
-        mask,
-        scene.bands(),
-        STRIDE,
-        *params,
-        DispersionModel::Subpixel,
-    )?;
+    let model = Model::new(mask, scene.bands(), STRIDE, *params, model)?;
     let rec = method.solve(y, &model, &mut Silent)?;
     Ok(psnr(scene, &rec.cube.clipped_to_unit())?)
 }
 
 /// Calibrates one case (and reconstructs with `--recon`); its JSON record.
 fn run_case(args: &Args, case: &Case, name: &str, scene: &Cube, mask: &Mask) -> Result<Value> {
-    let y = measure(case, scene, mask, Some(&noise(case.seed)))?;
+    let y = measure(case, scene, mask, Some(&noise(case.seed)), args.model)?;
     let problem = CalibrationProblem::nominal(&y, mask, scene.bands(), 2.0, args.model)?;
     let verbose = args.verbose;
     let cal = calibrate(&problem, &args.preset, &mut |st| {
@@ -526,9 +527,10 @@ fn run_case(args: &Args, case: &Case, name: &str, scene: &Cube, mask: &Mask) -> 
     });
     if args.recon {
         let t = Instant::now();
-        let ii = recon_psnr(&y, mask, scene, &Mismatch::nominal(STRIDE))?;
-        let iii = recon_psnr(&y, mask, scene, &est)?;
-        let iv = recon_psnr(&y, mask, scene, &truth)?;
+        // II, III and IV in the calibrated model's family
+        let ii = recon_psnr(&y, mask, scene, &Mismatch::nominal(STRIDE), args.model)?;
+        let iii = recon_psnr(&y, mask, scene, &est, args.model)?;
+        let iv = recon_psnr(&y, mask, scene, &truth, args.model)?;
         let rho = rho(ii, iii, iv);
         eprintln!(
             "  GAP-TV PSNR: II nominal {ii:.2}  III calibrated {iii:.2}  IV true {iv:.2} dB  ρ {}  ({:.1} s)",
@@ -539,12 +541,12 @@ fn run_case(args: &Args, case: &Case, name: &str, scene: &Cube, mask: &Mask) -> 
         record["rho"] = json!(rho);
     }
     if args.limits {
-        let clean = measure(case, scene, mask, None)?;
+        let clean = measure(case, scene, mask, None, args.model)?;
         let detector = limits::DetectorNoise {
             photon_peak: PHOTON_PEAK,
             read_noise_e: READ_NOISE,
         };
-        let mut lim = limits::measure(&y, &clean, scene, mask, &est, &truth, detector);
+        let mut lim = limits::measure(&y, &clean, scene, mask, &est, &truth, detector, args.model);
         // the budget runs the default preset's texture stage
         if let Some(preset) = texture_preset(args) {
             lim["error_budget"] = limits::error_budget(&problem, preset, scene, &est, &truth)?;
@@ -560,7 +562,7 @@ fn run_case(args: &Args, case: &Case, name: &str, scene: &Cube, mask: &Mask) -> 
 /// model-error floor) and the error budget applies.
 fn texture_preset(args: &Args) -> Option<&DefaultPreset> {
     match (&args.preset, args.model) {
-        (Preset::Default(p), DispersionModel::Subpixel) if p.texture_fit => Some(p),
+        (Preset::Default(p), m) if m.is_subpixel() && p.texture_fit => Some(p),
         _ => None,
     }
 }
@@ -841,7 +843,7 @@ fn main() -> Result<()> {
         "kinds": {
             "random": "dx, dy U(±2.5) px, θ U(±0.8)°, a1 U(1.93, 2.07), α U(±1)°, σ U(0, 0.8) px",
             "aligned_blur": { "mismatch": "nominal (stride 2)", "blur_sigma_px": ALIGNED_SIGMAS },
-            "inverse_crime": "the random case's sharp ψ through the discrete subpixel operator (simulate), same noise",
+            "inverse_crime": "the random case's sharp ψ through the calibrated model's discrete operator (simulate), same noise",
             "wide_blur": { "mismatch": "nominal (stride 2), and a random pose and dispersion drawn as for random",
                            "blur_sigma_px": WIDE_SIGMAS,
                            "seed": format!("aligned: seed_base + {WIDE_SEED_OFFSET} + 2·(scene index in half) + j; \
@@ -850,7 +852,7 @@ fn main() -> Result<()> {
         },
         "tolerances": per_parameter(|p| json!(tolerance(p))),
         "limits": args.limits.then(|| json!({
-            "oracle_scene": "ψ minimising min_s ‖y − s·A_ψ x_true‖²/N (subpixel ModelOperator with ψ's blur, \
+            "oracle_scene": "ψ minimising min_s ‖y − s·A_ψ x_true‖²/N (the calibrated model's ModelOperator with ψ's blur, \
                              cropped/zero-padded to the detector), Nelder–Mead over all six (σ as |σ|) from the \
                              blind estimate, steps (0.1 px, 0.1 px, 0.05°, 0.005, 0.1°, 0.1 px), ≤ 400 evaluations \
                              per leg, restarted at the best point (≤ 2 restarts) while a restart lowers f by ≥ 1e-6 (relative)",
