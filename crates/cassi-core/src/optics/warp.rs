@@ -12,6 +12,7 @@ use rayon::prelude::*;
 
 use crate::cube::{Frame, Mask};
 use crate::params::MaskPose;
+use crate::simd::{Simd, kernel};
 
 /// The warped mask and its partial derivatives, pixel by pixel.
 #[derive(Debug, Clone)]
@@ -140,6 +141,7 @@ pub(crate) fn landing_masks(
     let (mr, mc) = (mask.rows() as i64, mask.cols() as i64);
     let m = mask.as_slice();
     let width = mask.cols() + 1;
+    let simd = Simd::detect(false);
     let mut out = vec![0.0f32; offsets.len() * rows * cols];
     out.par_chunks_mut(cols.max(1))
         .with_min_len(16)
@@ -154,40 +156,131 @@ pub(crate) fn landing_masks(
             let qr = row as f64 - dr - map.cy - map.dy;
             let base_c = map.sin * qr + map.cx;
             let base_r = map.cos * qr + map.cy;
-            for (col, o) in out_row.iter_mut().enumerate().take(hi).skip(lo) {
+            let source = |col: usize| {
                 let qc = col as f64 - dc - map.cx - map.dx;
-                let (uc, ur) = (map.cos * qc + base_c, -map.sin * qc + base_r);
-                let (i0, j0) = (fast_floor(uc), fast_floor(ur));
-                if i0 < -1 || j0 < -1 || i0 >= mc || j0 >= mr {
-                    continue;
-                }
-                let (fc, fr) = (uc - i0 as f64, ur - j0 as f64);
-                let (m00, m01, m10, m11) = if i0 >= 0 && j0 >= 0 && i0 + 1 < mc && j0 + 1 < mr {
-                    let at = (j0 * mc + i0) as usize;
-                    let below = at + mc as usize;
-                    (m[at], m[at + 1], m[below], m[below + 1])
-                } else {
-                    let at = |j: i64, i: i64| -> f32 {
-                        if i >= 0 && j >= 0 && i < mc && j < mr {
-                            m[(j * mc + i) as usize]
-                        } else {
-                            0.0
-                        }
-                    };
-                    (
-                        at(j0, i0),
-                        at(j0, i0 + 1),
-                        at(j0 + 1, i0),
-                        at(j0 + 1, i0 + 1),
-                    )
-                };
+                (map.cos * qc + base_c, -map.sin * qc + base_r)
+            };
+            let lerp = |m00: f32, m01: f32, m10: f32, m11: f32, fc: f64, fr: f64| {
                 let (m00, m01, m10, m11) = (m00 as f64, m01 as f64, m10 as f64, m11 as f64);
                 let top = m00 + fc * (m01 - m00);
                 let bottom = m10 + fc * (m11 - m10);
-                *o = (top + fr * (bottom - top)) as f32;
+                (top + fr * (bottom - top)) as f32
+            };
+            // any pixel, edges and outside included
+            let at = |j: i64, i: i64| -> f32 {
+                if i >= 0 && j >= 0 && i < mc && j < mr {
+                    m[(j * mc + i) as usize]
+                } else {
+                    0.0
+                }
+            };
+            let general = |col: usize| -> f32 {
+                let (uc, ur) = source(col);
+                let (i0, j0) = (fast_floor(uc), fast_floor(ur));
+                let (fc, fr) = (uc - i0 as f64, ur - j0 as f64);
+                lerp(
+                    at(j0, i0),
+                    at(j0, i0 + 1),
+                    at(j0 + 1, i0),
+                    at(j0 + 1, i0 + 1),
+                    fc,
+                    fr,
+                )
+            };
+            // Along a row the source moves by (cos θ, −sin θ) per column, so
+            // ⌊u_col⌋ − col and ⌊u_row⌋ hold for long runs (θ ≤ 1°: ≥ 57
+            // columns): inside a run the four neighbours are contiguous in
+            // two mask rows and need no floor or edge test.
+            let mut col = lo;
+            while col < hi {
+                let (uc, ur) = source(col);
+                let (i0, j0) = (fast_floor(uc), fast_floor(ur));
+                let run = run_length(uc - i0 as f64, map.cos - 1.0)
+                    .min(run_length(ur - j0 as f64, -map.sin))
+                    .min(hi - col);
+                let end = col + run;
+                let di = i0 - col as i64;
+                let (a, b) = if j0 >= 0 && j0 + 1 < mr {
+                    // c + di ≥ 0 and c + di + 1 < mc
+                    let a = (col as i64).max(-di).min(end as i64) as usize;
+                    let b = (end as i64).min(mc - 1 - di).max(a as i64) as usize;
+                    (a, b)
+                } else {
+                    (end, end)
+                };
+                for (c, o) in out_row.iter_mut().enumerate().take(a).skip(col) {
+                    *o = general(c);
+                }
+                if b > a {
+                    let top_row = &m[(j0 * mc) as usize..((j0 + 1) * mc) as usize];
+                    let bottom_row = &m[((j0 + 1) * mc) as usize..((j0 + 2) * mc) as usize];
+                    let first = (a as i64 + di) as usize;
+                    let n = b - a;
+                    let (t0, t1) = (
+                        &top_row[first..first + n],
+                        &top_row[first + 1..first + n + 1],
+                    );
+                    let (b0, b1) = (
+                        &bottom_row[first..first + n],
+                        &bottom_row[first + 1..first + n + 1],
+                    );
+                    // fractions at column a, and their change per column
+                    let (uc, ur) = source(a);
+                    let (fc, fr) = (uc - (a as i64 + di) as f64, ur - j0 as f64);
+                    lerp_run(
+                        simd,
+                        &mut out_row[a..b],
+                        (t0, t1, b0, b1),
+                        (fc as f32, (map.cos - 1.0) as f32),
+                        (fr as f32, -map.sin as f32),
+                    );
+                }
+                for (c, o) in out_row.iter_mut().enumerate().take(end).skip(b) {
+                    *o = general(c);
+                }
+                col = end;
             }
         });
     out
+}
+
+// One run of a landing-mask row: the four neighbours in contiguous slices,
+// the fractions linear in the column (f32: the lanes vectorise).
+kernel!(lerp_run, lerp_run_port, lerp_run_avx,
+(out: &mut [f32], corners: (&[f32], &[f32], &[f32], &[f32]), col_fraction: (f32, f32),
+ row_fraction: (f32, f32)) -> () = {
+    let (t0, t1, b0, b1) = corners;
+    let n = out.len();
+    let (t0, t1, b0, b1) = (&t0[..n], &t1[..n], &b0[..n], &b1[..n]);
+    for (t, o) in out.iter_mut().enumerate() {
+        let fc = col_fraction.0 + t as f32 * col_fraction.1;
+        let fr = row_fraction.0 + t as f32 * row_fraction.1;
+        let top = t0[t] + fc * (t1[t] - t0[t]);
+        let bottom = b0[t] + fc * (b1[t] - b0[t]);
+        *o = top + fr * (bottom - top);
+    }
+});
+
+/// How many columns from here (≥ 1) a fraction `g` ∈ [0, 1) stays in
+/// [0, 1) while it changes by `slope` per column (with a safety margin of
+/// 10⁻³ column, so rounding never carries it past the edge).
+fn run_length(g: f64, slope: f64) -> usize {
+    const MARGIN: f64 = 1e-3;
+    let t = if slope < 0.0 {
+        g / -slope
+    } else if slope > 0.0 {
+        (1.0 - g) / slope
+    } else {
+        return usize::MAX;
+    };
+    let t = t - MARGIN;
+    if t >= usize::MAX as f64 / 2.0 {
+        usize::MAX / 2
+    } else if t < 0.0 {
+        1
+    } else {
+        t as usize + 1
+    }
 }
 
 /// ⌊x⌋ for |x| < 2⁶²: without SSE4.1 `f64::floor` is a library call, and
@@ -280,6 +373,64 @@ pub fn warp_mask_area(mask: &Mask, pose: &MaskPose, samples: usize) -> Mask {
 mod tests {
     use super::*;
     use crate::rng::Rng;
+
+    /// Each band's landing mask is the warp of the mask moved by the pose
+    /// and that band's offset, on every column its light can reach — run by
+    /// run or pixel by pixel, poses from none to steep (short runs) and
+    /// offsets that leave the mask.
+    #[test]
+    fn landing_masks_are_the_mask_warped_to_each_band() {
+        let mut rng = Rng::new(11);
+        let (rows, cols) = (23, 31);
+        let mask = Frame::from_vec(
+            rows,
+            cols,
+            (0..rows * cols).map(|_| rng.uniform() as f32).collect(),
+        )
+        .unwrap();
+        for (dx, dy, theta) in [
+            (0.0, 0.0, 0.0),
+            (0.3, -1.7, 0.4),
+            (-2.2, 0.6, -0.9),
+            (0.5, 0.5, 25.0),
+        ] {
+            let pose = MaskPose {
+                dx,
+                dy,
+                theta_deg: theta,
+            };
+            let offsets = [(0.0, 0.0), (2.37, 0.04), (4.74, -0.08), (7.5, 1.5)];
+            let det = cols + 9;
+            let landing = landing_masks(&mask, &pose, &offsets, rows, det);
+            for (k, &(oc, or)) in offsets.iter().enumerate() {
+                let moved = MaskPose {
+                    dx: dx + oc,
+                    dy: dy + or,
+                    theta_deg: theta,
+                };
+                let lo = oc.floor() as usize;
+                for row in 0..rows {
+                    for col in lo..(lo + cols + 1).min(det) {
+                        let q = (
+                            col as f64 - (cols as f64 - 1.0) / 2.0 - moved.dx,
+                            row as f64 - (rows as f64 - 1.0) / 2.0 - moved.dy,
+                        );
+                        let t = theta.to_radians();
+                        let u = (
+                            t.cos() * q.0 + t.sin() * q.1 + (cols as f64 - 1.0) / 2.0,
+                            -t.sin() * q.0 + t.cos() * q.1 + (rows as f64 - 1.0) / 2.0,
+                        );
+                        let want = bilinear(&mask, u.0, u.1).0;
+                        let got = landing[(k * rows + row) * det + col] as f64;
+                        assert!(
+                            (got - want).abs() < 1e-5,
+                            "pose {pose:?} band {k} ({row}, {col}): {got} vs {want}"
+                        );
+                    }
+                }
+            }
+        }
+    }
 
     fn one_pixel(rows: usize, cols: usize, r: usize, c: usize) -> Mask {
         let mut m = Frame::zeros(rows, cols);
