@@ -7,7 +7,7 @@ Times, interleaved (Python call, then the same Rust call, repeated):
   * GAP-TV (100 iterations, nominal model) on a 256×256×28 synthetic scene
     measured through a random mask: `cassi.reconstruct` against the library's
     `Method::solve` timed inside Rust on the same converted inputs;
-  * one self-calibration (default preset, subpixel model) of that scene
+  * one self-calibration (default preset and model) of that scene
     with the paper's mismatch: `cassi.calibrate` against `calib::calibrate`;
   * `Operator.forward` on a C-contiguous float32 cube against the operator's
     `apply` alone, and on a float64 cube (the converting path).
@@ -138,7 +138,7 @@ def main():
         cal_runs,
     )
     results.append(summary("calibrate", py, rs,
-                           "self-calibration, default preset, subpixel model, 256x256x28, paper "
+                           "self-calibration, default preset and model, 256x256x28, paper "
                            "mismatch through a 2x physical instrument: cassi.calibrate vs "
                            "calib::calibrate in Rust"))
     print(json.dumps({k: v for k, v in results[-1].items() if not k.endswith("_s")}))

@@ -182,13 +182,11 @@ enum Message {
 ///     mask: the nominal coded aperture, 2-D (rows, cols), values in [0, 1].
 ///     bands: spectral bands of the scene (the standard instrument: 28).
 ///     stride: nominal dispersion, detector pixels per band (2).
-///     model: the dispersion model fitted: "subpixel" (default: continuous
-///         a1 and α, with the optical blur σ and standard errors whose
-///         coverage is measured), "dispersed-mask" (subpixel with the mask
-///         sampled once where each band lands: the more faithful model,
-///         slower; its standard errors reuse the subpixel floors, their
-///         coverage not yet measured) or "rounded" (the paper's discrete
-///         model).
+///     model: the dispersion model fitted: "dispersed-mask" (default:
+///         continuous a1 and α, the mask sampled once where each band lands,
+///         with the optical blur σ and standard errors whose coverage is
+///         measured), "subpixel" (the mask interpolated twice; its own
+///         measured floors) or "rounded" (the paper's discrete model).
 ///     preset: "default" (ours) or "paper" (the paper's Algorithm 1).
 ///     progress: called with a dict {name, evaluations, seconds,
 ///         parameters, score} as each stage finishes.
@@ -206,7 +204,7 @@ enum Message {
 ///
 /// The GIL is released while the calibration runs.
 #[pyfunction]
-#[pyo3(signature = (y, mask, *, bands=28, stride=2.0, model="subpixel", preset="default", progress=None))]
+#[pyo3(signature = (y, mask, *, bands=28, stride=2.0, model="dispersed-mask", preset="default", progress=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn calibrate(
     py: Python<'_>,

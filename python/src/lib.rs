@@ -768,7 +768,7 @@ fn _rust_reconstruct_seconds(
 
 /// Seconds of `repeats` runs of the library's calibration alone.
 #[pyfunction]
-#[pyo3(signature = (y, mask, bands=28, stride=2.0, model="subpixel", preset="default", repeats=3))]
+#[pyo3(signature = (y, mask, bands=28, stride=2.0, model="dispersed-mask", preset="default", repeats=3))]
 #[allow(clippy::too_many_arguments)]
 fn _rust_calibrate_seconds(
     py: Python<'_>,

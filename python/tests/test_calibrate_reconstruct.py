@@ -50,13 +50,13 @@ def test_calibration_recovers_a_known_misalignment(case):
     assert "dx" in repr(cal) and "±" in repr(cal)
 
 
-def test_subpixel_calibration_reports_trade_offs_and_blur(case):
+def test_default_calibration_reports_trade_offs_and_blur(case):
     scene, mask, _ = case
     truth = dict(TRUTH, a1=2.05, alpha_deg=1.5)
-    y = cassi.simulate(scene, mask, truth, model="subpixel", noise=False)
-    cal = cassi.calibrate(y, mask, bands=8)  # subpixel is the default
+    y = cassi.simulate(scene, mask, truth, model="dispersed-mask", noise=False)
+    cal = cassi.calibrate(y, mask, bands=8)  # dispersed-mask is the default
     e = cal.parameters
-    assert cal.model == "subpixel"
+    assert cal.model == "dispersed-mask"
     assert abs(e["a1"] - 2.05) < 0.02 and abs(e["alpha_deg"] - 1.5) < 0.5, e
     assert e["blur_sigma_px"] < 0.1
     se, wide = cal.standard_errors, cal.intervals_95

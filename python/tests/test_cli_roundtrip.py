@@ -71,7 +71,7 @@ def test_cli_calibration_file_drives_the_python_reconstruction(cli, tmp_path, in
     # the same library call on the same data: the same estimate
     for key in cassi.PARAMETERS:
         assert ours.parameters[key] == pytest.approx(theirs.parameters[key], abs=1e-9), key
-    assert ours.model == theirs.model == "subpixel"
+    assert ours.model == theirs.model == "dispersed-mask"  # the default
     run(cli, "reconstruct", "meas.npy", "--mask", "mask.npy", "--bands", 8, "--calibration",
         "calib.json", "--method", "gap-tv", "-o", "cube.npy", "-q", cwd=tmp_path)
     cube_cli = cassi.load(tmp_path / "cube.npy")

@@ -74,6 +74,11 @@ impl Parameter {
         Self::BlurSigmaPx,
     ];
 
+    /// The parameter's position in [`Self::ALL`] (tables indexed by it).
+    pub fn index(self) -> usize {
+        self as usize
+    }
+
     pub fn get(self, m: &Mismatch) -> f64 {
         match self {
             Self::Dx => m.dx,

@@ -24,12 +24,13 @@ pub struct CalibrateArgs {
     /// paper's Algorithm 1: grids, then Adam through the unrolled proxy).
     #[arg(long, default_value = "default", value_parser = cassi_core::calib::PRESET_NAMES)]
     pub preset: String,
-    /// Dispersion model of candidate instruments: `subpixel` (continuous a1
-    /// and α, the default for real instruments), `dispersed-mask` (subpixel
-    /// with the mask sampled once where each band lands: closer to a real
-    /// camera, slower to build; default preset only) or `rounded`
-    /// (whole-pixel band offsets, the reference code's model).
-    #[arg(long, default_value = "subpixel")]
+    /// Dispersion model of candidate instruments: `dispersed-mask` (the
+    /// default for real instruments: continuous a1 and α, the mask sampled
+    /// once where each band lands, as a camera integrates it; default preset
+    /// only), `subpixel` (the same dispersion with the mask interpolated
+    /// twice) or `rounded` (whole-pixel band offsets, the reference code's
+    /// model).
+    #[arg(long, default_value = "dispersed-mask")]
     pub model: DispersionModel,
     /// Output calibration JSON (for `cassi reconstruct --calibration`).
     #[arg(long, short)]
@@ -113,18 +114,7 @@ fn uncertainty_lines(cal: &Calibration) -> String {
     {
         out += &format!("  {line}\n");
     }
-    out + &trade_off_lines(cal) + &wide_blur_note(cal) + &unmeasured_coverage_note(cal)
-}
-
-/// The floors inside the ± were set on the subpixel model's benchmark; for
-/// the dispersed-mask model their coverage has not been measured yet.
-fn unmeasured_coverage_note(cal: &Calibration) -> String {
-    if !cal.model.samples_mask_per_band() || cal.uncertainty.get(Parameter::Dx).is_none() {
-        return String::new();
-    }
-    "  note: the dispersed-mask model's ± reuse the subpixel model's floors; their coverage \
-     on the held-out benchmark has not been measured for this model\n"
-        .into()
+    out + &trade_off_lines(cal) + &wide_blur_note(cal)
 }
 
 /// A note when the fitted blur is beyond the headline benchmark's range:
@@ -140,8 +130,8 @@ fn wide_blur_note(cal: &Calibration) -> String {
          simulated instruments this blurred the calibration reported offsets that were not \
          there, so the ± above carry a model-error floor of {:.2} px in dx, {:.2} px in its 95 % \
          interval (README: wide blur)\n",
-        model_error_floor(Parameter::Dx, blur),
-        interval_95_floor(Parameter::Dx, blur)
+        model_error_floor(cal.model, Parameter::Dx, blur),
+        interval_95_floor(cal.model, Parameter::Dx, blur)
     )
 }
 

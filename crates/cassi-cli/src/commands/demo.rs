@@ -25,7 +25,7 @@ pub struct DemoArgs {
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
     /// The true instrument: `physical` (4× oversampled, blur σ 0.5 px, fixed
-    /// sensor; calibrated and reconstructed with the subpixel model) or a
+    /// sensor; calibrated and reconstructed with the dispersed-mask model) or a
     /// model's own operator (`rounded`, `subpixel`: an inverse crime).
     #[arg(long, default_value = "physical", value_parser = DemoInstrument::parse)]
     pub instrument: DemoInstrument,
@@ -128,11 +128,12 @@ fn describe_instrument(instrument: DemoInstrument, physical: Option<&PhysicalSpe
         Some(p) => format!(
             "physical, {}× oversampled: crisp mask squares, continuous dispersion, Gaussian \
              blur σ {} px, sensor {} (not an inverse crime; calibrated and reconstructed with \
-             the subpixel model)",
+             the {} model)",
             p.oversample,
             p.blur_sigma_px,
             p.detector
-                .map_or("mask + dispersion".into(), |(r, c)| format!("{r}×{c}"))
+                .map_or("mask + dispersion".into(), |(r, c)| format!("{r}×{c}")),
+            instrument.model().name()
         ),
         None => format!(
             "the {} model's own operator (an inverse crime: calibration and GAP-TV fit the \

@@ -69,6 +69,11 @@ pub(crate) struct BlockTerms {
 }
 
 impl<'a> TextureFit<'a> {
+    /// The dispersion model the fit's operators use.
+    pub(crate) fn model(&self) -> crate::optics::DispersionModel {
+        self.problem.model()
+    }
+
     /// The objective with the scene estimate `estimate`.
     pub(crate) fn new(
         problem: &'a CalibrationProblem<'a>,

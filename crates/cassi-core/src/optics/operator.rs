@@ -7,7 +7,7 @@
 use rayon::prelude::*;
 
 use super::dispersion::{Dispersion, DispersionModel};
-use super::warp::warp_mask;
+use super::warp::{LandingMasks, warp_mask};
 use crate::cube::{Cube, Frame, Mask, Measurement};
 use crate::error::{CassiError, Result, shape_error};
 use crate::linop::{
@@ -15,6 +15,7 @@ use crate::linop::{
 };
 use crate::params::Mismatch;
 use crate::simd::{Simd, kernel};
+use std::sync::OnceLock;
 
 /// Tolerance on the [0, 1] mask range (stored masks carry rounding noise).
 const MASK_RANGE_SLACK: f32 = 1e-3;
@@ -28,9 +29,40 @@ pub struct CassiOperator {
     mask: Mask,
     dispersion: Dispersion,
     det_cols: usize,
-    /// Per band, the mask where that band's light lands (rows × det_cols,
-    /// band-major): `None` multiplies by `mask` at the source pixel.
-    landing: Option<Vec<f32>>,
+    /// The dispersed-mask model's band masks (`None`: the mask multiplies
+    /// at the source pixel).
+    landing: Option<Box<Landing>>,
+}
+
+/// The band masks of the dispersed-mask model: computed row by row inside a
+/// forward (a calibration's candidate operator is applied once: no 57 MB
+/// per 660² candidate), stored whole at the first use that reads them more
+/// than once (adjoint, normaliser: an iterative solver).
+#[derive(Debug)]
+struct Landing {
+    masks: LandingMasks,
+    /// Band-major, rows × det_cols per band.
+    stored: OnceLock<Vec<f32>>,
+}
+
+impl Clone for Landing {
+    fn clone(&self) -> Self {
+        Self {
+            masks: self.masks.clone(),
+            stored: self
+                .stored
+                .get()
+                .cloned()
+                .map(OnceLock::from)
+                .unwrap_or_default(),
+        }
+    }
+}
+
+impl Landing {
+    fn stored(&self) -> &[f32] {
+        self.stored.get_or_init(|| self.masks.materialise())
+    }
 }
 
 /// Checks a mask is finite and in [0, 1] (transmission), naming `what`.
@@ -100,14 +132,10 @@ impl CassiOperator {
                 "one mask per band on the detector grid",
             )?;
             let offsets: Vec<(f64, f64)> = (0..bands).map(|k| op.dispersion.offset(k)).collect();
-            let landing = super::warp::landing_masks(
-                nominal_mask,
-                &mismatch.pose(),
-                &offsets,
-                rows,
-                det_cols,
-            );
-            op.landing = Some(landing);
+            op.landing = Some(Box::new(Landing {
+                masks: LandingMasks::new(nominal_mask, &mismatch.pose(), offsets, rows, det_cols),
+                stored: OnceLock::new(),
+            }));
         }
         Ok(op)
     }
@@ -121,7 +149,7 @@ impl CassiOperator {
             Some(l) => {
                 let (rows, cols) = (self.mask.rows(), self.mask.cols());
                 let start = (k * rows + yr) * self.det_cols + c0;
-                &l[start..start + cols]
+                &l.stored()[start..start + cols]
             }
         }
     }
@@ -311,7 +339,42 @@ impl LinearOperator for CassiOperator {
         // Each detector row gathers from the cube rows that land on it, so rows
         // are independent: no atomics, same result for any thread count.
         let simd = Simd::detect(false);
-        y.par_chunks_mut(self.det_cols)
+        let det_cols = self.det_cols;
+        if let Some(l) = self.landing.as_ref().filter(|l| l.stored.get().is_none()) {
+            // the band masks row by row, never stored (see `Landing`); the
+            // same values as stored ones, so the same y
+            let width = l.masks.width();
+            y.par_chunks_mut(det_cols)
+                .with_min_len(8)
+                .enumerate()
+                .for_each_init(
+                    || vec![0.0f32; width],
+                    |buf, (yr, yrow)| {
+                        yrow.fill(0.0);
+                        for k in 0..bands {
+                            let band = &x[k * rows * cols..(k + 1) * rows * cols];
+                            let lo = l.masks.first_col(k);
+                            let mut filled = false;
+                            for tap in self.dispersion.taps(k) {
+                                let Some(r) = shifted_row(yr, -tap.row, rows) else {
+                                    continue;
+                                };
+                                if !filled {
+                                    let n = width.min(det_cols - lo);
+                                    l.masks.row(simd, k, yr, &mut buf[..n]);
+                                    filled = true;
+                                }
+                                let c0 = tap.col as usize;
+                                let mrow = &buf[c0 - lo..c0 - lo + cols];
+                                let xrow = &band[r * cols..(r + 1) * cols];
+                                accumulate(simd, &mut yrow[c0..c0 + cols], xrow, mrow, tap.weight);
+                            }
+                        }
+                    },
+                );
+            return;
+        }
+        y.par_chunks_mut(det_cols)
             .with_min_len(8)
             .enumerate()
             .for_each(|(yr, yrow)| {
@@ -326,12 +389,7 @@ impl LinearOperator for CassiOperator {
                         let xrow = &band[r * cols..(r + 1) * cols];
                         let c0 = tap.col as usize;
                         let mrow = self.mask_slice(k, r, yr, c0);
-                        let out = &mut yrow[c0..c0 + cols];
-                        if tap.weight == 1.0 {
-                            coded_row(simd, out, xrow, mrow);
-                        } else {
-                            weighted_coded_row(simd, out, xrow, mrow, tap.weight);
-                        }
+                        accumulate(simd, &mut yrow[c0..c0 + cols], xrow, mrow, tap.weight);
                     }
                 }
             });
@@ -391,6 +449,16 @@ impl CassiOperator {
             }
         }
         mask_row(simd, xrow, self.mask.row(r));
+    }
+}
+
+/// out += weight · (m ⊙ x), exactly m ⊙ x when the weight is 1.
+#[inline]
+fn accumulate(simd: Simd, out: &mut [f32], x: &[f32], m: &[f32], weight: f32) {
+    if weight == 1.0 {
+        coded_row(simd, out, x, m);
+    } else {
+        weighted_coded_row(simd, out, x, m, weight);
     }
 }
 
@@ -509,6 +577,38 @@ mod tests {
                 assert!((diag.as_slice()[j] - want).abs() < 1e-5, "{m:?} j={j}");
             }
         }
+    }
+
+    /// The band masks computed row by row inside a forward (a candidate
+    /// applied once) and stored (after an adjoint: an iterative solver) give
+    /// the same measurement, bit for bit.
+    #[test]
+    fn dispersed_mask_forward_is_the_same_with_stored_band_masks() {
+        let nominal = random_mask(12, 15, 8);
+        let m = Mismatch {
+            dx: -0.4,
+            dy: 0.7,
+            theta_deg: 0.6,
+            a1: 1.97,
+            alpha_deg: -0.9,
+            ..Mismatch::nominal(2.0)
+        };
+        let op =
+            CassiOperator::with_mismatch(&nominal, 6, &m, DispersionModel::DispersedMask).unwrap();
+        let x = Cube::from_vec(
+            6,
+            12,
+            15,
+            (0..6 * 12 * 15)
+                .map(|i| ((i * 37) % 11) as f32 / 10.0)
+                .collect(),
+        )
+        .unwrap();
+        let on_the_fly = op.forward(&x).unwrap();
+        assert!(op.landing.as_ref().unwrap().stored.get().is_none());
+        let _ = op.back_project(&on_the_fly).unwrap();
+        assert!(op.landing.as_ref().unwrap().stored.get().is_some());
+        assert_eq!(op.forward(&x).unwrap(), on_the_fly);
     }
 
     /// Where every offset is whole the two subpixel models are one operator;

@@ -28,6 +28,7 @@ pub struct WarpWithDerivatives {
 
 /// Where pixel (col, row) of the warped mask samples the nominal mask, and
 /// the derivatives of that source point.
+#[derive(Debug, Clone)]
 struct SourceMap {
     cx: f64,
     cy: f64,
@@ -124,124 +125,167 @@ pub fn warp_mask(mask: &Mask, pose: &MaskPose) -> Mask {
 }
 
 /// The mask each band sees where its light lands (the dispersed-mask
-/// model): for band k the nominal mask moved by `pose` and then by
-/// `offsets[k]` = (col, row), sampled bilinearly (zero outside) on a
-/// `rows × cols` detector grid with the mask's origin; band-major. Only the
-/// columns `[lo_k, lo_k + width)` of band k are filled (`lo_k` =
-/// ⌊offset col⌋, `width` = mask cols + 1: where that band's light can
-/// land); the rest stay 0 and are never read.
-pub(crate) fn landing_masks(
-    mask: &Mask,
-    pose: &MaskPose,
-    offsets: &[(f64, f64)],
+/// model): for band k the nominal mask moved by `pose` and then by band k's
+/// offset (col, row), sampled bilinearly (zero outside) on the detector grid
+/// with the mask's origin. Row by row ([`Self::row`]) or whole
+/// ([`Self::materialise`]); a band's row is filled on the columns
+/// `[lo_k, lo_k + width)` (`lo_k` = ⌊offset col⌋, `width` = mask cols + 1:
+/// where that band's light can land) and never read elsewhere.
+#[derive(Debug, Clone)]
+pub(crate) struct LandingMasks {
+    mask: Mask,
+    map: SourceMap,
+    offsets: Vec<(f64, f64)>,
     rows: usize,
     cols: usize,
-) -> Vec<f32> {
-    let map = SourceMap::new(mask.rows(), mask.cols(), pose);
-    let (mr, mc) = (mask.rows() as i64, mask.cols() as i64);
-    let m = mask.as_slice();
-    let width = mask.cols() + 1;
-    let simd = Simd::detect(false);
-    let mut out = vec![0.0f32; offsets.len() * rows * cols];
-    out.par_chunks_mut(cols.max(1))
-        .with_min_len(16)
-        .enumerate()
-        .for_each(|(i, out_row)| {
-            let (k, row) = (i / rows, i % rows);
-            let (dc, dr) = offsets[k];
-            let lo = (fast_floor(dc).max(0) as usize).min(cols);
-            let hi = (lo + width).min(cols);
-            // source of detector pixel (col, row) for band k: the pose's
-            // source of (col − dc, row − dr)
-            let qr = row as f64 - dr - map.cy - map.dy;
-            let base_c = map.sin * qr + map.cx;
-            let base_r = map.cos * qr + map.cy;
-            let source = |col: usize| {
-                let qc = col as f64 - dc - map.cx - map.dx;
-                (map.cos * qc + base_c, -map.sin * qc + base_r)
-            };
-            let lerp = |m00: f32, m01: f32, m10: f32, m11: f32, fc: f64, fr: f64| {
-                let (m00, m01, m10, m11) = (m00 as f64, m01 as f64, m10 as f64, m11 as f64);
-                let top = m00 + fc * (m01 - m00);
-                let bottom = m10 + fc * (m11 - m10);
-                (top + fr * (bottom - top)) as f32
-            };
-            // any pixel, edges and outside included
-            let at = |j: i64, i: i64| -> f32 {
-                if i >= 0 && j >= 0 && i < mc && j < mr {
-                    m[(j * mc + i) as usize]
-                } else {
-                    0.0
-                }
-            };
-            let general = |col: usize| -> f32 {
-                let (uc, ur) = source(col);
-                let (i0, j0) = (fast_floor(uc), fast_floor(ur));
-                let (fc, fr) = (uc - i0 as f64, ur - j0 as f64);
-                lerp(
-                    at(j0, i0),
-                    at(j0, i0 + 1),
-                    at(j0 + 1, i0),
-                    at(j0 + 1, i0 + 1),
-                    fc,
-                    fr,
-                )
-            };
-            // Along a row the source moves by (cos θ, −sin θ) per column, so
-            // ⌊u_col⌋ − col and ⌊u_row⌋ hold for long runs (θ ≤ 1°: ≥ 57
-            // columns): inside a run the four neighbours are contiguous in
-            // two mask rows and need no floor or edge test.
-            let mut col = lo;
-            while col < hi {
-                let (uc, ur) = source(col);
-                let (i0, j0) = (fast_floor(uc), fast_floor(ur));
-                let run = run_length(uc - i0 as f64, map.cos - 1.0)
-                    .min(run_length(ur - j0 as f64, -map.sin))
-                    .min(hi - col);
-                let end = col + run;
-                let di = i0 - col as i64;
-                let (a, b) = if j0 >= 0 && j0 + 1 < mr {
-                    // c + di ≥ 0 and c + di + 1 < mc
-                    let a = (col as i64).max(-di).min(end as i64) as usize;
-                    let b = (end as i64).min(mc - 1 - di).max(a as i64) as usize;
-                    (a, b)
-                } else {
-                    (end, end)
-                };
-                for (c, o) in out_row.iter_mut().enumerate().take(a).skip(col) {
-                    *o = general(c);
-                }
-                if b > a {
-                    let top_row = &m[(j0 * mc) as usize..((j0 + 1) * mc) as usize];
-                    let bottom_row = &m[((j0 + 1) * mc) as usize..((j0 + 2) * mc) as usize];
-                    let first = (a as i64 + di) as usize;
-                    let n = b - a;
-                    let (t0, t1) = (
-                        &top_row[first..first + n],
-                        &top_row[first + 1..first + n + 1],
-                    );
-                    let (b0, b1) = (
-                        &bottom_row[first..first + n],
-                        &bottom_row[first + 1..first + n + 1],
-                    );
-                    // fractions at column a, and their change per column
-                    let (uc, ur) = source(a);
-                    let (fc, fr) = (uc - (a as i64 + di) as f64, ur - j0 as f64);
-                    lerp_run(
-                        simd,
-                        &mut out_row[a..b],
-                        (t0, t1, b0, b1),
-                        (fc as f32, (map.cos - 1.0) as f32),
-                        (fr as f32, -map.sin as f32),
-                    );
-                }
-                for (c, o) in out_row.iter_mut().enumerate().take(end).skip(b) {
-                    *o = general(c);
-                }
-                col = end;
+}
+
+impl LandingMasks {
+    /// For a detector of `rows × cols` and band offsets `offsets`.
+    pub(crate) fn new(
+        mask: &Mask,
+        pose: &MaskPose,
+        offsets: Vec<(f64, f64)>,
+        rows: usize,
+        cols: usize,
+    ) -> Self {
+        Self {
+            mask: mask.clone(),
+            map: SourceMap::new(mask.rows(), mask.cols(), pose),
+            offsets,
+            rows,
+            cols,
+        }
+    }
+
+    /// The first detector column band `k`'s row is filled on.
+    pub(crate) fn first_col(&self, k: usize) -> usize {
+        (fast_floor(self.offsets[k].0).max(0) as usize).min(self.cols)
+    }
+
+    /// Columns per filled row: mask cols + 1.
+    pub(crate) fn width(&self) -> usize {
+        self.mask.cols() + 1
+    }
+
+    /// Every band's rows, band-major, rows × cols each (0 off the filled
+    /// columns).
+    pub(crate) fn materialise(&self) -> Vec<f32> {
+        let simd = Simd::detect(false);
+        let (rows, cols) = (self.rows, self.cols);
+        let mut out = vec![0.0f32; self.offsets.len() * rows * cols];
+        out.par_chunks_mut(cols.max(1))
+            .with_min_len(16)
+            .enumerate()
+            .for_each(|(i, out_row)| {
+                let (k, row) = (i / rows, i % rows);
+                let lo = self.first_col(k);
+                let hi = (lo + self.width()).min(cols);
+                self.row(simd, k, row, &mut out_row[lo..hi]);
+            });
+        out
+    }
+
+    /// Band `k`'s mask on detector row `row`, columns `first_col(k) ..` into
+    /// `out` (at most `width()` long: fewer where the detector ends).
+    pub(crate) fn row(&self, simd: Simd, k: usize, row: usize, out: &mut [f32]) {
+        let map = &self.map;
+        let (mr, mc) = (self.mask.rows() as i64, self.mask.cols() as i64);
+        let m = self.mask.as_slice();
+        let lo = self.first_col(k);
+        let hi = lo + out.len();
+        let out_row = out;
+        let (dc, dr) = self.offsets[k];
+        // source of detector pixel (col, row) for band k: the pose's
+        // source of (col − dc, row − dr)
+        let qr = row as f64 - dr - map.cy - map.dy;
+        let base_c = map.sin * qr + map.cx;
+        let base_r = map.cos * qr + map.cy;
+        let source = |col: usize| {
+            let qc = col as f64 - dc - map.cx - map.dx;
+            (map.cos * qc + base_c, -map.sin * qc + base_r)
+        };
+        let lerp = |m00: f32, m01: f32, m10: f32, m11: f32, fc: f64, fr: f64| {
+            let (m00, m01, m10, m11) = (m00 as f64, m01 as f64, m10 as f64, m11 as f64);
+            let top = m00 + fc * (m01 - m00);
+            let bottom = m10 + fc * (m11 - m10);
+            (top + fr * (bottom - top)) as f32
+        };
+        // any pixel, edges and outside included
+        let at = |j: i64, i: i64| -> f32 {
+            if i >= 0 && j >= 0 && i < mc && j < mr {
+                m[(j * mc + i) as usize]
+            } else {
+                0.0
             }
-        });
-    out
+        };
+        let general = |col: usize| -> f32 {
+            let (uc, ur) = source(col);
+            let (i0, j0) = (fast_floor(uc), fast_floor(ur));
+            let (fc, fr) = (uc - i0 as f64, ur - j0 as f64);
+            lerp(
+                at(j0, i0),
+                at(j0, i0 + 1),
+                at(j0 + 1, i0),
+                at(j0 + 1, i0 + 1),
+                fc,
+                fr,
+            )
+        };
+        // Along a row the source moves by (cos θ, −sin θ) per column, so
+        // ⌊u_col⌋ − col and ⌊u_row⌋ hold for long runs (θ ≤ 1°: ≥ 57
+        // columns): inside a run the four neighbours are contiguous in
+        // two mask rows and need no floor or edge test.
+        let mut col = lo;
+        while col < hi {
+            let (uc, ur) = source(col);
+            let (i0, j0) = (fast_floor(uc), fast_floor(ur));
+            let run = run_length(uc - i0 as f64, map.cos - 1.0)
+                .min(run_length(ur - j0 as f64, -map.sin))
+                .min(hi - col);
+            let end = col + run;
+            let di = i0 - col as i64;
+            let (a, b) = if j0 >= 0 && j0 + 1 < mr {
+                // c + di ≥ 0 and c + di + 1 < mc
+                let a = (col as i64).max(-di).min(end as i64) as usize;
+                let b = (end as i64).min(mc - 1 - di).max(a as i64) as usize;
+                (a, b)
+            } else {
+                (end, end)
+            };
+            for c in col..a {
+                out_row[c - lo] = general(c);
+            }
+            if b > a {
+                let top_row = &m[(j0 * mc) as usize..((j0 + 1) * mc) as usize];
+                let bottom_row = &m[((j0 + 1) * mc) as usize..((j0 + 2) * mc) as usize];
+                let first = (a as i64 + di) as usize;
+                let n = b - a;
+                let (t0, t1) = (
+                    &top_row[first..first + n],
+                    &top_row[first + 1..first + n + 1],
+                );
+                let (b0, b1) = (
+                    &bottom_row[first..first + n],
+                    &bottom_row[first + 1..first + n + 1],
+                );
+                // fractions at column a, and their change per column
+                let (uc, ur) = source(a);
+                let (fc, fr) = (uc - (a as i64 + di) as f64, ur - j0 as f64);
+                lerp_run(
+                    simd,
+                    &mut out_row[a - lo..b - lo],
+                    (t0, t1, b0, b1),
+                    (fc as f32, (map.cos - 1.0) as f32),
+                    (fr as f32, -map.sin as f32),
+                );
+            }
+            for c in b..end {
+                out_row[c - lo] = general(c);
+            }
+            col = end;
+        }
+    }
 }
 
 // One run of a landing-mask row: the four neighbours in contiguous slices,
@@ -401,7 +445,8 @@ mod tests {
             };
             let offsets = [(0.0, 0.0), (2.37, 0.04), (4.74, -0.08), (7.5, 1.5)];
             let det = cols + 9;
-            let landing = landing_masks(&mask, &pose, &offsets, rows, det);
+            let landing =
+                LandingMasks::new(&mask, &pose, offsets.to_vec(), rows, det).materialise();
             for (k, &(oc, or)) in offsets.iter().enumerate() {
                 let moved = MaskPose {
                     dx: dx + oc,

@@ -31,7 +31,7 @@ use crate::sweep_rows::Sweeps;
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum DemoInstrument {
     /// The physical simulator: 4× oversampled, blur σ 0.5 px, fixed sensor;
-    /// calibrated and reconstructed with the subpixel model.
+    /// calibrated and reconstructed with the dispersed-mask model.
     Physical,
     /// The rounded model's own operator (an inverse crime).
     Rounded,
@@ -64,7 +64,10 @@ impl DemoInstrument {
     /// The model family that calibrates and reconstructs the snapshot.
     pub fn model(self) -> DispersionModel {
         match self {
-            Self::Physical | Self::Subpixel => DispersionModel::Subpixel,
+            // the physical instrument is calibrated with the model we
+            // recommend for real cameras
+            Self::Physical => DispersionModel::DispersedMask,
+            Self::Subpixel => DispersionModel::Subpixel,
             Self::Rounded => DispersionModel::Rounded,
         }
     }

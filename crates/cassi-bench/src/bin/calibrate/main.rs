@@ -162,7 +162,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
     let (mut aligned, mut inverse_crime, mut recon, mut verbose) = (true, true, true, false);
     let mut wide_blur = true;
     let mut limits = true;
-    let mut model = DispersionModel::Subpixel;
+    let mut model = DispersionModel::DispersedMask;
     let mut preset_name = "default".to_string();
     let mut texture = true;
     let mut out = None;
@@ -509,7 +509,7 @@ fn run_case(args: &Args, case: &Case, name: &str, scene: &Cube, mask: &Mask) -> 
         // the part of each standard error that is the model-error floor
         // (bench/uncertainty_floors.py re-derives the floors from these)
         "uncertainty_floor": per_parameter(|p| {
-            json!(texture_preset(args).map(|_| model_error_floor(p, est.blur_sigma_px)))
+            json!(texture_preset(args).map(|_| model_error_floor(args.model, p, est.blur_sigma_px)))
         }),
         "interval_95": per_parameter(|p| json!(cal.interval_95.get(p))),
         // the pairs the calibration said trade off (error correlation ≥ 0.8)
