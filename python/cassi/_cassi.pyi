@@ -154,7 +154,7 @@ def calibrate(
     *,
     bands: int = 28,
     stride: float = 2.0,
-    model: Model = "dispersed-mask",
+    model: Optional[Model] = None,
     preset: Literal["default", "paper"] = "default",
     progress: Optional[Callable[[Dict[str, Any]], object]] = None,
 ) -> Calibration:

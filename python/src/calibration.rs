@@ -182,11 +182,12 @@ enum Message {
 ///     mask: the nominal coded aperture, 2-D (rows, cols), values in [0, 1].
 ///     bands: spectral bands of the scene (the standard instrument: 28).
 ///     stride: nominal dispersion, detector pixels per band (2).
-///     model: the dispersion model fitted: "dispersed-mask" (default:
-///         continuous a1 and α, the mask sampled once where each band lands,
+///     model: the dispersion model fitted: "dispersed-mask" (the default
+///         preset's default: continuous a1 and α, the mask sampled once where each band lands,
 ///         with the optical blur σ and standard errors whose coverage is
 ///         measured), "subpixel" (the mask interpolated twice; its own
-///         measured floors) or "rounded" (the paper's discrete model).
+///         measured floors; the paper preset's default) or "rounded" (the
+///         paper's discrete model).
 ///     preset: "default" (ours) or "paper" (the paper's Algorithm 1).
 ///     progress: called with a dict {name, evaluations, seconds,
 ///         parameters, score} as each stage finishes.
@@ -204,7 +205,7 @@ enum Message {
 ///
 /// The GIL is released while the calibration runs.
 #[pyfunction]
-#[pyo3(signature = (y, mask, *, bands=28, stride=2.0, model="dispersed-mask", preset="default", progress=None))]
+#[pyo3(signature = (y, mask, *, bands=28, stride=2.0, model=None, preset="default", progress=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn calibrate(
     py: Python<'_>,
@@ -212,12 +213,15 @@ pub fn calibrate(
     mask: &Bound<'_, PyAny>,
     bands: usize,
     stride: f64,
-    model: &str,
+    model: Option<&str>,
     preset: &str,
     progress: Option<Bound<'_, PyAny>>,
 ) -> PyResult<PyCalibration> {
-    let model = params::model(py, model)?;
     let preset = Preset::by_name(preset, stride).map_err(|e| value_error(py, e.to_string()))?;
+    let model = match model {
+        Some(name) => params::model(py, name)?,
+        None => preset.default_model(),
+    };
     let measurement = arrays::frame(y, "measurement y")?;
     let mask = arrays::frame(mask, "mask")?;
     // the CLI's checks, before any work

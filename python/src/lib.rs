@@ -776,13 +776,16 @@ fn _rust_calibrate_seconds(
     mask: &Bound<'_, PyAny>,
     bands: usize,
     stride: f64,
-    model: &str,
+    model: Option<&str>,
     preset: &str,
     repeats: usize,
 ) -> PyResult<Vec<f64>> {
-    let model = params::model(py, model)?;
     let preset = cassi_core::calib::Preset::by_name(preset, stride)
         .map_err(|e| value_error(py, e.to_string()))?;
+    let model = match model {
+        Some(name) => params::model(py, name)?,
+        None => preset.default_model(),
+    };
     let y = arrays::frame(y, "measurement y")?;
     let mask = arrays::frame(mask, "mask")?;
     compute(py, || {

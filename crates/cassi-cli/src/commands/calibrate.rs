@@ -25,13 +25,13 @@ pub struct CalibrateArgs {
     #[arg(long, default_value = "default", value_parser = cassi_core::calib::PRESET_NAMES)]
     pub preset: String,
     /// Dispersion model of candidate instruments: `dispersed-mask` (the
-    /// default for real instruments: continuous a1 and α, the mask sampled
-    /// once where each band lands, as a camera integrates it; default preset
-    /// only), `subpixel` (the same dispersion with the mask interpolated
-    /// twice) or `rounded` (whole-pixel band offsets, the reference code's
-    /// model).
-    #[arg(long, default_value = "dispersed-mask")]
-    pub model: DispersionModel,
+    /// default preset's default, for real instruments: continuous a1 and α,
+    /// the mask sampled once where each band lands, as a camera integrates
+    /// it), `subpixel` (the same dispersion with the mask interpolated twice;
+    /// the paper preset's default) or `rounded` (whole-pixel band offsets,
+    /// the reference code's model).
+    #[arg(long)]
+    pub model: Option<DispersionModel>,
     /// Output calibration JSON (for `cassi reconstruct --calibration`).
     #[arg(long, short)]
     pub output: PathBuf,
@@ -51,9 +51,11 @@ pub fn run(args: &CalibrateArgs, reporter: &Reporter) -> anyhow::Result<()> {
         set.output("--write-mask", p);
     }
     let checked = set.check()?;
+    let preset = Preset::by_name(&args.preset, args.input.stride)?;
+    let model = args.model.unwrap_or(preset.default_model());
     let (measurement, mask, bands) = args.input.load(reporter, UncodedMask::Refuse)?;
     let problem =
-        CalibrationProblem::nominal(&measurement, &mask, bands, args.input.stride, args.model)?;
+        CalibrationProblem::nominal(&measurement, &mask, bands, args.input.stride, model)?;
     let mut on_stage = |s: &StageReport| {
         // between stages nothing is half-written: a signal ends the run here
         interrupt::stop_point();
@@ -67,11 +69,7 @@ pub fn run(args: &CalibrateArgs, reporter: &Reporter) -> anyhow::Result<()> {
         ));
     };
     let cal = reporter.stage("calibrating", || {
-        Ok(calibrate(
-            &problem,
-            &Preset::by_name(&args.preset, args.input.stride)?,
-            &mut on_stage,
-        )?)
+        Ok(calibrate(&problem, &preset, &mut on_stage)?)
     })?;
     interrupt::check()?;
     let staging = checked.begin()?;

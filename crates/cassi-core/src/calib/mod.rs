@@ -144,6 +144,17 @@ pub enum Preset {
 pub const PRESET_NAMES: [&str; 2] = ["default", "paper"];
 
 impl Preset {
+    /// The model a preset calibrates when none is asked for: the
+    /// dispersed-mask model (ours, for real instruments) for `default`; the
+    /// subpixel model for `paper`, whose gradients differentiate one mask
+    /// shared by every band.
+    pub fn default_model(&self) -> DispersionModel {
+        match self {
+            Self::Default(_) => DispersionModel::DispersedMask,
+            Self::Paper(_) => DispersionModel::Subpixel,
+        }
+    }
+
     /// A preset by name with its default settings and the nominal `stride`.
     pub fn by_name(name: &str, stride: f64) -> crate::error::Result<Self> {
         match name {
