@@ -6,7 +6,7 @@
 use std::time::Instant;
 
 use cassi_core::optics::{Blurred, CassiOperator, Dispersion, DispersionModel};
-use cassi_core::{DispersionParams, Frame, LinearOperator, Rng};
+use cassi_core::{DispersionParams, Frame, LinearOperator, Mismatch, Rng};
 
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
@@ -30,7 +30,19 @@ fn case(
             .collect(),
     )
     .unwrap();
-    let cassi = CassiOperator::new(mask, Dispersion::new(bands, params, model).unwrap()).unwrap();
+    // the dispersed-mask model samples the mask per band: built from the
+    // nominal mask (no pose), its band masks stored at the first adjoint
+    // (the warm-up), as in an iterative solver
+    let cassi = if model.samples_mask_per_band() {
+        let m = Mismatch {
+            a1: params.a1,
+            alpha_deg: params.alpha_deg,
+            ..Mismatch::nominal(params.a1)
+        };
+        CassiOperator::with_mismatch(&mask, bands, &m, model).unwrap()
+    } else {
+        CassiOperator::new(mask, Dispersion::new(bands, params, model).unwrap()).unwrap()
+    };
     let (rows, cols) = cassi.measurement_shape();
     let op: Box<dyn LinearOperator> = if blur_sigma_px > 0.0 {
         Box::new(Blurred::new(cassi, blur_sigma_px, rows, cols).unwrap())
@@ -87,6 +99,22 @@ fn main() {
         rows.push(case(size, 28, paper, DispersionModel::Rounded, 0.0, runs));
         rows.push(case(size, 28, paper, DispersionModel::Subpixel, 0.0, runs));
         rows.push(case(size, 28, paper, DispersionModel::Subpixel, 0.5, runs));
+        rows.push(case(
+            size,
+            28,
+            paper,
+            DispersionModel::DispersedMask,
+            0.0,
+            runs,
+        ));
+        rows.push(case(
+            size,
+            28,
+            paper,
+            DispersionModel::DispersedMask,
+            0.5,
+            runs,
+        ));
     }
     let cpu = std::fs::read_to_string("/proc/cpuinfo")
         .ok()
