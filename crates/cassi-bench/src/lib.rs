@@ -39,3 +39,53 @@ pub fn cave_scenes(data: &std::path::Path) -> anyhow::Result<Vec<std::path::Path
     }
     Ok(scenes)
 }
+
+/// The physical self-calibration benchmark's random ψ for `seed` (issue 14):
+/// dx, dy ∈ ±2.5 px, θ ∈ ±0.8°, a1 ∈ 1.93–2.07, α ∈ ±1°, σ ∈ 0–0.8 px,
+/// drawn from `Rng::new(seed)` in that order.
+pub fn physical_random_mismatch(seed: u64) -> cassi_core::Mismatch {
+    let mut rng = cassi_core::Rng::new(seed);
+    cassi_core::Mismatch {
+        dx: rng.uniform_in(-2.5, 2.5),
+        dy: rng.uniform_in(-2.5, 2.5),
+        theta_deg: rng.uniform_in(-0.8, 0.8),
+        a1: rng.uniform_in(1.93, 2.07),
+        alpha_deg: rng.uniform_in(-1.0, 1.0),
+        blur_sigma_px: rng.uniform_in(0.0, 0.8),
+    }
+}
+
+/// ψ from its six values in `Parameter::ALL` order (σ as |σ|: a simplex
+/// may step below zero).
+pub fn psi_of(x: &[f64]) -> cassi_core::Mismatch {
+    let mut psi = cassi_core::Mismatch::nominal(2.0);
+    for (&p, &v) in cassi_core::Parameter::ALL.iter().zip(x) {
+        p.set(&mut psi, v);
+    }
+    psi.blur_sigma_px = psi.blur_sigma_px.abs();
+    psi
+}
+
+/// A_ψ `scene` through `model` with ψ's blur, cropped / zero-padded to a
+/// `rows × cols` detector (origin at detector pixel (0, 0)); `None` for a
+/// ψ the operator rejects.
+pub fn predict_on_detector(
+    mask: &cassi_core::Mask,
+    scene: &cassi_core::Cube,
+    psi: &cassi_core::Mismatch,
+    model: cassi_core::optics::DispersionModel,
+    (rows, cols): (usize, usize),
+) -> Option<Vec<f64>> {
+    use cassi_core::linop::LinearOperator;
+    let op = cassi_core::optics::ModelOperator::new(mask, scene.bands(), psi, model).ok()?;
+    let (mr, mc) = op.measurement_shape();
+    let mut full = vec![0.0f32; mr * mc];
+    op.apply(scene.as_slice(), &mut full);
+    let mut out = vec![0.0f64; rows * cols];
+    for r in 0..mr.min(rows) {
+        for c in 0..mc.min(cols) {
+            out[r * cols + c] = full[r * mc + c] as f64;
+        }
+    }
+    Some(out)
+}

@@ -122,8 +122,16 @@ fn the_subpixel_score_is_minimal_at_the_true_dispersion() {
 #[test]
 fn default_preset_recovers_a_known_mask_misalignment() {
     // rounded: a1 and α act only through the rounding pattern, so the truth
-    // keeps the nominal one; subpixel: a drifted, tilted prism (band 7 lands
+    // keeps the nominal one; subpixel and dispersed-mask: a drifted, tilted prism (band 7 lands
     // 14.35 columns and 0.37 rows away) that the preset must recover
+    let drifted = Mismatch {
+        dx: 1.3,
+        dy: -0.8,
+        theta_deg: 0.35,
+        a1: 2.05,
+        alpha_deg: 1.5,
+        ..Mismatch::nominal(2.0)
+    };
     let cases = [
         (
             DispersionModel::Rounded,
@@ -136,28 +144,8 @@ fn default_preset_recovers_a_known_mask_misalignment() {
                 ..Mismatch::nominal(2.0)
             },
         ),
-        (
-            DispersionModel::Subpixel,
-            Mismatch {
-                dx: 1.3,
-                dy: -0.8,
-                theta_deg: 0.35,
-                a1: 2.05,
-                alpha_deg: 1.5,
-                ..Mismatch::nominal(2.0)
-            },
-        ),
-        (
-            DispersionModel::DispersedMask,
-            Mismatch {
-                dx: 1.3,
-                dy: -0.8,
-                theta_deg: 0.35,
-                a1: 2.05,
-                alpha_deg: 1.5,
-                ..Mismatch::nominal(2.0)
-            },
-        ),
+        (DispersionModel::Subpixel, drifted),
+        (DispersionModel::DispersedMask, drifted),
     ];
     for (model, truth) in cases {
         let (y, mask) = setup(96, 8, truth, model);

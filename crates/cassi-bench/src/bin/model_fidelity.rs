@@ -24,11 +24,11 @@
 use std::time::Instant;
 
 use anyhow::Result;
-use cassi_bench::{median, shared_data};
+use cassi_bench::{median, physical_random_mismatch, predict_on_detector, psi_of, shared_data};
 use cassi_core::calib::nelder_mead;
 use cassi_core::linop::LinearOperator;
 use cassi_core::optics::{DispersionModel, ModelOperator, PhysicalSpec, simulate_physical};
-use cassi_core::{Cube, Mask, Mismatch, Parameter, Rng, STANDARD_WAVELENGTHS_NM};
+use cassi_core::{Cube, Mask, Mismatch, Parameter, STANDARD_WAVELENGTHS_NM};
 use cassi_eval::machine::Machine;
 use serde_json::{Value, json};
 
@@ -39,50 +39,12 @@ const FIT_STEPS: [f64; 6] = [0.1, 0.1, 0.05, 0.005, 0.1, 0.1];
 const FIT_EVALS: usize = 300;
 const TIMING_REPEATS: usize = 30;
 
-/// The calibration benchmark's random ψ for `seed` (same draw order).
-fn random_mismatch(seed: u64) -> Mismatch {
-    let mut rng = Rng::new(seed);
-    Mismatch {
-        dx: rng.uniform_in(-2.5, 2.5),
-        dy: rng.uniform_in(-2.5, 2.5),
-        theta_deg: rng.uniform_in(-0.8, 0.8),
-        a1: rng.uniform_in(1.93, 2.07),
-        alpha_deg: rng.uniform_in(-1.0, 1.0),
-        blur_sigma_px: rng.uniform_in(0.0, 0.8),
-    }
-}
-
-/// A_ψ x cropped / zero-padded to the detector.
-fn predict(mask: &Mask, scene: &Cube, psi: &Mismatch, model: DispersionModel) -> Option<Vec<f64>> {
-    let op = ModelOperator::new(mask, scene.bands(), psi, model).ok()?;
-    let (mr, mc) = op.measurement_shape();
-    let mut full = vec![0.0f32; mr * mc];
-    op.apply(scene.as_slice(), &mut full);
-    let (rows, cols) = DETECTOR;
-    let mut out = vec![0.0f64; rows * cols];
-    for r in 0..mr.min(rows) {
-        for c in 0..mc.min(cols) {
-            out[r * cols + c] = full[r * mc + c] as f64;
-        }
-    }
-    Some(out)
-}
-
 /// min_s ‖y − s·m‖² / ‖y‖².
 fn relative_residual2(y: &[f64], m: &[f64]) -> f64 {
     let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
     let (ym, mm, yy) = (dot(y, m), dot(m, m), dot(y, y));
     let s = if mm > 0.0 { ym / mm } else { 0.0 };
     ((yy - s * ym) / yy).max(0.0)
-}
-
-fn psi_of(x: &[f64]) -> Mismatch {
-    let mut psi = Mismatch::nominal(2.0);
-    for (&p, &v) in Parameter::ALL.iter().zip(x) {
-        p.set(&mut psi, v);
-    }
-    psi.blur_sigma_px = psi.blur_sigma_px.abs();
-    psi
 }
 
 fn per_parameter(f: impl Fn(Parameter) -> f64) -> Value {
@@ -102,7 +64,8 @@ fn scene_known_fit(
     model: DispersionModel,
 ) -> Value {
     let objective = |x: &[f64]| {
-        predict(mask, scene, &psi_of(x), model).map_or(f64::INFINITY, |m| relative_residual2(y, &m))
+        predict_on_detector(mask, scene, &psi_of(x), model, DETECTOR)
+            .map_or(f64::INFINITY, |m| relative_residual2(y, &m))
     };
     let tol: Vec<f64> = FIT_STEPS.iter().map(|s| s * 1e-3).collect();
     let mut x: Vec<f64> = Parameter::ALL.iter().map(|p| p.get(truth)).collect();
@@ -166,7 +129,7 @@ fn main() -> Result<()> {
         let scene = cassi_io::load_cube(path, None, cassi_io::CubeLayout::Auto)?;
         for slot in 0..SLOTS {
             let seed = SEED_BASE + 20 * index as u64 + slot;
-            let truth = random_mismatch(seed);
+            let truth = physical_random_mismatch(seed);
             let spec = PhysicalSpec {
                 oversample: 4,
                 blur_sigma_px: truth.blur_sigma_px,
@@ -178,7 +141,7 @@ fn main() -> Result<()> {
             let y: Vec<f64> = y.as_slice().iter().map(|&v| v as f64).collect();
             let mut models = serde_json::Map::new();
             for model in [DispersionModel::Subpixel, DispersionModel::DispersedMask] {
-                let at_truth = predict(&mask, &scene, &truth, model)
+                let at_truth = predict_on_detector(&mask, &scene, &truth, model, DETECTOR)
                     .map(|m| relative_residual2(&y, &m).sqrt());
                 let fit = scene_known_fit(&y, &mask, &scene, &truth, model);
                 eprintln!(

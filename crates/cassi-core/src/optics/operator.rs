@@ -38,25 +38,11 @@ pub struct CassiOperator {
 /// forward (a calibration's candidate operator is applied once: no 57 MB
 /// per 660² candidate), stored whole at the first use that reads them more
 /// than once (adjoint, normaliser: an iterative solver).
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 struct Landing {
     masks: LandingMasks,
     /// Band-major, rows × det_cols per band.
     stored: OnceLock<Vec<f32>>,
-}
-
-impl Clone for Landing {
-    fn clone(&self) -> Self {
-        Self {
-            masks: self.masks.clone(),
-            stored: self
-                .stored
-                .get()
-                .cloned()
-                .map(OnceLock::from)
-                .unwrap_or_default(),
-        }
-    }
 }
 
 impl Landing {

@@ -23,11 +23,11 @@
 
 use std::time::Instant;
 
+use cassi_bench::{predict_on_detector, psi_of};
 use cassi_core::calib::{
     CalibrationProblem, DefaultPreset, SCENE_SMOOTH_PX, SceneEstimate, nelder_mead, texture_fit,
 };
-use cassi_core::linop::LinearOperator;
-use cassi_core::optics::{DispersionModel, ModelOperator};
+use cassi_core::optics::DispersionModel;
 use cassi_core::{Cube, Mask, Measurement, Mismatch, Parameter};
 use serde_json::{Value, json};
 
@@ -64,27 +64,14 @@ impl SceneKnown<'_> {
     /// A_ψ x cropped / zero-padded to rows × cols, or `None` for a ψ the
     /// operator rejects.
     fn model(&self, psi: &Mismatch) -> Option<Vec<f64>> {
-        let op = ModelOperator::new(self.mask, self.scene.bands(), psi, self.model).ok()?;
-        let (mr, mc) = op.measurement_shape();
-        let mut full = vec![0.0f32; mr * mc];
-        op.apply(self.scene.as_slice(), &mut full);
-        let mut out = vec![0.0f64; self.rows * self.cols];
-        for r in 0..mr.min(self.rows) {
-            for c in 0..mc.min(self.cols) {
-                out[r * self.cols + c] = full[r * mc + c] as f64;
-            }
-        }
-        Some(out)
+        predict_on_detector(
+            self.mask,
+            self.scene,
+            psi,
+            self.model,
+            (self.rows, self.cols),
+        )
     }
-}
-
-fn psi_of(x: &[f64]) -> Mismatch {
-    let mut psi = Mismatch::nominal(2.0);
-    for (&p, &v) in Parameter::ALL.iter().zip(x) {
-        p.set(&mut psi, v);
-    }
-    psi.blur_sigma_px = psi.blur_sigma_px.abs();
-    psi
 }
 
 fn vector_of(psi: &Mismatch) -> Vec<f64> {

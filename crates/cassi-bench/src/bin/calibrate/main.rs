@@ -60,7 +60,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{Context, Result, anyhow, bail, ensure};
-use cassi_bench::{median, shared_data};
+use cassi_bench::{median, physical_random_mismatch, shared_data};
 use cassi_core::calib::{
     CalibrationProblem, DefaultPreset, PRESET_NAMES, Preset, calibrate, model_error_floor,
 };
@@ -70,7 +70,7 @@ use cassi_core::optics::{
 };
 use cassi_core::recon::{Method, Model};
 use cassi_core::solvers::Silent;
-use cassi_core::{Cube, Mask, Measurement, Mismatch, Parameter, Rng, STANDARD_WAVELENGTHS_NM};
+use cassi_core::{Cube, Mask, Measurement, Mismatch, Parameter, STANDARD_WAVELENGTHS_NM};
 use cassi_eval::machine::Machine;
 use serde_json::{Value, json};
 
@@ -312,25 +312,13 @@ struct Case {
     truth: Mismatch,
 }
 
-fn random_mismatch(seed: u64) -> Mismatch {
-    let mut rng = Rng::new(seed);
-    Mismatch {
-        dx: rng.uniform_in(-2.5, 2.5),
-        dy: rng.uniform_in(-2.5, 2.5),
-        theta_deg: rng.uniform_in(-0.8, 0.8),
-        a1: rng.uniform_in(1.93, 2.07),
-        alpha_deg: rng.uniform_in(-1.0, 1.0),
-        blur_sigma_px: rng.uniform_in(0.0, 0.8),
-    }
-}
-
 /// The cases of one scene (`index` within `half`), in run order.
 fn scene_cases(args: &Args, half: Half, scene: usize, index: u64) -> Vec<Case> {
     let base = half.seed_base() + SLOTS_PER_SCENE * index;
     let mut cases = Vec::new();
     for k in (args.first_case..args.first_case + args.cases).map(|k| k as u64) {
         let seed = base + k;
-        let truth = random_mismatch(seed);
+        let truth = physical_random_mismatch(seed);
         let case = |kind, truth| Case {
             half,
             scene,
@@ -363,7 +351,7 @@ fn scene_cases(args: &Args, half: Half, scene: usize, index: u64) -> Vec<Case> {
             let random_seed = half.seed_base() + WIDE_RANDOM_SEED_OFFSET + 2 * index + j as u64;
             for (seed, pose) in [
                 (aligned_seed, Mismatch::nominal(STRIDE)),
-                (random_seed, random_mismatch(random_seed)),
+                (random_seed, physical_random_mismatch(random_seed)),
             ] {
                 cases.push(Case {
                     half,
