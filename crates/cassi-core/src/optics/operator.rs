@@ -13,7 +13,7 @@ use crate::error::{CassiError, Result, shape_error};
 use crate::linop::{
     AatNormaliser, LinearOperator, NonNegativeOperator, NormaliserKind, row_sum_majoriser,
 };
-use crate::params::Mismatch;
+use crate::params::{MaskPose, Mismatch};
 use crate::simd::{Simd, kernel};
 use std::sync::OnceLock;
 
@@ -43,6 +43,13 @@ struct Landing {
     masks: LandingMasks,
     /// Band-major, rows × det_cols per band.
     stored: OnceLock<Vec<f32>>,
+    /// The nominal mask and pose, for [`CassiOperator::mask`].
+    nominal: Mask,
+    pose: MaskPose,
+    /// The pose-warped mask on the mask grid: no product reads it, so it is
+    /// warped only when asked for (it cost a fifth of a 660² calibration
+    /// candidate's time).
+    posed: OnceLock<Mask>,
 }
 
 impl Landing {
@@ -109,21 +116,33 @@ impl CassiOperator {
         }
         validate_mask(nominal_mask, "nominal mask")?;
         let dispersion = Dispersion::new(bands, mismatch.dispersion(), model)?;
-        let mut op = Self::new(warp_mask(nominal_mask, &mismatch.pose()), dispersion)?;
-        if model.samples_mask_per_band() {
-            let (rows, det_cols) = op.measurement_shape();
-            crate::limits::check_elements(
-                "the dispersed-mask model's band masks",
-                &[bands, rows, det_cols],
-                "one mask per band on the detector grid",
-            )?;
-            let offsets: Vec<(f64, f64)> = (0..bands).map(|k| op.dispersion.offset(k)).collect();
-            op.landing = Some(Box::new(Landing {
-                masks: LandingMasks::new(nominal_mask, &mismatch.pose(), offsets, rows, det_cols),
-                stored: OnceLock::new(),
-            }));
+        let pose = mismatch.pose();
+        if !model.samples_mask_per_band() {
+            return Self::new(warp_mask(nominal_mask, &pose), dispersion);
         }
-        Ok(op)
+        let (rows, det_cols) = (
+            nominal_mask.rows(),
+            nominal_mask.cols() + dispersion.extra_cols(),
+        );
+        crate::limits::check_elements(
+            "the dispersed-mask model's band masks",
+            &[bands, rows, det_cols],
+            "one mask per band on the detector grid",
+        )?;
+        let offsets: Vec<(f64, f64)> = (0..bands).map(|k| dispersion.offset(k)).collect();
+        Ok(Self {
+            // its shape only: the products read the band masks
+            mask: nominal_mask.clone(),
+            dispersion,
+            det_cols,
+            landing: Some(Box::new(Landing {
+                masks: LandingMasks::new(nominal_mask, &pose, offsets, rows, det_cols),
+                stored: OnceLock::new(),
+                nominal: nominal_mask.clone(),
+                pose,
+                posed: OnceLock::new(),
+            })),
+        })
     }
 
     /// The mask that multiplies band `k`'s light from source row `r` on its
@@ -140,8 +159,13 @@ impl CassiOperator {
         }
     }
 
+    /// The effective mask on the mask grid (the nominal one moved by the
+    /// pose).
     pub fn mask(&self) -> &Mask {
-        &self.mask
+        match &self.landing {
+            None => &self.mask,
+            Some(l) => l.posed.get_or_init(|| warp_mask(&l.nominal, &l.pose)),
+        }
     }
     pub fn dispersion(&self) -> &Dispersion {
         &self.dispersion
@@ -754,5 +778,25 @@ mod tests {
         };
         let op = CassiOperator::with_mismatch(&mask, 3, &m, DispersionModel::Rounded).unwrap();
         assert_eq!(op.mask().get(4, 3), 1.0);
+    }
+
+    /// The dispersed-mask operator warps its mask-grid mask only when asked
+    /// (its products read the band masks), and that mask is the same as
+    /// every other model's.
+    #[test]
+    fn every_model_reports_the_same_warped_mask() {
+        let nominal = crate::synth::random_binary_mask(12, 14, 0.5, 4).unwrap();
+        let m = Mismatch {
+            dx: 0.4,
+            dy: -1.3,
+            theta_deg: 0.7,
+            ..Mismatch::nominal(2.0)
+        };
+        let want = warp_mask(&nominal, &m.pose());
+        for model in DispersionModel::ALL {
+            let op = CassiOperator::with_mismatch(&nominal, 3, &m, model).unwrap();
+            assert_eq!(op.mask().as_slice(), want.as_slice(), "{model:?}");
+            assert_eq!(op.mask().shape(), (12, 14));
+        }
     }
 }
