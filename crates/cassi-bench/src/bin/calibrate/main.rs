@@ -12,6 +12,9 @@
 //! base 14 000 (tuning) or 14 500 (held-out), slot k for the k-th random case
 //! and 17 + j for the j-th aligned-blur case, so a case keeps its seed
 //! whatever `--scenes`, `--cases`, `--first-case` or `--no-aligned` select.
+//! `--seed-round R` adds 1000·R to every seed: round 0 is the committed
+//! records', each later round seeds no earlier run used (fresh held-out
+//! checks after the slots ran out).
 //!
 //! Case kinds: `random` (dx, dy ∈ ±2.5 px, θ ∈ ±0.8°, a1 ∈ 1.93–2.07,
 //! α ∈ ±1°, σ ∈ 0–0.8 px, drawn from `Rng::new(seed)` in that order),
@@ -44,7 +47,7 @@
 //! scene-known model at the true ψ and the simulator's noise level.
 //!
 //! Run: `cargo run --release -p cassi-bench --bin calibrate --
-//! [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--no-aligned]
+//! [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] [--no-aligned]
 //! [--no-inverse-crime] [--model rounded|subpixel|dispersed-mask] [--preset NAME]
 //! [--no-texture] [--no-recon] [--no-limits] [--out PATH] [--verbose]`
 //! (`--no-texture`: the default preset without its texture fit, as it was
@@ -88,6 +91,10 @@ const ALIGNED_SIGMAS: [f64; 3] = [0.3, 0.5, 0.7];
 const WIDE_SIGMAS: [f64; 2] = [1.0, 1.5];
 const WIDE_SEED_OFFSET: u64 = 400;
 const WIDE_RANDOM_SEED_OFFSET: u64 = 450;
+/// `--seed-round R` moves every seed by R × this: round 0 is the committed
+/// records' seeds, each later round a fresh set no earlier run used (a half
+/// spans fewer than 1000 seeds: slots, then the wide-blur offsets).
+const SEED_ROUND_STRIDE: u64 = 1000;
 const STRIDE: f64 = 2.0;
 const OVERSAMPLE: usize = 4;
 const DETECTOR: (usize, usize) = (256, 310);
@@ -139,6 +146,8 @@ struct Args {
     /// The first random case's slot (`--first-case`): later slots are
     /// seeds no earlier run used.
     first_case: usize,
+    /// `--seed-round`: see [`SEED_ROUND_STRIDE`].
+    seed_round: u64,
     aligned: bool,
     inverse_crime: bool,
     wide_blur: bool,
@@ -151,7 +160,7 @@ struct Args {
     verbose: bool,
 }
 
-const USAGE: &str = "calibrate [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] \
+const USAGE: &str = "calibrate [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] \
                      [--no-aligned] [--no-inverse-crime] [--no-wide-blur] [--model rounded|subpixel|dispersed-mask] \
                      [--preset NAME] [--no-texture] [--no-recon] [--no-limits] [--out PATH] \
                      [--verbose]";
@@ -159,6 +168,7 @@ const USAGE: &str = "calibrate [--half tuning|held-out|both] [--scenes N] [--cas
 fn parse_args(argv: &[String]) -> Result<Args> {
     let mut half_name = "held-out".to_string();
     let (mut scenes, mut cases, mut first_case) = (None, 2usize, 0usize);
+    let mut seed_round = 0u64;
     let (mut aligned, mut inverse_crime, mut recon, mut verbose) = (true, true, true, false);
     let mut wide_blur = true;
     let mut limits = true;
@@ -191,6 +201,10 @@ fn parse_args(argv: &[String]) -> Result<Args> {
             "--first-case" => {
                 let v = value()?;
                 first_case = v.parse().with_context(|| format!("--first-case {v}"))?;
+            }
+            "--seed-round" => {
+                let v = value()?;
+                seed_round = v.parse().with_context(|| format!("--seed-round {v}"))?;
             }
             "--no-aligned" => aligned = false,
             "--inverse-crime" => inverse_crime = true,
@@ -257,6 +271,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
         scenes,
         cases,
         first_case,
+        seed_round,
         aligned,
         inverse_crime,
         wide_blur,
@@ -312,9 +327,14 @@ struct Case {
     truth: Mismatch,
 }
 
+/// The first seed of `half` in the run's seed round.
+fn seed_base(args: &Args, half: Half) -> u64 {
+    half.seed_base() + SEED_ROUND_STRIDE * args.seed_round
+}
+
 /// The cases of one scene (`index` within `half`), in run order.
 fn scene_cases(args: &Args, half: Half, scene: usize, index: u64) -> Vec<Case> {
-    let base = half.seed_base() + SLOTS_PER_SCENE * index;
+    let base = seed_base(args, half) + SLOTS_PER_SCENE * index;
     let mut cases = Vec::new();
     for k in (args.first_case..args.first_case + args.cases).map(|k| k as u64) {
         let seed = base + k;
@@ -347,8 +367,9 @@ fn scene_cases(args: &Args, half: Half, scene: usize, index: u64) -> Vec<Case> {
     }
     if args.wide_blur {
         for (j, sigma) in WIDE_SIGMAS.into_iter().enumerate() {
-            let aligned_seed = half.seed_base() + WIDE_SEED_OFFSET + 2 * index + j as u64;
-            let random_seed = half.seed_base() + WIDE_RANDOM_SEED_OFFSET + 2 * index + j as u64;
+            let aligned_seed = seed_base(args, half) + WIDE_SEED_OFFSET + 2 * index + j as u64;
+            let random_seed =
+                seed_base(args, half) + WIDE_RANDOM_SEED_OFFSET + 2 * index + j as u64;
             for (seed, pose) in [
                 (aligned_seed, Mismatch::nominal(STRIDE)),
                 (random_seed, physical_random_mismatch(random_seed)),
@@ -811,7 +832,7 @@ fn main() -> Result<()> {
 
     let split = |h: Half| {
         json!({ "scenes": half_scenes(h, names.len(), None).iter().map(|&i| &names[i]).collect::<Vec<_>>(),
-                "seed_base": h.seed_base() })
+                "seed_base": seed_base(&args, h) })
     };
     let out = json!({
         "benchmark": "self-calibration on held-out physical measurements (issue 14)",
