@@ -8,7 +8,7 @@
 
 use rayon::prelude::*;
 
-use super::smooth::{gaussian_taps, smooth_frame};
+use super::smooth::{gaussian_taps, smooth_frame_into};
 use crate::cube::{Cube, Frame, Mask, Measurement};
 use crate::error::Result;
 use crate::optics::{CassiOperator, DispersionModel};
@@ -18,13 +18,20 @@ use crate::params::Mismatch;
 /// with the slowly varying scene divided out.
 pub(crate) fn high_pass(img: &Frame) -> Vec<f32> {
     let (rows, cols) = img.shape();
-    let low = smooth_frame(img.as_slice(), rows, cols, &gaussian_taps(2.0));
-    let floor = 1e-3 * img.max().max(f32::MIN_POSITIVE);
-    img.as_slice()
-        .par_iter()
-        .zip(&low)
-        .map(|(&v, &l)| if l > floor { v / l - 1.0 } else { 0.0 })
-        .collect()
+    let mut out = vec![0.0f32; rows * cols];
+    high_pass_into(img.as_slice(), rows, cols, &mut out);
+    out
+}
+
+/// [`high_pass`] of a rows × cols image into `out`, which also serves as
+/// the local mean's buffer (no allocation).
+pub(crate) fn high_pass_into(img: &[f32], rows: usize, cols: usize, out: &mut [f32]) {
+    smooth_frame_into(img, rows, cols, &gaussian_taps(2.0), out);
+    let max = img.iter().copied().fold(f32::NEG_INFINITY, f32::max);
+    let floor = 1e-3 * max.max(f32::MIN_POSITIVE);
+    out.par_iter_mut()
+        .zip(img)
+        .for_each(|(l, &v)| *l = if *l > floor { v / *l - 1.0 } else { 0.0 });
 }
 
 /// High-passed measurement and white-scene prediction on the common columns.

@@ -74,8 +74,8 @@ pub fn smooth_step(
 /// One (rows × cols) frame smoothed, blocks of rows in parallel (one band
 /// leaves [`smooth_bands`] a single thread); each block smooths the rows
 /// its vertical taps read again, so the result is the same bits.
-pub fn smooth_frame(frame: &[f32], rows: usize, cols: usize, taps: &[f32]) -> Vec<f32> {
-    let mut out = vec![0.0f32; rows * cols];
+/// Every value of `out` (rows × cols) is written: it may hold anything.
+pub fn smooth_frame_into(frame: &[f32], rows: usize, cols: usize, taps: &[f32], out: &mut [f32]) {
     let simd = Simd::detect(false);
     let block = 32;
     out.par_chunks_mut(block * cols)
@@ -95,7 +95,6 @@ pub fn smooth_frame(frame: &[f32], rows: usize, cols: usize, taps: &[f32]) -> Ve
                 false,
             )
         });
-    out
 }
 
 /// [`smooth_step`] with step = Aᵀ `y`, each row of it computed as the prior
@@ -416,11 +415,10 @@ mod tests {
             let taps = gaussian_taps(sigma);
             let mut want = x.clone();
             smooth_bands(&mut want, rows, cols, &taps);
-            assert_eq!(
-                smooth_frame(&x, rows, cols, &taps),
-                want,
-                "{rows} rows, σ {sigma}"
-            );
+            // a reused buffer: whatever it held is overwritten
+            let mut got = vec![f32::NAN; rows * cols];
+            smooth_frame_into(&x, rows, cols, &taps, &mut got);
+            assert_eq!(got, want, "{rows} rows, σ {sigma}");
         }
     }
 }

@@ -19,10 +19,9 @@
 //! bands fits as well, and the fit ran 1.8 px along the dx–a1 ridge);
 //! a white scene instead of x̃ (similar errors, no better).
 
-use super::init::high_pass;
+use super::init::{high_pass, high_pass_into};
 use super::score::{CalibrationProblem, ProxyParams, proxy_reconstruction};
 use super::smooth::{gaussian_taps, smooth_bands};
-use crate::cube::Frame;
 use crate::error::{Result, shape_error};
 use crate::linop::LinearOperator;
 use crate::optics::ModelOperator;
@@ -44,6 +43,23 @@ pub enum SceneEstimate<'s> {
     /// A given cube (bands × rows × cols, e.g. the true scene of a
     /// benchmark or a known target), smoothed by `smooth_px` (0: as given).
     Given { scene: &'s [f32], smooth_px: f32 },
+}
+
+/// A template's buffers: reused by every candidate on the thread (fresh
+/// 2 MB buffers per 660×714 candidate cost their page faults each time).
+#[derive(Default)]
+struct TemplateScratch {
+    /// A_ψ x̃ (then the measurement's frame of it).
+    prediction: Vec<f32>,
+    /// The cropped or zero-padded frame when the detector is not the
+    /// measurement's width.
+    frame: Vec<f32>,
+    high_passed: Vec<f32>,
+}
+
+thread_local! {
+    static TEMPLATE_SCRATCH: std::cell::RefCell<TemplateScratch> =
+        std::cell::RefCell::default();
 }
 
 /// Image blocks per side for the block-wise terms (uncertainty).
@@ -127,43 +143,57 @@ impl<'a> TextureFit<'a> {
         })
     }
 
-    /// h(A_ψ x̃) on the measurement's frame (cropped or zero-padded).
-    fn template(&self, psi: &Mismatch) -> Result<Vec<f32>> {
+    /// `f` of h(A_ψ x̃) on the measurement's frame (cropped or
+    /// zero-padded), computed in the thread's [`TEMPLATE_SCRATCH`].
+    fn with_template<R>(&self, psi: &Mismatch, f: impl FnOnce(&[f32]) -> R) -> Result<R> {
         let p = self.problem;
         p.check_cancelled()?;
         let op = ModelOperator::new(p.nominal_mask(), p.bands(), psi, p.model())?;
         let (rows, det) = op.measurement_shape();
-        let mut t = vec![0.0f32; op.range_len()];
-        op.apply(&self.scene, &mut t);
         let cols = p.measurement.cols();
-        let keep = det.min(cols);
-        let mut frame = Frame::zeros(rows, cols);
-        for r in 0..rows {
-            frame.row_mut(r)[..keep].copy_from_slice(&t[r * det..r * det + keep]);
+        let mut s = TEMPLATE_SCRATCH.with_borrow_mut(std::mem::take);
+        s.prediction.resize(op.range_len(), 0.0);
+        op.apply(&self.scene, &mut s.prediction);
+        if det != cols {
+            let keep = det.min(cols);
+            s.frame.clear();
+            s.frame.resize(rows * cols, 0.0);
+            for r in 0..rows {
+                s.frame[r * cols..r * cols + keep]
+                    .copy_from_slice(&s.prediction[r * det..r * det + keep]);
+            }
+            std::mem::swap(&mut s.frame, &mut s.prediction);
         }
-        Ok(high_pass(&frame))
+        s.high_passed.resize(rows * cols, 0.0);
+        high_pass_into(&s.prediction[..rows * cols], rows, cols, &mut s.high_passed);
+        let out = f(&s.high_passed);
+        TEMPLATE_SCRATCH.with_borrow_mut(|t| *t = s);
+        Ok(out)
     }
 
     /// 1 − NCC(h(y), h(A_ψ x̃)); +∞ for an invalid ψ.
     pub(crate) fn score(&self, psi: &Mismatch) -> f64 {
-        let Ok(t) = self.template(psi) else {
-            return f64::INFINITY;
+        let ncc = |t: &[f32]| {
+            let (mut cross, mut energy) = (0.0f64, 0.0f64);
+            for (&a, &b) in self.data.iter().zip(t) {
+                cross += a as f64 * b as f64;
+                energy += b as f64 * b as f64;
+            }
+            if energy <= 0.0 || self.data_energy <= 0.0 {
+                return 1.0;
+            }
+            1.0 - cross / (self.data_energy * energy).sqrt()
         };
-        let (mut cross, mut energy) = (0.0f64, 0.0f64);
-        for (&a, &b) in self.data.iter().zip(&t) {
-            cross += a as f64 * b as f64;
-            energy += b as f64 * b as f64;
-        }
-        if energy <= 0.0 || self.data_energy <= 0.0 {
-            return 1.0;
-        }
-        1.0 - cross / (self.data_energy * energy).sqrt()
+        self.with_template(psi, ncc).unwrap_or(f64::INFINITY)
     }
 
     /// The correlation's sums per block of a [`BLOCKS_PER_SIDE`]² grid, in
     /// row-major block order.
     pub(crate) fn block_terms(&self, psi: &Mismatch) -> Result<Vec<BlockTerms>> {
-        let t = self.template(psi)?;
+        self.with_template(psi, |t| self.block_sums(t))
+    }
+
+    fn block_sums(&self, t: &[f32]) -> Vec<BlockTerms> {
         let (rows, cols) = self.problem.measurement.shape();
         let n = BLOCKS_PER_SIDE;
         let mut out = vec![BlockTerms::default(); n * n];
@@ -177,7 +207,7 @@ impl<'a> TextureFit<'a> {
                 b.template += m * m;
             }
         }
-        Ok(out)
+        out
     }
 }
 
