@@ -43,8 +43,8 @@ struct Landing {
     masks: LandingMasks,
     /// Band-major, rows × det_cols per band.
     stored: OnceLock<Vec<f32>>,
-    /// The nominal mask and pose, for [`CassiOperator::mask`].
-    nominal: Mask,
+    /// The pose, for [`CassiOperator::mask`] (the nominal mask is the
+    /// band masks').
     pose: MaskPose,
     /// The pose-warped mask on the mask grid: no product reads it, so it is
     /// warped only when asked for (it cost a fifth of a 660² calibration
@@ -138,7 +138,6 @@ impl CassiOperator {
             landing: Some(Box::new(Landing {
                 masks: LandingMasks::new(nominal_mask, &pose, offsets, rows, det_cols),
                 stored: OnceLock::new(),
-                nominal: nominal_mask.clone(),
                 pose,
                 posed: OnceLock::new(),
             })),
@@ -164,7 +163,9 @@ impl CassiOperator {
     pub fn mask(&self) -> &Mask {
         match &self.landing {
             None => &self.mask,
-            Some(l) => l.posed.get_or_init(|| warp_mask(&l.nominal, &l.pose)),
+            Some(l) => l
+                .posed
+                .get_or_init(|| warp_mask(l.masks.nominal(), &l.pose)),
         }
     }
     pub fn dispersion(&self) -> &Dispersion {

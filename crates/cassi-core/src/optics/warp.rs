@@ -158,6 +158,11 @@ impl LandingMasks {
         }
     }
 
+    /// The mask before the pose.
+    pub(crate) fn nominal(&self) -> &Mask {
+        &self.mask
+    }
+
     /// The first detector column band `k`'s row is filled on.
     pub(crate) fn first_col(&self, k: usize) -> usize {
         (fast_floor(self.offsets[k].0).max(0) as usize).min(self.cols)
