@@ -25,8 +25,8 @@ mod texture;
 mod uncertainty;
 
 pub use uncertainty::{
-    SHARP_BLUR_PX, TRADE_OFF_CORRELATION, TradeOff, WIDE_BLUR_PX, interval_95_floor,
-    model_error_floor,
+    A1_SHORT_TILT_DEG, SHARP_BLUR_PX, TRADE_OFF_CORRELATION, TradeOff, WIDE_BLUR_PX,
+    interval_95_floor, model_error_floor,
 };
 
 use serde::{Deserialize, Serialize};
