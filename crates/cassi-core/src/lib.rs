@@ -20,6 +20,7 @@ pub mod optics;
 pub mod params;
 pub mod recon;
 pub mod rng;
+mod scratch;
 mod simd;
 pub mod solvers;
 pub mod synth;

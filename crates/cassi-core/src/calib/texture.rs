@@ -45,11 +45,11 @@ pub enum SceneEstimate<'s> {
     Given { scene: &'s [f32], smooth_px: f32 },
 }
 
-/// A template's buffers: reused by every candidate on the thread (fresh
-/// 2 MB buffers per 660×714 candidate cost their page faults each time).
+/// A template's buffers, reused by every candidate on the thread
+/// ([`crate::scratch`]).
 #[derive(Default)]
 struct TemplateScratch {
-    /// A_ψ x̃ (then the measurement's frame of it).
+    /// A_ψ x̃ on the operator's detector.
     prediction: Vec<f32>,
     /// The cropped or zero-padded frame when the detector is not the
     /// measurement's width.
@@ -151,24 +151,30 @@ impl<'a> TextureFit<'a> {
         let op = ModelOperator::new(p.nominal_mask(), p.bands(), psi, p.model())?;
         let (rows, det) = op.measurement_shape();
         let cols = p.measurement.cols();
-        let mut s = TEMPLATE_SCRATCH.with_borrow_mut(std::mem::take);
-        s.prediction.resize(op.range_len(), 0.0);
-        op.apply(&self.scene, &mut s.prediction);
-        if det != cols {
-            let keep = det.min(cols);
-            s.frame.clear();
-            s.frame.resize(rows * cols, 0.0);
-            for r in 0..rows {
-                s.frame[r * cols..r * cols + keep]
-                    .copy_from_slice(&s.prediction[r * det..r * det + keep]);
-            }
-            std::mem::swap(&mut s.frame, &mut s.prediction);
-        }
-        s.high_passed.resize(rows * cols, 0.0);
-        high_pass_into(&s.prediction[..rows * cols], rows, cols, &mut s.high_passed);
-        let out = f(&s.high_passed);
-        TEMPLATE_SCRATCH.with_borrow_mut(|t| *t = s);
-        Ok(out)
+        Ok(crate::scratch::with_taken(&TEMPLATE_SCRATCH, |s| {
+            let TemplateScratch {
+                prediction,
+                frame,
+                high_passed,
+            } = s;
+            prediction.resize(op.range_len(), 0.0);
+            op.apply(&self.scene, prediction);
+            let framed: &[f32] = if det == cols {
+                prediction
+            } else {
+                let keep = det.min(cols);
+                frame.clear();
+                frame.resize(rows * cols, 0.0);
+                for r in 0..rows {
+                    frame[r * cols..r * cols + keep]
+                        .copy_from_slice(&prediction[r * det..r * det + keep]);
+                }
+                frame
+            };
+            high_passed.resize(rows * cols, 0.0);
+            high_pass_into(framed, rows, cols, high_passed);
+            f(high_passed)
+        }))
     }
 
     /// 1 − NCC(h(y), h(A_ψ x̃)); +∞ for an invalid ψ.

@@ -201,21 +201,18 @@ pub struct Blurred<A> {
 
 thread_local! {
     /// The products' range-sized buffers (A x or B y, the row pass, the
-    /// derivative's second term), shared by every [`Blurred`] on the thread:
-    /// a calibration builds one operator per candidate, and three fresh
-    /// 1.9 MB buffers per 660×714 candidate cost their page faults again
-    /// each time.
+    /// derivative's second term), shared by every [`Blurred`] on the thread
+    /// ([`crate::scratch`]).
     static SCRATCH: RefCell<[Vec<f32>; 3]> = RefCell::default();
 }
 
 /// Runs `f` with the thread's scratch, the first `n` buffers `len` long
-/// (contents unspecified). A nested call gets fresh buffers.
+/// (contents unspecified).
 fn with_scratch<R>(n: usize, len: usize, f: impl FnOnce(&mut [Vec<f32>; 3]) -> R) -> R {
-    let mut bufs = SCRATCH.with_borrow_mut(std::mem::take);
-    bufs[..n].iter_mut().for_each(|b| b.resize(len, 0.0));
-    let out = f(&mut bufs);
-    SCRATCH.with_borrow_mut(|s| *s = bufs);
-    out
+    crate::scratch::with_taken(&SCRATCH, |bufs| {
+        bufs[..n].iter_mut().for_each(|b| b.resize(len, 0.0));
+        f(bufs)
+    })
 }
 
 impl<A: NonNegativeOperator> Blurred<A> {

@@ -512,17 +512,7 @@ mod tests {
     use super::*;
     use crate::linop::adjoint_mismatch;
     use crate::params::DispersionParams;
-    use crate::rng::Rng;
-
-    fn random_mask(rows: usize, cols: usize, seed: u64) -> Mask {
-        let mut rng = Rng::new(seed);
-        Frame::from_vec(
-            rows,
-            cols,
-            (0..rows * cols).map(|_| rng.uniform() as f32).collect(),
-        )
-        .unwrap()
-    }
+    use crate::synth::uniform_grey_mask;
 
     #[test]
     fn adjoint_identity_holds_for_both_models_and_many_geometries() {
@@ -545,7 +535,7 @@ mod tests {
                     model,
                 )
                 .unwrap();
-                let op = CassiOperator::new(random_mask(rows, cols, 5), d).unwrap();
+                let op = CassiOperator::new(uniform_grey_mask(rows, cols, 5), d).unwrap();
                 let e = adjoint_mismatch(&op, 9);
                 assert!(
                     e < 1e-5,
@@ -555,11 +545,26 @@ mod tests {
         }
     }
 
+    /// diag(A Aᵀ)_jj = ‖Aᵀ e_j‖² for every detector pixel j (`what` names
+    /// the case).
+    fn assert_diag_is_column_norms(op: &CassiOperator, what: &dyn std::fmt::Debug) {
+        let diag = op.diag_aat();
+        let mut unit = vec![0.0f32; op.range_len()];
+        let mut col = vec![0.0f32; op.domain_len()];
+        for j in 0..op.range_len() {
+            unit.fill(0.0);
+            unit[j] = 1.0;
+            op.adjoint(&unit, &mut col);
+            let want: f32 = col.iter().map(|v| v * v).sum();
+            assert!((diag.as_slice()[j] - want).abs() < 1e-5, "{what:?} j={j}");
+        }
+    }
+
     /// The dispersed-mask model: exact adjoint and diag(A Aᵀ) for poses and
     /// dispersions with fractional offsets.
     #[test]
     fn dispersed_mask_adjoint_and_diagonal_hold() {
-        let nominal = random_mask(9, 11, 4);
+        let nominal = uniform_grey_mask(9, 11, 4);
         for (dx, dy, theta, a1, alpha) in [
             (0.3, -0.6, 0.4, 2.07, 0.8),
             (-1.5, 0.0, 0.0, 1.6, -3.0),
@@ -577,16 +582,7 @@ mod tests {
                 .unwrap();
             let e = adjoint_mismatch(&op, 3);
             assert!(e < 1e-5, "{m:?}: adjoint mismatch {e}");
-            let diag = op.diag_aat();
-            let mut unit = vec![0.0f32; op.range_len()];
-            let mut col = vec![0.0f32; op.domain_len()];
-            for j in 0..op.range_len() {
-                unit.fill(0.0);
-                unit[j] = 1.0;
-                op.adjoint(&unit, &mut col);
-                let want: f32 = col.iter().map(|v| v * v).sum();
-                assert!((diag.as_slice()[j] - want).abs() < 1e-5, "{m:?} j={j}");
-            }
+            assert_diag_is_column_norms(&op, &m);
         }
     }
 
@@ -595,7 +591,7 @@ mod tests {
     /// the same measurement, bit for bit.
     #[test]
     fn dispersed_mask_forward_is_the_same_with_stored_band_masks() {
-        let nominal = random_mask(12, 15, 8);
+        let nominal = uniform_grey_mask(12, 15, 8);
         let m = Mismatch {
             dx: -0.4,
             dy: 0.7,
@@ -629,7 +625,7 @@ mod tests {
     /// dispersion lands whole on the next pixel, not spread over three.
     #[test]
     fn dispersed_mask_samples_the_mask_once_where_the_band_lands() {
-        let nominal = random_mask(8, 10, 6);
+        let nominal = uniform_grey_mask(8, 10, 6);
         let whole = Mismatch {
             dx: 1.0,
             dy: -2.0,
@@ -727,18 +723,8 @@ mod tests {
                 model,
             )
             .unwrap();
-            let op = CassiOperator::new(random_mask(5, 6, 2), d).unwrap();
-            let diag = op.diag_aat();
-            // (A Aᵀ)_jj = ‖Aᵀ e_j‖²
-            let mut e = vec![0.0f32; op.range_len()];
-            let mut col = vec![0.0f32; op.domain_len()];
-            for j in 0..op.range_len() {
-                e.fill(0.0);
-                e[j] = 1.0;
-                op.adjoint(&e, &mut col);
-                let want: f32 = col.iter().map(|v| v * v).sum();
-                assert!((diag.as_slice()[j] - want).abs() < 1e-5, "{model:?} j={j}");
-            }
+            let op = CassiOperator::new(uniform_grey_mask(5, 6, 2), d).unwrap();
+            assert_diag_is_column_norms(&op, &model);
         }
     }
 

@@ -421,7 +421,6 @@ pub fn warp_mask_area(mask: &Mask, pose: &MaskPose, samples: usize) -> Mask {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::rng::Rng;
 
     /// Each band's landing mask is the warp of the mask moved by the pose
     /// and that band's offset, on every column its light can reach — run by
@@ -429,14 +428,8 @@ mod tests {
     /// offsets that leave the mask.
     #[test]
     fn landing_masks_are_the_mask_warped_to_each_band() {
-        let mut rng = Rng::new(11);
         let (rows, cols) = (23, 31);
-        let mask = Frame::from_vec(
-            rows,
-            cols,
-            (0..rows * cols).map(|_| rng.uniform() as f32).collect(),
-        )
-        .unwrap();
+        let mask = crate::synth::uniform_grey_mask(rows, cols, 11);
         for (dx, dy, theta) in [
             (0.0, 0.0, 0.0),
             (0.3, -1.7, 0.4),
@@ -601,14 +594,8 @@ mod tests {
 
     #[test]
     fn derivatives_match_central_differences() {
-        let mut rng = Rng::new(11);
         let (rows, cols) = (24, 30);
-        let m = Frame::from_vec(
-            rows,
-            cols,
-            (0..rows * cols).map(|_| rng.uniform() as f32).collect(),
-        )
-        .unwrap();
+        let m = crate::synth::uniform_grey_mask(rows, cols, 11);
         let pose = MaskPose {
             dx: 0.37,
             dy: -1.21,

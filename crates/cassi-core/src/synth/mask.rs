@@ -45,6 +45,15 @@ pub fn random_binary_mask(rows: usize, cols: usize, open_fraction: f64, seed: u6
     Mask::from_vec(rows, cols, data)
 }
 
+/// A grey mask for operator tests: values uniform in [0, 1), row-major from
+/// `Rng::new(seed)`.
+#[cfg(test)]
+pub(crate) fn uniform_grey_mask(rows: usize, cols: usize, seed: u64) -> Mask {
+    let mut rng = Rng::new(seed);
+    let data = (0..rows * cols).map(|_| rng.uniform() as f32).collect();
+    Mask::from_vec(rows, cols, data).expect("rows × cols values")
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -13,4 +13,6 @@ mod scene;
 pub mod spectra;
 
 pub use mask::random_binary_mask;
+#[cfg(test)]
+pub(crate) use mask::uniform_grey_mask;
 pub use scene::{SceneSpec, synthetic_scene};
