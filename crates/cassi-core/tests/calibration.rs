@@ -174,9 +174,21 @@ fn default_preset_recovers_a_known_mask_misalignment() {
         }
         assert!(cal.score < cal.nominal_score / 2.0);
         // the texture fit replaces the subpixel model's proxy refinements
-        // (tilt, joint); the rounded model keeps its joint refinement and
-        // does not fit the blur
-        assert_eq!(cal.stages.len(), 5);
+        // (tilt, joint), and the dispersed-mask model ends in the scene fit;
+        // the rounded model keeps its joint refinement and does not fit the
+        // blur
+        let last = cal.stages.last().map(|s| s.name.as_str()).unwrap_or("");
+        match model {
+            DispersionModel::DispersedMask => {
+                assert_eq!(cal.stages.len(), 6);
+                assert!(last.starts_with("scene fit"), "{last}");
+            }
+            DispersionModel::Subpixel => {
+                assert_eq!(cal.stages.len(), 5);
+                assert!(last.starts_with("texture fit"), "{last}");
+            }
+            DispersionModel::Rounded => assert_eq!(cal.stages.len(), 5),
+        }
         let stated = |p: &Parameter| match model {
             DispersionModel::Subpixel | DispersionModel::DispersedMask => true,
             DispersionModel::Rounded => {

@@ -9,6 +9,7 @@
 //! `Objective` (`objective.rs`): a score over a subset of ψ's parameters.
 
 pub(crate) mod adam;
+mod coarse_scene;
 mod default;
 pub(crate) mod gradient;
 mod grid;
@@ -17,6 +18,7 @@ pub(crate) mod nelder_mead;
 mod objective;
 mod paper;
 mod rounded_dispersion;
+mod scene_fit;
 pub(crate) mod score;
 pub(crate) mod smooth;
 mod stages;
@@ -25,7 +27,7 @@ mod texture;
 mod uncertainty;
 
 pub use uncertainty::{
-    A1_SHORT_TILT_DEG, SHARP_BLUR_PX, TRADE_OFF_CORRELATION, TradeOff, WIDE_BLUR_PX,
+    A1_SHORT_TILT_DEG, Fit, SHARP_BLUR_PX, TRADE_OFF_CORRELATION, TradeOff, WIDE_BLUR_PX,
     interval_95_floor, model_error_floor,
 };
 
@@ -36,6 +38,7 @@ pub use default::{DefaultPreset, calibrate_default, texture_fit};
 pub use gradient::Parameter;
 pub use nelder_mead::nelder_mead;
 pub use paper::{GradientStage, PaperPreset, calibrate_paper};
+pub use scene_fit::SceneFitSettings;
 pub use score::{CalibrationProblem, ProxyParams};
 pub use texture::{SCENE_SMOOTH_PX, SceneEstimate};
 
@@ -66,11 +69,12 @@ pub struct Calibration {
     /// Score of the nominal parameters with the final proxy.
     pub nominal_score: f64,
     /// Standard error per parameter (pixels / degrees / px-per-band). The
-    /// `default` preset: the block sandwich of its texture fit (spatially
-    /// correlated residuals counted per image block, not per pixel) with a
-    /// model-error floor in quadrature, set on the physical benchmark's
-    /// tuning half for 68 % coverage and checked on the held-out half
-    /// (`bench/results/calibrate_physical_held_out.json`).
+    /// `default` preset: the block sandwich of its last fit — the scene fit
+    /// for the dispersed-mask model, the texture fit for the subpixel one
+    /// (spatially correlated residuals counted per image block, not per
+    /// pixel) — with a model-error floor in quadrature, set on the physical
+    /// benchmark's tuning half for 68 % coverage and checked on the
+    /// held-out half (`bench/results/calibrate_physical_held_out.json`).
     /// The `paper` preset: the proxy score's curvature, treating it as a
     /// mean squared residual of N independent pixels (it is not; it does
     /// not cover). `None` where not estimated.

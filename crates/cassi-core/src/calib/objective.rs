@@ -16,7 +16,7 @@ impl Evaluations {
         self.0.get()
     }
 
-    fn add_one(&self) {
+    pub(crate) fn add_one(&self) {
         self.0.set(self.0.get() + 1);
     }
 }

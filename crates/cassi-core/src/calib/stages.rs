@@ -66,6 +66,13 @@ impl Stage {
         Objective::differentiable(score_and_gradient, base, free, &self.evaluations)
     }
 
+    /// Counts `n` evaluations a search made outside an [`Objective`].
+    pub(crate) fn count(&self, n: usize) {
+        for _ in 0..n {
+            self.evaluations.add_one();
+        }
+    }
+
     /// `score` at ψ whole (one evaluation), for searches that move several
     /// parameters together.
     pub(crate) fn score(&self, score: &dyn Fn(&Mismatch) -> f64, psi: &Mismatch) -> f64 {

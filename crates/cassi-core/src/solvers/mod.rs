@@ -8,12 +8,14 @@
 //! (iteration cap, tolerance, observer) are explicit in [`StopReason`].
 
 pub mod admm;
+pub mod cgls;
 mod common;
 pub mod gap;
 pub mod observer;
 pub mod schedule;
 
 pub use admm::{Admm, AdmmParams};
+pub use cgls::{CglsOutcome, CglsParams, CglsScratch, cgls};
 pub use gap::{Gap, GapParams};
 pub use observer::{Control, History, IterationInfo, Observer, Silent, TimeBudget};
 pub use schedule::Strength;

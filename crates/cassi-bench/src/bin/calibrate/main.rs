@@ -49,9 +49,11 @@
 //! Run: `cargo run --release -p cassi-bench --bin calibrate --
 //! [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] [--no-aligned]
 //! [--no-inverse-crime] [--model rounded|subpixel|dispersed-mask] [--preset NAME]
-//! [--no-texture] [--no-recon] [--no-limits] [--out PATH] [--verbose]`
+//! [--no-texture] [--no-scene-fit] [--no-recon] [--no-limits] [--out PATH] [--verbose]`
 //! (`--no-texture`: the default preset without its texture fit, as it was
-//! before issue #14 — the "before" row); without flags it
+//! before issue #14 — the "before" row; `--no-scene-fit`: without its
+//! scene fit, ending in the texture fit as the records `*_texture.json`
+//! were made); without flags it
 //! reproduces the README's held-out table (every scene of the held-out
 //! half, 2 random cases and 3 aligned-blur cases each, the inverse-crime
 //! row, GAP-TV recovery and the limits). Writes
@@ -65,7 +67,7 @@ use std::time::Instant;
 use anyhow::{Context, Result, anyhow, bail, ensure};
 use cassi_bench::{median, physical_random_mismatch, psi_of, shared_data};
 use cassi_core::calib::{
-    CalibrationProblem, DefaultPreset, PRESET_NAMES, Preset, calibrate, model_error_floor,
+    CalibrationProblem, DefaultPreset, Fit, PRESET_NAMES, Preset, calibrate, model_error_floor,
 };
 use cassi_core::metrics::psnr;
 use cassi_core::optics::{
@@ -162,7 +164,7 @@ struct Args {
 
 const USAGE: &str = "calibrate [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] \
                      [--no-aligned] [--no-inverse-crime] [--no-wide-blur] [--model rounded|subpixel|dispersed-mask] \
-                     [--preset NAME] [--no-texture] [--no-recon] [--no-limits] [--out PATH] \
+                     [--preset NAME] [--no-texture] [--no-scene-fit] [--no-recon] [--no-limits] [--out PATH] \
                      [--verbose]";
 
 fn parse_args(argv: &[String]) -> Result<Args> {
@@ -175,6 +177,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
     let mut model = DispersionModel::DispersedMask;
     let mut preset_name = "default".to_string();
     let mut texture = true;
+    let mut scene_fit = true;
     let mut out = None;
     let mut it = argv.iter();
     while let Some(flag) = it.next() {
@@ -218,6 +221,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
             }
             "--preset" => preset_name = value()?,
             "--no-texture" => texture = false,
+            "--no-scene-fit" => scene_fit = false,
             "--recon" => recon = true,
             "--no-recon" => recon = false,
             "--limits" => limits = true,
@@ -256,6 +260,14 @@ fn parse_args(argv: &[String]) -> Result<Args> {
             Preset::Paper(_) => bail!("--no-texture applies to the default preset"),
         }
         preset_name += " (no texture fit)";
+    }
+    // the default preset as it was before the scene fit: the "texture" row
+    if !scene_fit {
+        match &mut preset {
+            Preset::Default(d) => d.scene_fit = None,
+            Preset::Paper(_) => bail!("--no-scene-fit applies to the default preset"),
+        }
+        preset_name += " (no scene fit)";
     }
     let out = out.unwrap_or_else(|| {
         Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -518,7 +530,9 @@ fn run_case(args: &Args, case: &Case, name: &str, scene: &Cube, mask: &Mask) -> 
         // the part of each standard error that is the model-error floor
         // (bench/uncertainty_floors.py re-derives the floors from these)
         "uncertainty_floor": per_parameter(|p| {
-            json!(texture_preset(args).map(|_| model_error_floor(args.model, p, est.blur_sigma_px)))
+            json!(texture_preset(args).map(|preset| {
+                model_error_floor(args.model, final_fit(preset, args.model), p, est.blur_sigma_px)
+            }))
         }),
         "interval_95": per_parameter(|p| json!(cal.interval_95.get(p))),
         // the pairs the calibration said trade off (error correlation ≥ 0.8)
@@ -577,6 +591,16 @@ fn run_case(args: &Args, case: &Case, name: &str, scene: &Cube, mask: &Mask) -> 
         record["limits"] = lim;
     }
     Ok(record)
+}
+
+/// The fit whose uncertainty a texture-finished run states: the scene fit
+/// where the preset runs it (the dispersed-mask model), else the texture fit.
+fn final_fit(preset: &DefaultPreset, model: DispersionModel) -> Fit {
+    if preset.scene_fit.is_some() && model.samples_mask_per_band() {
+        Fit::Scene
+    } else {
+        Fit::Texture
+    }
 }
 
 /// The default preset when the run ends in its texture fit (subpixel

@@ -1,0 +1,249 @@
+//! A coarse scene: the cube as a smooth function of few coefficients,
+//! bilinear in space between nodes every `cell_px` pixels and piecewise
+//! linear in wavelength between `spectral_nodes` evenly spaced bands. The
+//! scene fit (`scene_fit.rs`) solves for these coefficients for every
+//! candidate instrument; the basis is smooth on the scale of the mask's
+//! code, so it cannot imitate a misplaced code, only the scene's slow
+//! variation and spectrum.
+//!
+//! As a [`LinearOperator`] U: coefficients (spectral nodes × node rows ×
+//! node cols) → cube (bands × rows × cols); its adjoint is tested.
+
+use rayon::prelude::*;
+
+use crate::linop::LinearOperator;
+
+/// The basis of one cube shape.
+#[derive(Debug, Clone)]
+pub(crate) struct CoarseScene {
+    bands: usize,
+    rows: usize,
+    cols: usize,
+    spectral_nodes: usize,
+    node_rows: usize,
+    node_cols: usize,
+    /// Per pixel row / col: the node before it and the weight of the one after.
+    row_taps: Vec<(usize, f32)>,
+    /// Node spacing, pixels, and the weight of the next node at each
+    /// offset 0 … cell − 1 within a cell.
+    cell: usize,
+    fractions: Vec<f32>,
+    /// Per band: its two spectral nodes and their weights.
+    band_taps: Vec<[(usize, f32); 2]>,
+}
+
+thread_local! {
+    /// Per-band coarse images (bands × node rows × node cols).
+    static COARSE_BANDS: std::cell::RefCell<Vec<f32>> = std::cell::RefCell::default();
+}
+
+/// Nodes every `cell` pixels over `n` pixels: the node before each pixel
+/// and the weight of the node after it.
+fn taps(n: usize, cell: usize) -> (usize, Vec<(usize, f32)>) {
+    let nodes = (n.saturating_sub(1)).div_ceil(cell) + 1;
+    let t = (0..n)
+        .map(|i| (i / cell, (i % cell) as f32 / cell as f32))
+        .collect();
+    (nodes, t)
+}
+
+impl CoarseScene {
+    /// The basis for `bands × rows × cols` cubes; `spectral_nodes` is
+    /// clamped to 2 … bands (bands: every band free).
+    pub(crate) fn new(
+        bands: usize,
+        rows: usize,
+        cols: usize,
+        cell_px: usize,
+        spectral_nodes: usize,
+    ) -> Self {
+        let cell = cell_px.max(1);
+        let (node_rows, row_taps) = taps(rows, cell);
+        let (node_cols, _) = taps(cols, cell);
+        let fractions = (0..cell).map(|j| j as f32 / cell as f32).collect();
+        let spectral_nodes = spectral_nodes.clamp(2.min(bands), bands);
+        let band_taps = (0..bands)
+            .map(|k| {
+                if spectral_nodes == bands || bands < 2 {
+                    return [(k, 1.0), (k, 0.0)];
+                }
+                let t = k as f64 * (spectral_nodes - 1) as f64 / (bands - 1) as f64;
+                let j = (t.floor() as usize).min(spectral_nodes - 2);
+                let f = (t - j as f64) as f32;
+                [(j, 1.0 - f), (j + 1, f)]
+            })
+            .collect();
+        Self {
+            bands,
+            rows,
+            cols,
+            spectral_nodes,
+            node_rows,
+            node_cols,
+            row_taps,
+            cell,
+            fractions,
+            band_taps,
+        }
+    }
+
+    fn plane(&self) -> usize {
+        self.node_rows * self.node_cols
+    }
+
+    /// One band's coarse image (node rows × node cols) → its pixels.
+    fn up_band(&self, coarse: &[f32], out: &mut [f32], line: &mut Vec<f32>) {
+        let nc = self.node_cols;
+        line.resize(nc, 0.0);
+        for (i, row) in out.chunks_mut(self.cols).enumerate() {
+            let (q, f) = self.row_taps[i];
+            let a = &coarse[q * nc..(q + 1) * nc];
+            if f == 0.0 {
+                line.copy_from_slice(a);
+            } else {
+                let b = &coarse[(q + 1) * nc..(q + 2) * nc];
+                line.iter_mut()
+                    .zip(a.iter().zip(b))
+                    .for_each(|(l, (&a, &b))| *l = a + f * (b - a));
+            }
+            // cell by cell: a + f·(b − a) over the cell's pixels
+            for (c, chunk) in row.chunks_mut(self.cell).enumerate() {
+                let a = line[c];
+                let d = if c + 1 < nc { line[c + 1] - a } else { 0.0 };
+                chunk
+                    .iter_mut()
+                    .zip(&self.fractions)
+                    .for_each(|(o, &f)| *o = a + f * d);
+            }
+        }
+    }
+
+    /// The adjoint of [`Self::up_band`]: a band's pixels → its coarse image.
+    fn down_band(&self, band: &[f32], coarse: &mut [f32], line: &mut Vec<f32>) {
+        let nc = self.node_cols;
+        line.resize(nc, 0.0);
+        coarse.fill(0.0);
+        for (i, row) in band.chunks(self.cols).enumerate() {
+            line.fill(0.0);
+            for (c, chunk) in row.chunks(self.cell).enumerate() {
+                let (mut sum, mut next) = (0.0f32, 0.0f32);
+                for (&v, &f) in chunk.iter().zip(&self.fractions) {
+                    sum += v;
+                    next += f * v;
+                }
+                line[c] += sum - next;
+                if c + 1 < nc {
+                    line[c + 1] += next;
+                }
+            }
+            let (q, f) = self.row_taps[i];
+            coarse[q * nc..(q + 1) * nc]
+                .iter_mut()
+                .zip(line.iter())
+                .for_each(|(c, &l)| *c += l - f * l);
+            if f != 0.0 {
+                coarse[(q + 1) * nc..(q + 2) * nc]
+                    .iter_mut()
+                    .zip(line.iter())
+                    .for_each(|(c, &l)| *c += f * l);
+            }
+        }
+    }
+}
+
+impl LinearOperator for CoarseScene {
+    fn domain_len(&self) -> usize {
+        self.spectral_nodes * self.plane()
+    }
+
+    fn range_len(&self) -> usize {
+        self.bands * self.rows * self.cols
+    }
+
+    fn apply(&self, x: &[f32], y: &mut [f32]) {
+        let plane = self.plane();
+        y.par_chunks_mut(self.rows * self.cols)
+            .zip(self.band_taps.par_iter())
+            .for_each_init(
+                || (vec![0.0f32; plane], Vec::new()),
+                |(coarse, line), (band, taps)| {
+                    coarse.fill(0.0);
+                    for &(j, w) in taps.iter().filter(|t| t.1 != 0.0) {
+                        coarse
+                            .iter_mut()
+                            .zip(&x[j * plane..(j + 1) * plane])
+                            .for_each(|(c, &v)| *c += w * v);
+                    }
+                    self.up_band(coarse, band, line);
+                },
+            );
+    }
+
+    fn adjoint(&self, y: &[f32], x: &mut [f32]) {
+        let plane = self.plane();
+        crate::scratch::with_taken(&COARSE_BANDS, |coarse| {
+            coarse.resize(self.bands * plane, 0.0);
+            coarse
+                .par_chunks_mut(plane)
+                .zip(y.par_chunks(self.rows * self.cols))
+                .for_each_init(Vec::new, |line, (c, band)| self.down_band(band, c, line));
+            x.par_chunks_mut(plane).enumerate().for_each(|(j, out)| {
+                out.fill(0.0);
+                for (k, taps) in self.band_taps.iter().enumerate() {
+                    for &(node, w) in taps {
+                        if node == j && w != 0.0 {
+                            out.iter_mut()
+                                .zip(&coarse[k * plane..(k + 1) * plane])
+                                .for_each(|(o, &v)| *o += w * v);
+                        }
+                    }
+                }
+            });
+        });
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::linop::adjoint_mismatch;
+
+    /// Exact adjoint for cells that do and do not divide the size, with
+    /// spectral nodes and with every band free.
+    #[test]
+    fn the_adjoint_is_exact() {
+        for (bands, rows, cols, cell, nodes) in
+            [(7, 20, 23, 4, 3), (5, 16, 16, 8, 5), (28, 17, 9, 3, 10)]
+        {
+            let u = CoarseScene::new(bands, rows, cols, cell, nodes);
+            let e = adjoint_mismatch(&u, 7);
+            assert!(e < 1e-5, "{bands}×{rows}×{cols} cell {cell}: {e}");
+        }
+    }
+
+    /// Constant coefficients make a constant cube (the weights are a
+    /// partition of unity in space and wavelength); a node's coefficient
+    /// lands on its own pixel and band with weight 1 and fades linearly to
+    /// the next node.
+    #[test]
+    fn interpolates_between_nodes() {
+        let (bands, rows, cols) = (9, 17, 13);
+        let u = CoarseScene::new(bands, rows, cols, 4, 5);
+        let mut x = vec![0.7f32; u.domain_len()];
+        let mut cube = vec![0.0f32; u.range_len()];
+        u.apply(&x, &mut cube);
+        assert!(cube.iter().all(|&v| (v - 0.7).abs() < 1e-6));
+        // node (spectral 1, row 1, col 2) = band 2, pixel (4, 8)
+        x.fill(0.0);
+        let plane = u.plane();
+        x[plane + u.node_cols + 2] = 1.0;
+        u.apply(&x, &mut cube);
+        let at = |k: usize, r: usize, c: usize| cube[(k * rows + r) * cols + c];
+        assert!((at(2, 4, 8) - 1.0).abs() < 1e-6);
+        assert!((at(2, 4, 10) - 0.5).abs() < 1e-6);
+        assert!((at(3, 4, 8) - 0.5).abs() < 1e-6);
+        assert!((at(2, 6, 6) - 0.25).abs() < 1e-6);
+        assert_eq!(at(2, 4, 12), 0.0);
+        assert_eq!(at(5, 4, 8), 0.0);
+    }
+}
