@@ -211,6 +211,7 @@ pub fn calibrate_default(
             standard,
             interval_95: Uncertainty::default(),
             trade_offs: Vec::new(),
+            fit: None,
             evaluations,
         }
     };
@@ -230,6 +231,7 @@ pub fn calibrate_default(
         uncertainty: u.standard,
         interval_95: u.interval_95,
         trade_offs: u.trade_offs,
+        uncertainty_fit: u.fit,
         stages: run.into_reports(),
         seconds,
         evaluations,

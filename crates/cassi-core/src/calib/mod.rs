@@ -45,6 +45,19 @@ pub use texture::{SCENE_SMOOTH_PX, SceneEstimate};
 use crate::optics::DispersionModel;
 use crate::params::Mismatch;
 
+/// `dst` ← `src` (rows of `src_cols`) on rows of `dst_cols`: each row's
+/// first min(src_cols, dst_cols) values, zeros after — the crop of a
+/// model's detector to the measurement's width, or the zero pad back.
+pub(crate) fn reframe(src: &[f32], src_cols: usize, dst: &mut Vec<f32>, dst_cols: usize) {
+    let rows = src.len() / src_cols.max(1);
+    dst.clear();
+    dst.resize(rows * dst_cols, 0.0);
+    let keep = src_cols.min(dst_cols);
+    for (d, s) in dst.chunks_mut(dst_cols).zip(src.chunks(src_cols)) {
+        d[..keep].copy_from_slice(&s[..keep]);
+    }
+}
+
 /// What one stage did.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct StageReport {
@@ -93,6 +106,11 @@ pub struct Calibration {
     /// benchmark's tuning half (dy with α, dx with a1, θ with α).
     #[serde(default)]
     pub trade_offs: Vec<TradeOff>,
+    /// The fit the standard errors and 95 % intervals come from (each has
+    /// its own floors, set and checked on the benchmark); `None` for the
+    /// curvature-based errors and in records written before it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub uncertainty_fit: Option<Fit>,
     pub stages: Vec<StageReport>,
     pub seconds: f64,
     pub evaluations: usize,

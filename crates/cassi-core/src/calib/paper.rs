@@ -176,6 +176,7 @@ pub fn calibrate_paper(
         uncertainty,
         interval_95: Uncertainty::default(),
         trade_offs: Vec::new(),
+        uncertainty_fit: None,
         stages: run.into_reports(),
         seconds,
         evaluations,

@@ -34,8 +34,8 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::CalibrationProblem;
 use super::coarse_scene::CoarseScene;
+use super::{CalibrationProblem, reframe};
 use crate::error::Result;
 use crate::linop::LinearOperator;
 use crate::optics::ModelOperator;
@@ -121,13 +121,7 @@ impl SceneOperator<'_> {
         let cols = self.fit.cols();
         s.detector.resize(rows * det, 0.0);
         self.op.apply(cube, &mut s.detector);
-        s.frame.clear();
-        s.frame.resize(rows * cols, 0.0);
-        let keep = det.min(cols);
-        for r in 0..rows {
-            s.frame[r * cols..r * cols + keep]
-                .copy_from_slice(&s.detector[r * det..r * det + keep]);
-        }
+        reframe(&s.detector, det, &mut s.frame, cols);
         self.fit.high_pass(&s.frame, out, &mut s.tmp);
     }
 }
@@ -157,13 +151,7 @@ impl LinearOperator for SceneOperator<'_> {
             let cols = self.fit.cols();
             s.frame.resize(rows * cols, 0.0);
             self.fit.high_pass(r, &mut s.frame, &mut s.tmp);
-            s.detector.clear();
-            s.detector.resize(rows * det, 0.0);
-            let keep = det.min(cols);
-            for row in 0..rows {
-                s.detector[row * det..row * det + keep]
-                    .copy_from_slice(&s.frame[row * cols..row * cols + keep]);
-            }
+            reframe(&s.frame, cols, &mut s.detector, det);
             s.cube.resize(self.fit.basis.range_len(), 0.0);
             self.op.adjoint(&s.detector, &mut s.cube);
             self.fit.basis.adjoint(&s.cube, z);

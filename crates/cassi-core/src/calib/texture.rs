@@ -162,13 +162,7 @@ impl<'a> TextureFit<'a> {
             let framed: &[f32] = if det == cols {
                 prediction
             } else {
-                let keep = det.min(cols);
-                frame.clear();
-                frame.resize(rows * cols, 0.0);
-                for r in 0..rows {
-                    frame[r * cols..r * cols + keep]
-                        .copy_from_slice(&prediction[r * det..r * det + keep]);
-                }
+                super::reframe(prediction, det, frame, cols);
                 frame
             };
             high_passed.resize(rows * cols, 0.0);

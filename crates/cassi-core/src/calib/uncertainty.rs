@@ -264,6 +264,8 @@ pub(crate) struct UncertaintyEstimate {
     /// Half-widths of the 95 % intervals, hypot(2s, [`interval_95_floor`]).
     pub interval_95: Uncertainty,
     pub trade_offs: Vec<TradeOff>,
+    /// The fit whose floors these are (`None`: curvature errors, no floors).
+    pub fit: Option<Fit>,
     /// Scores spent.
     pub evaluations: usize,
 }
@@ -310,6 +312,7 @@ pub(crate) fn texture_uncertainty(
             standard: none.clone(),
             interval_95: none,
             trade_offs: Vec::new(),
+            fit: Some(Fit::Texture),
             evaluations,
         }
     };
@@ -396,6 +399,7 @@ fn stated(
         standard: with_floor(1.0, model_error_floor),
         interval_95: with_floor(2.0, interval_95_floor),
         trade_offs,
+        fit: Some(fit),
         evaluations,
     }
 }
@@ -438,6 +442,7 @@ pub(crate) fn scene_fit_uncertainty(
             standard: none.clone(),
             interval_95: none,
             trade_offs: Vec::new(),
+            fit: Some(Fit::Scene),
             evaluations: 0,
         };
     };

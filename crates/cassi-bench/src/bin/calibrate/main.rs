@@ -67,7 +67,7 @@ use std::time::Instant;
 use anyhow::{Context, Result, anyhow, bail, ensure};
 use cassi_bench::{median, physical_random_mismatch, psi_of, shared_data};
 use cassi_core::calib::{
-    CalibrationProblem, DefaultPreset, Fit, PRESET_NAMES, Preset, calibrate, model_error_floor,
+    CalibrationProblem, DefaultPreset, PRESET_NAMES, Preset, calibrate, model_error_floor,
 };
 use cassi_core::metrics::psnr;
 use cassi_core::optics::{
@@ -530,9 +530,7 @@ fn run_case(args: &Args, case: &Case, name: &str, scene: &Cube, mask: &Mask) -> 
         // the part of each standard error that is the model-error floor
         // (bench/uncertainty_floors.py re-derives the floors from these)
         "uncertainty_floor": per_parameter(|p| {
-            json!(texture_preset(args).map(|preset| {
-                model_error_floor(args.model, final_fit(preset, args.model), p, est.blur_sigma_px)
-            }))
+            json!(cal.uncertainty_fit.map(|fit| model_error_floor(args.model, fit, p, est.blur_sigma_px)))
         }),
         "interval_95": per_parameter(|p| json!(cal.interval_95.get(p))),
         // the pairs the calibration said trade off (error correlation ≥ 0.8)
@@ -591,16 +589,6 @@ fn run_case(args: &Args, case: &Case, name: &str, scene: &Cube, mask: &Mask) -> 
         record["limits"] = lim;
     }
     Ok(record)
-}
-
-/// The fit whose uncertainty a texture-finished run states: the scene fit
-/// where the preset runs it (the dispersed-mask model), else the texture fit.
-fn final_fit(preset: &DefaultPreset, model: DispersionModel) -> Fit {
-    if preset.scene_fit.is_some() && model.samples_mask_per_band() {
-        Fit::Scene
-    } else {
-        Fit::Texture
-    }
 }
 
 /// The default preset when the run ends in its texture fit (subpixel
