@@ -623,7 +623,7 @@ fn scene_fit_stage(
         .collect();
     let found = fit_scene(&fit, start, &free)?;
     stage.count(found.evaluations);
-    let u = scene_fit_uncertainty(&fit, &found, &free);
+    let u = scene_fit_uncertainty(&fit, &found, &free, start);
     let best = Scored {
         parameters: found.best.psi,
         score: found.best.score,

@@ -631,5 +631,26 @@ mod tests {
         let at_truth = fit.solve(&t, Some(&found.best.z)).unwrap().score;
         assert!(found.best.score <= at_truth * (1.0 + 1e-4));
         assert_eq!(found.jacobian.len(), Parameter::ALL.len());
+
+        // the stated errors carry the disagreement with the texture fit: a
+        // texture answer 0.4 px of blur away widens σ's bar to at least
+        // 0.4/√2, and one that agrees leaves the sandwich and floor alone
+        use super::super::uncertainty::scene_fit_uncertainty;
+        let free = Parameter::ALL;
+        let agree = scene_fit_uncertainty(&fit, &found, &free, &found.best.psi);
+        let other = Mismatch {
+            blur_sigma_px: found.best.psi.blur_sigma_px + 0.4,
+            ..found.best.psi
+        };
+        let apart = scene_fit_uncertainty(&fit, &found, &free, &other);
+        let blur = |u: &super::super::uncertainty::UncertaintyEstimate| {
+            u.standard.get(Parameter::BlurSigmaPx).unwrap()
+        };
+        assert!(blur(&apart) >= 0.4 / 2f64.sqrt(), "{}", blur(&apart));
+        assert!(blur(&agree) < 0.2, "{}", blur(&agree));
+        assert_eq!(
+            agree.standard.get(Parameter::Dx),
+            apart.standard.get(Parameter::Dx)
+        );
     }
 }

@@ -544,6 +544,7 @@ fn run_case(args: &Args, case: &Case, name: &str, scene: &Cube, mask: &Mask) -> 
         "evaluations": cal.evaluations,
         "stages": cal.stages.iter().map(|s| json!({
             "name": s.name, "seconds": s.seconds, "evaluations": s.evaluations,
+            "parameters": per_parameter(|p| json!(p.get(&s.parameters))),
         })).collect::<Vec<_>>(),
     });
     if args.recon {
