@@ -34,7 +34,7 @@ print("held-out half; none where the fit's Hessian was not positive definite. Th
 print("ends in the scene fit (the coarse scene solved for each candidate) after the texture fit")
 print("(a smoothed scene estimate held); its errors are its block sandwich, the two fits'")
 print("disagreement (half its outer product) and a model-error floor. On simulated instruments the")
-print("two fits agree to within the 95 % half-width in 61–65 of 65 tuning cases per parameter;")
+print("two fits agree to within the 95 % half-width in 58–65 of 65 tuning cases per parameter;")
 print("here they disagree on the blur by 0.6–0.9 px (the texture fit's stage in each calibration")
 print("file: 1.3–1.6 px there, 0.4–0.7 px in the scene fit, which weighs the pixel-scale code), so")
 print("the blur's ± is wide: one Gaussian width does not describe this camera's blur at every scale,")

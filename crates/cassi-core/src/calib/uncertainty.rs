@@ -416,8 +416,8 @@ type FloorFn = fn(DispersionModel, Fit, Parameter, f64) -> f64;
 /// of one ψ from different objectives, whose difference has covariance
 /// 2V when their errors are alike and independent — agreement across
 /// fits, as a restart spread would be. On the benchmark's tuning half the
-/// two agree to within the scene fit's 95 % half-width in 61–65 of 65
-/// cases per parameter; on the five real snapshots they differ on the
+/// two agree to within the scene fit's 95 % half-width (without this
+/// term) in 58–65 of 65 cases per parameter; on the five real snapshots they differ on the
 /// blur by 0.58–0.94 px (texture 1.3–1.6, scene 0.43–0.67), which the
 /// stated errors then carry. The scene fit's [`model_error_floor`] is added
 /// in quadrature. No scores beyond the fit's own.
