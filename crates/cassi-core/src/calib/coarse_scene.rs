@@ -151,6 +151,40 @@ impl CoarseScene {
     }
 }
 
+impl CoarseScene {
+    /// The coefficients that put `cube`'s own values on every node: node
+    /// (j, q, p) takes the cube at pixel (q·cell, p·cell) — the last pixel
+    /// for a node past the edge — linearly between the two bands around
+    /// spectral position j·(bands − 1)/(nodes − 1). U of them is the
+    /// cube's coarse interpolant.
+    pub(crate) fn nodes_of(&self, cube: &[f32]) -> Vec<f32> {
+        let (bands, rows, cols) = (self.bands, self.rows, self.cols);
+        let plane = self.plane();
+        let mut z = vec![0.0f32; self.domain_len()];
+        for (j, out) in z.chunks_mut(plane).enumerate() {
+            let (k0, k1, f) = if self.spectral_nodes == bands || bands < 2 {
+                (j, j, 0.0)
+            } else {
+                let t = j as f64 * (bands - 1) as f64 / (self.spectral_nodes - 1) as f64;
+                let k0 = (t.floor() as usize).min(bands - 1);
+                (k0, (k0 + 1).min(bands - 1), (t - k0 as f64) as f32)
+            };
+            for (q, row) in out.chunks_mut(self.node_cols).enumerate() {
+                let r = (q * self.cell).min(rows - 1);
+                for (p, o) in row.iter_mut().enumerate() {
+                    let c = (p * self.cell).min(cols - 1);
+                    let (a, b) = (
+                        cube[(k0 * rows + r) * cols + c],
+                        cube[(k1 * rows + r) * cols + c],
+                    );
+                    *o = a + f * (b - a);
+                }
+            }
+        }
+        z
+    }
+}
+
 impl LinearOperator for CoarseScene {
     fn domain_len(&self) -> usize {
         self.spectral_nodes * self.plane()
@@ -245,5 +279,26 @@ mod tests {
         assert!((at(2, 6, 6) - 0.25).abs() < 1e-6);
         assert_eq!(at(2, 4, 12), 0.0);
         assert_eq!(at(5, 4, 8), 0.0);
+    }
+
+    /// A cube the basis holds is its own coarse interpolant.
+    #[test]
+    fn a_cube_in_the_basis_is_its_own_nodes_interpolant() {
+        let (bands, rows, cols) = (9, 17, 13);
+        let u = CoarseScene::new(bands, rows, cols, 4, 5);
+        let z: Vec<f32> = (0..u.domain_len())
+            .map(|i| ((i * 37) % 11) as f32 / 11.0)
+            .collect();
+        let mut cube = vec![0.0f32; u.range_len()];
+        u.apply(&z, &mut cube);
+        let mut again = vec![0.0f32; u.range_len()];
+        u.apply(&u.nodes_of(&cube), &mut again);
+        // (every node on a pixel here: 17 = 4·4 + 1 rows, 13 = 3·4 + 1 cols)
+        let worst = cube
+            .iter()
+            .zip(&again)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0f32, f32::max);
+        assert!(worst < 1e-5, "{worst}");
     }
 }

@@ -36,6 +36,7 @@ use serde::{Deserialize, Serialize};
 
 use super::coarse_scene::CoarseScene;
 use super::{CalibrationProblem, reframe};
+use crate::cube::Cube;
 use crate::error::Result;
 use crate::linop::LinearOperator;
 use crate::optics::ModelOperator;
@@ -307,6 +308,30 @@ impl<'a> SceneFit<'a> {
     pub(crate) fn frame_shape(&self) -> (usize, usize) {
         self.problem.measurement.shape()
     }
+}
+
+/// The scene fit's score at `psi` with the coarse scene solved from zero
+/// by `settings.cold_solve` (for scans of the objective, e.g. along one
+/// parameter; a fit warm-starts instead).
+pub fn scene_fit_score(
+    problem: &CalibrationProblem<'_>,
+    settings: &SceneFitSettings,
+    psi: &Mismatch,
+) -> Result<f64> {
+    problem.validate()?;
+    Ok(SceneFit::new(problem, *settings)?.solve(psi, None)?.score)
+}
+
+/// `scene` as the scene fit's coarse basis holds it: its values at the
+/// basis' nodes, interpolated as the basis interpolates (for measuring
+/// what the basis leaves out: a measurement of this cube has no detail
+/// the fit cannot explain).
+pub fn coarse_scene_of(scene: &Cube, settings: &SceneFitSettings) -> Cube {
+    let (bands, rows, cols) = scene.shape();
+    let basis = CoarseScene::new(bands, rows, cols, settings.cell_px, settings.spectral_nodes);
+    let mut out = Cube::zeros(bands, rows, cols);
+    basis.apply(&basis.nodes_of(scene.as_slice()), out.as_mut_slice());
+    out
 }
 
 /// What the fit found.

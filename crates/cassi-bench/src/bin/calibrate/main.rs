@@ -49,11 +49,14 @@
 //! Run: `cargo run --release -p cassi-bench --bin calibrate --
 //! [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] [--no-aligned]
 //! [--no-inverse-crime] [--model rounded|subpixel|dispersed-mask] [--preset NAME]
-//! [--no-texture] [--no-scene-fit] [--no-recon] [--no-limits] [--out PATH] [--verbose]`
+//! [--no-texture] [--no-scene-fit] [--no-recon] [--no-limits] [--out PATH]
+//! [--scene-transform none|flip-cols|flip-rows|transpose] [--verbose]`
 //! (`--no-texture`: the default preset without its texture fit, as it was
 //! before issue #14 — the "before" row; `--no-scene-fit`: without its
 //! scene fit, ending in the texture fit as the records `*_texture.json`
-//! were made); without flags it
+//! were made; `--scene-transform`: every scene flipped or transposed — the
+//! tuning scenes in three more configurations against the mask, with their
+//! own `--seed-round`, for the uncertainty floors); without flags it
 //! reproduces the README's held-out table (every scene of the held-out
 //! half, 2 random cases and 3 aligned-blur cases each, the inverse-crime
 //! row, GAP-TV recovery and the limits). Writes
@@ -160,12 +163,72 @@ struct Args {
     limits: bool,
     out: PathBuf,
     verbose: bool,
+    /// `--scene-transform`: every scene flipped or transposed before the
+    /// simulation (more scene–mask configurations from the tuning scenes).
+    transform: SceneTransform,
+}
+
+/// A rigid re-orientation of the scene cubes (the mask stays): the same
+/// content meets the mask's code and the dispersion in another
+/// configuration.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum SceneTransform {
+    None,
+    FlipCols,
+    FlipRows,
+    Transpose,
+}
+
+impl SceneTransform {
+    fn name(self) -> &'static str {
+        match self {
+            Self::None => "none",
+            Self::FlipCols => "flip-cols",
+            Self::FlipRows => "flip-rows",
+            Self::Transpose => "transpose",
+        }
+    }
+
+    fn parse(v: &str) -> Result<Self> {
+        [Self::None, Self::FlipCols, Self::FlipRows, Self::Transpose]
+            .into_iter()
+            .find(|t| t.name() == v)
+            .ok_or_else(|| {
+                anyhow!("--scene-transform {v}: expected none, flip-cols, flip-rows or transpose")
+            })
+    }
+
+    fn apply(self, scene: Cube) -> Result<Cube> {
+        let (bands, rows, cols) = scene.shape();
+        if self == Self::None {
+            return Ok(scene);
+        }
+        ensure!(
+            self != Self::Transpose || rows == cols,
+            "--scene-transform transpose needs square scenes, got {rows}×{cols}"
+        );
+        let mut out = Cube::zeros(bands, rows, cols);
+        for k in 0..bands {
+            for r in 0..rows {
+                for c in 0..cols {
+                    let (sr, sc) = match self {
+                        Self::FlipCols => (r, cols - 1 - c),
+                        Self::FlipRows => (rows - 1 - r, c),
+                        Self::Transpose => (c, r),
+                        Self::None => (r, c),
+                    };
+                    out.set(k, r, c, scene.get(k, sr, sc));
+                }
+            }
+        }
+        Ok(out)
+    }
 }
 
 const USAGE: &str = "calibrate [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] \
                      [--no-aligned] [--no-inverse-crime] [--no-wide-blur] [--model rounded|subpixel|dispersed-mask] \
                      [--preset NAME] [--no-texture] [--no-scene-fit] [--no-recon] [--no-limits] [--out PATH] \
-                     [--verbose]";
+                     [--scene-transform none|flip-cols|flip-rows|transpose] [--verbose]";
 
 fn parse_args(argv: &[String]) -> Result<Args> {
     let mut half_name = "held-out".to_string();
@@ -179,6 +242,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
     let mut texture = true;
     let mut scene_fit = true;
     let mut out = None;
+    let mut transform = SceneTransform::None;
     let mut it = argv.iter();
     while let Some(flag) = it.next() {
         let mut value = || {
@@ -227,6 +291,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
             "--limits" => limits = true,
             "--no-limits" => limits = false,
             "--out" => out = Some(PathBuf::from(value()?)),
+            "--scene-transform" => transform = SceneTransform::parse(&value()?)?,
             "--verbose" => verbose = true,
             "-h" | "--help" => bail!("usage: {USAGE}"),
             other => bail!("unknown argument '{other}'\nusage: {USAGE}"),
@@ -294,6 +359,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
         limits,
         out,
         verbose,
+        transform,
     })
 }
 
@@ -879,7 +945,11 @@ fn main() -> Result<()> {
             .into_iter()
             .enumerate()
         {
-            let scene = cassi_io::load_cube(&scenes[si], None, cassi_io::CubeLayout::Auto)?;
+            let scene = args.transform.apply(cassi_io::load_cube(
+                &scenes[si],
+                None,
+                cassi_io::CubeLayout::Auto,
+            )?)?;
             for case in scene_cases(&args, half, si, index as u64) {
                 rows.push(run_case(&args, &case, &names[case.scene], &scene, &mask)?);
             }
@@ -897,6 +967,7 @@ fn main() -> Result<()> {
         "machine": Machine::this(),
         "flags": argv,
         "half": args.half_name,
+        "scene_transform": args.transform.name(),
         "preset_name": args.preset_name,
         "preset": args.preset,
         "model": args.model,
