@@ -1,6 +1,6 @@
 //! Where the scene fit's aligned-instrument bias comes from: its score
-//! along dx (every other parameter at the truth, the coarse scene solved
-//! to convergence at each point) on the tuning half's aligned-with-blur
+//! along one parameter (dx unless `--parameter KEY`; every other parameter
+//! at the truth, the coarse scene solved to convergence at each point) on the tuning half's aligned-with-blur
 //! instruments at σ 0.5 px (the calibration benchmark's seeds), each
 //! measured three ways:
 //!
@@ -13,12 +13,14 @@
 //!   blurred) on the full scene, the same noise: no physics the model
 //!   lacks. Labelled as such.
 //!
-//! A score whose minimum leaves dx = 0 in `physical` and `inverse_crime`
+//! A score whose minimum leaves the truth in `physical` and `inverse_crime`
 //! but not in `physical_coarse_scene` is moved by the scene's detail,
 //! not by the model. Only tuning-half scenes (a diagnosis, not a figure).
 //!
-//! Run: `cargo run --release -p cassi-bench --bin scene_fit_scan`. Writes
-//! `bench/results/scene_fit_scan.json` (or $CASSI_BENCH_OUT).
+//! Run: `cargo run --release -p cassi-bench --bin scene_fit_scan [-- --parameter
+//! dx|dy|theta_deg|a1|alpha_deg|blur_sigma_px]`. Writes
+//! `bench/results/scene_fit_scan.json` for dx, `scene_fit_scan_<key>.json`
+//! otherwise (or $CASSI_BENCH_OUT).
 
 use std::time::Instant;
 
@@ -27,7 +29,7 @@ use cassi_core::calib::{CalibrationProblem, SceneFitSettings, coarse_scene_of, s
 use cassi_core::optics::{
     DispersionModel, ModelOperator, NoiseModel, PhysicalSpec, simulate_physical,
 };
-use cassi_core::{Cube, Mask, Measurement, Mismatch, STANDARD_WAVELENGTHS_NM};
+use cassi_core::{Cube, Mask, Measurement, Mismatch, Parameter, STANDARD_WAVELENGTHS_NM};
 use cassi_eval::machine::Machine;
 
 /// The calibration benchmark's: tuning seeds 14 000 + 20·scene + slot,
@@ -38,7 +40,17 @@ const SLOT: u64 = 18;
 const SIGMA_PX: f64 = 0.5;
 const DETECTOR: (usize, usize) = (256, 310);
 const STEPS: i32 = 10;
-const STEP_PX: f64 = 0.05;
+
+/// The scan's step per parameter: ±10 steps span the aligned answers'
+/// spread on the tuning half.
+fn step(p: Parameter) -> f64 {
+    match p {
+        Parameter::Dx | Parameter::Dy | Parameter::BlurSigmaPx => 0.05,
+        Parameter::ThetaDeg => 0.01,
+        Parameter::A1 => 0.002,
+        Parameter::AlphaDeg => 0.03,
+    }
+}
 
 /// Where a sampled curve is lowest: the parabola through the lowest sample
 /// and its two neighbours (the sample itself at an end).
@@ -101,6 +113,26 @@ fn measure(
 
 fn main() -> anyhow::Result<()> {
     let t0 = Instant::now();
+    let argv: Vec<String> = std::env::args().skip(1).collect();
+    let parameter = match argv.as_slice() {
+        [] => Parameter::Dx,
+        [flag, key] if flag == "--parameter" => Parameter::ALL
+            .into_iter()
+            .find(|p| p.key() == key)
+            .ok_or_else(|| {
+                anyhow::anyhow!(
+                    "--parameter {key}: expected dx, dy, theta_deg, a1, alpha_deg or blur_sigma_px"
+                )
+            })?,
+        _ => anyhow::bail!("usage: scene_fit_scan [--parameter KEY]"),
+    };
+    let path = std::env::var("CASSI_BENCH_OUT").unwrap_or_else(|_| {
+        let name = match parameter {
+            Parameter::Dx => "scene_fit_scan.json".to_string(),
+            p => format!("scene_fit_scan_{}.json", p.key()),
+        };
+        format!("{}/../../bench/results/{name}", env!("CARGO_MANIFEST_DIR"))
+    });
     let data = shared_data();
     let mask = cassi_io::load_frame(data.join("masks/tsa_simu_mask256.mat"), Some("mask"))?;
     let scenes = cassi_bench::cave_scenes(&data)?;
@@ -112,7 +144,10 @@ fn main() -> anyhow::Result<()> {
         blur_sigma_px: SIGMA_PX,
         ..Mismatch::nominal(2.0)
     };
-    let dxs: Vec<f64> = (-STEPS..=STEPS).map(|i| i as f64 * STEP_PX).collect();
+    let at_truth = parameter.get(&truth);
+    let values: Vec<f64> = (-STEPS..=STEPS)
+        .map(|i| at_truth + i as f64 * step(parameter))
+        .collect();
     let mut rows = Vec::new();
     for (index, path) in scenes.iter().take(TUNING_SCENES).enumerate() {
         let name = path
@@ -131,29 +166,35 @@ fn main() -> anyhow::Result<()> {
                 2.0,
                 DispersionModel::DispersedMask,
             )?;
-            let scores = dxs
+            let scores = values
                 .iter()
-                .map(|&dx| scene_fit_score(&problem, &settings, &Mismatch { dx, ..truth }))
+                .map(|&v| {
+                    let mut psi = truth;
+                    parameter.set(&mut psi, v);
+                    scene_fit_score(&problem, &settings, &psi)
+                })
                 .collect::<Result<Vec<f64>, _>>()?;
             let centre = scores[STEPS as usize];
-            let lowest = minimum(&dxs, &scores);
+            let lowest = minimum(&values, &scores);
             let truth_is_a_local_maximum =
                 centre > scores[STEPS as usize - 1] && centre > scores[STEPS as usize + 1];
             eprintln!(
-                "{name:28} {kind:22} minimum at dx {lowest:+.3} px; truth a local maximum: {truth_is_a_local_maximum}"
+                "{name:28} {kind:22} minimum at {} {lowest:+.4}; truth a local maximum: {truth_is_a_local_maximum}",
+                parameter.key()
             );
             rows.push(serde_json::json!({
                 "scene": name, "seed": seed, "measurement": kind,
                 "inverse_crime": kind == "inverse_crime",
-                "dx": dxs, "score": scores,
-                "minimum_dx": lowest,
+                "parameter": parameter.key(), "values": values, "score": scores,
+                "minimum_at": lowest,
                 "truth_is_a_local_maximum": truth_is_a_local_maximum,
             }));
         }
     }
     let out = serde_json::json!({
         "benchmark": "scene_fit_scan",
-        "what": "the scene fit's score (cold CGLS, 300 iterations, tol 1e-8) along dx, every other parameter at the truth",
+        "what": "the scene fit's score (cold CGLS, 300 iterations, tol 1e-8) along one parameter, every other parameter at the truth",
+        "parameter": parameter.key(),
         "instrument": { "truth": truth, "oversample": 4, "detector": DETECTOR, "photon_peak": 2e4,
                         "read_noise_e": 3.0, "mask": "masks/tsa_simu_mask256.mat",
                         "seeds": "the calibration benchmark's tuning aligned-blur σ 0.5 px slot: 14 000 + 20·scene + 18" },
@@ -161,13 +202,6 @@ fn main() -> anyhow::Result<()> {
         "machine": Machine::this(),
         "seconds": t0.elapsed().as_secs_f64(),
         "rows": rows,
-    });
-    let path = std::env::var("CASSI_BENCH_OUT").unwrap_or_else(|_| {
-        concat!(
-            env!("CARGO_MANIFEST_DIR"),
-            "/../../bench/results/scene_fit_scan.json"
-        )
-        .into()
     });
     cassi_io::write_atomic(
         &path,
