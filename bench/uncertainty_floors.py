@@ -45,10 +45,12 @@ import sys
 SHARP_BLUR_PX, WIDE_BLUR_PX = 0.8, 1.0
 HEADLINE = ("random", "aligned_blur")
 WIDE = ("wide_blur",)
-STEP = 1.002  # relative step of the scan
-# what each floor is for: (multiple of the sandwich part, target coverage)
+STEP = 1.002  # relative precision of the floor search
+# what each floor is for: (multiple of the sandwich part, target coverage); only the
+# standard error's floors are grown by --by-scene
+STANDARD_ERROR = "standard error (floor_sharp / floor_wide): 68 % within hypot(s, F)"
 LEVELS = {
-    "standard error (floor_sharp / floor_wide): 68 % within hypot(s, F)": (1.0, 0.68),
+    STANDARD_ERROR: (1.0, 0.68),
     "95 % half-width (floor95_sharp / floor95_wide): 95 % within hypot(2s, F)": (2.0, 0.95),
 }
 
@@ -240,7 +242,7 @@ def main():
                 continue
             sharp, wide = derive(head, wide_rows, level, confidence)
             kappa = scene_inflation(head, wide_rows, level, confidence) if by_scene else 1.0
-            if level[1] < 0.9:  # the standard error only (see --by-scene)
+            if name == STANDARD_ERROR:
                 sharp, wide = kappa * sharp, kappa * wide
                 grown[p] = (sharp, wide)
             elif p in grown:
@@ -251,7 +253,7 @@ def main():
                 w = covered(wide_rows, sharp, wide, level[0])
                 line += f" {wide:9.4g} {100 * w:9.0f} % ({len(wide_rows)})"
             if by_scene:
-                line += f" {kappa:6.3f}" + ("" if level[1] < 0.9 else " (not applied)")
+                line += f" {kappa:6.3f}" + ("" if name == STANDARD_ERROR else " (not applied)")
             if check is not None:
                 line += "   check:" + check_coverage(check, p, sharp, wide, level[0])
             print(line)

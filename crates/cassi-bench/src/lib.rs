@@ -23,6 +23,15 @@ pub fn shared_data() -> std::path::PathBuf {
     cassi_io::shared_data::default_dir()
 }
 
+/// A scene's name in tables and records: its file name without the
+/// extension (`cave_beads`).
+pub fn scene_name(path: &std::path::Path) -> String {
+    path.file_stem()
+        .unwrap_or_default()
+        .to_string_lossy()
+        .to_string()
+}
+
 /// The CAVE scenes (`scenes/*.npy` under `data`), sorted by name; an error
 /// naming the folder when there are none.
 pub fn cave_scenes(data: &std::path::Path) -> anyhow::Result<Vec<std::path::PathBuf>> {

@@ -65,11 +65,7 @@ fn main() -> anyhow::Result<()> {
                 ..Mismatch::nominal(2.0)
             },
         };
-        let name = path
-            .file_stem()
-            .unwrap_or_default()
-            .to_string_lossy()
-            .to_string();
+        let name = cassi_bench::scene_name(path);
         // --only NAME: calibrate the scenes whose name contains NAME (truths are still drawn in order)
         if only.as_ref().is_some_and(|o| !name.contains(o.as_str())) {
             continue;

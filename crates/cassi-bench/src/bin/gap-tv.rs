@@ -80,11 +80,7 @@ fn rust_scenes(scenes: &[PathBuf], mask_path: &Path) -> anyhow::Result<serde_jso
         let r = method.solve(&y, &model, &mut Silent)?;
         let secs = t0.elapsed().as_secs_f64();
         let p = psnr(&truth, &r.cube.clipped_to_unit())?;
-        let name = path
-            .file_stem()
-            .unwrap_or_default()
-            .to_string_lossy()
-            .to_string();
+        let name = cassi_bench::scene_name(path);
         eprintln!("cassi  {name:<32} {p:7.3} dB {secs:6.3} s");
         rows.push(serde_json::json!({ "scene": name, "psnr": p, "seconds": secs }));
     }

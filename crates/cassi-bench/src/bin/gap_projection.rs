@@ -70,11 +70,7 @@ fn main() -> anyhow::Result<()> {
     let mut errors = vec![vec![Vec::<[f64; 3]>::new(); SETTINGS.len()]; variants.len()];
     let t0 = Instant::now();
     for (si, path) in scenes.iter().enumerate() {
-        let name = path
-            .file_stem()
-            .unwrap_or_default()
-            .to_string_lossy()
-            .to_string();
+        let name = cassi_bench::scene_name(path);
         let truth = cassi_io::load_cube(path, None, cassi_io::CubeLayout::Auto)?;
         let bands = truth.bands();
         let ideal = simulate(
@@ -222,8 +218,8 @@ fn main() -> anyhow::Result<()> {
         },
         "split": {
             "rule": "decide on the first half of the scenes by name order, report the other half",
-            "tune": scenes[..half].iter().map(|p| p.file_stem().unwrap_or_default().to_string_lossy().to_string()).collect::<Vec<_>>(),
-            "held_out": scenes[half..].iter().map(|p| p.file_stem().unwrap_or_default().to_string_lossy().to_string()).collect::<Vec<_>>(),
+            "tune": scenes[..half].iter().map(|p| cassi_bench::scene_name(p)).collect::<Vec<_>>(),
+            "held_out": scenes[half..].iter().map(|p| cassi_bench::scene_name(p)).collect::<Vec<_>>(),
         },
         "scenes": rows,
         "tune_mean_psnr": tune,

@@ -37,7 +37,7 @@
 
 use std::time::Instant;
 
-use cassi_bench::{cave_scenes, shared_data};
+use cassi_bench::{cave_scenes, scene_name, shared_data};
 use cassi_core::denoise::{TvChambolle2d, TvChambolleParams};
 use cassi_core::linop::LinearOperator;
 use cassi_core::metrics::{Metrics, evaluate};
@@ -254,13 +254,6 @@ impl Means {
     fn passes_against(&self, base: &Means) -> bool {
         self.psnr > base.psnr && self.ssim > base.ssim && self.sam <= base.sam + SAM_TOLERANCE_DEG
     }
-}
-
-fn scene_name(path: &std::path::Path) -> String {
-    path.file_stem()
-        .unwrap_or_default()
-        .to_string_lossy()
-        .to_string()
 }
 
 /// Scores every scene of `paths` under `cases` at each (λ, iterations).

@@ -83,11 +83,7 @@ fn main() -> anyhow::Result<()> {
     let t0 = Instant::now();
     let mut rows = Vec::new();
     for (si, path) in scenes.iter().enumerate() {
-        let name = path
-            .file_stem()
-            .unwrap_or_default()
-            .to_string_lossy()
-            .to_string();
+        let name = cassi_bench::scene_name(path);
         let scene = cassi_io::load_cube(path, None, cassi_io::CubeLayout::Auto)?;
         let shape = scene.shape();
         let mut rng = Rng::new(13 + si as u64);

@@ -69,9 +69,35 @@ fn minimum(xs: &[f64], ys: &[f64]) -> f64 {
     xs[i] + 0.5 * (a - c) / curvature * (xs[i + 1] - xs[i])
 }
 
+/// How a case's measurement is made (see the module doc).
+#[derive(Clone, Copy, PartialEq)]
+enum Measured {
+    Physical,
+    PhysicalCoarseScene,
+    InverseCrime,
+}
+
+impl Measured {
+    const ALL: [Measured; 3] = [
+        Self::Physical,
+        Self::PhysicalCoarseScene,
+        Self::InverseCrime,
+    ];
+
+    /// Its name in the record.
+    fn key(self) -> &'static str {
+        match self {
+            Self::Physical => "physical",
+            Self::PhysicalCoarseScene => "physical_coarse_scene",
+            Self::InverseCrime => "inverse_crime",
+        }
+    }
+}
+
 fn measure(
-    kind: &str,
+    kind: Measured,
     scene: &Cube,
+    settings: &SceneFitSettings,
     mask: &Mask,
     truth: &Mismatch,
     seed: u64,
@@ -82,20 +108,20 @@ fn measure(
         seed,
     };
     Ok(match kind {
-        "inverse_crime" => {
+        Measured::InverseCrime => {
             let op =
                 ModelOperator::new(mask, scene.bands(), truth, DispersionModel::DispersedMask)?;
             noise.apply(&op.forward(scene)?)?
         }
-        _ => {
+        Measured::Physical | Measured::PhysicalCoarseScene => {
             let spec = PhysicalSpec {
                 oversample: 4,
                 blur_sigma_px: truth.blur_sigma_px,
                 detector: Some(DETECTOR),
                 ..PhysicalSpec::default()
             };
-            let seen = if kind == "physical_coarse_scene" {
-                &coarse_scene_of(scene, &SceneFitSettings::default())
+            let seen = if kind == Measured::PhysicalCoarseScene {
+                &coarse_scene_of(scene, settings)
             } else {
                 scene
             };
@@ -133,6 +159,11 @@ fn main() -> anyhow::Result<()> {
         };
         format!("{}/../../bench/results/{name}", env!("CARGO_MANIFEST_DIR"))
     });
+    // the record's folder before the work, not after it
+    if let Some(dir) = std::path::Path::new(&path).parent() {
+        std::fs::create_dir_all(dir)
+            .map_err(|e| anyhow::anyhow!("creating the output folder {}: {e}", dir.display()))?;
+    }
     let data = shared_data();
     let mask = cassi_io::load_frame(data.join("masks/tsa_simu_mask256.mat"), Some("mask"))?;
     let scenes = cassi_bench::cave_scenes(&data)?;
@@ -150,15 +181,11 @@ fn main() -> anyhow::Result<()> {
         .collect();
     let mut rows = Vec::new();
     for (index, path) in scenes.iter().take(TUNING_SCENES).enumerate() {
-        let name = path
-            .file_stem()
-            .unwrap_or_default()
-            .to_string_lossy()
-            .to_string();
+        let name = cassi_bench::scene_name(path);
         let scene = cassi_io::load_cube(path, None, cassi_io::CubeLayout::Auto)?;
         let seed = SEED_BASE + 20 * index as u64 + SLOT;
-        for kind in ["physical", "physical_coarse_scene", "inverse_crime"] {
-            let y = measure(kind, &scene, &mask, &truth, seed)?;
+        for kind in Measured::ALL {
+            let y = measure(kind, &scene, &settings, &mask, &truth, seed)?;
             let problem = CalibrationProblem::nominal(
                 &y,
                 &mask,
@@ -179,12 +206,13 @@ fn main() -> anyhow::Result<()> {
             let truth_is_a_local_maximum =
                 centre > scores[STEPS as usize - 1] && centre > scores[STEPS as usize + 1];
             eprintln!(
-                "{name:28} {kind:22} minimum at {} {lowest:+.4}; truth a local maximum: {truth_is_a_local_maximum}",
+                "{name:28} {:22} minimum at {} {lowest:+.4}; truth a local maximum: {truth_is_a_local_maximum}",
+                kind.key(),
                 parameter.key()
             );
             rows.push(serde_json::json!({
-                "scene": name, "seed": seed, "measurement": kind,
-                "inverse_crime": kind == "inverse_crime",
+                "scene": name, "seed": seed, "measurement": kind.key(),
+                "inverse_crime": kind == Measured::InverseCrime,
                 "parameter": parameter.key(), "values": values, "score": scores,
                 "minimum_at": lowest,
                 "truth_is_a_local_maximum": truth_is_a_local_maximum,

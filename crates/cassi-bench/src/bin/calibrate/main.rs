@@ -68,7 +68,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{Context, Result, anyhow, bail, ensure};
-use cassi_bench::{median, physical_random_mismatch, psi_of, shared_data};
+use cassi_bench::{median, physical_random_mismatch, psi_of, scene_name, shared_data};
 use cassi_core::calib::{
     CalibrationProblem, DefaultPreset, PRESET_NAMES, Preset, calibrate, model_error_floor,
 };
@@ -908,13 +908,6 @@ fn print_summary(summary: &[Value]) {
 }
 
 // ---------------------------------------------------------------- main
-
-fn scene_name(path: &Path) -> String {
-    path.file_stem()
-        .unwrap_or_default()
-        .to_string_lossy()
-        .to_string()
-}
 
 fn main() -> Result<()> {
     let argv: Vec<String> = std::env::args().skip(1).collect();
