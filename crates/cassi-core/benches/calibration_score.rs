@@ -6,26 +6,13 @@
 //!
 //! Run: `cargo bench -p cassi-core --bench calibration_score`
 
-use std::time::Instant;
+mod common;
 
 use cassi_core::Mismatch;
 use cassi_core::calib::{CalibrationProblem, Parameter, ProxyParams};
 use cassi_core::instrument::STANDARD_WAVELENGTHS_NM;
 use cassi_core::optics::{DispersionModel, SimulationSpec, simulate};
 use cassi_core::synth::{SceneSpec, random_binary_mask, synthetic_scene};
-
-fn median_ms(runs: usize, mut f: impl FnMut()) -> f64 {
-    f();
-    let mut t: Vec<f64> = (0..runs)
-        .map(|_| {
-            let t0 = Instant::now();
-            f();
-            t0.elapsed().as_secs_f64() * 1e3
-        })
-        .collect();
-    t.sort_by(f64::total_cmp);
-    t[t.len() / 2]
-}
 
 fn main() {
     let scene = synthetic_scene(&SceneSpec {
@@ -57,12 +44,12 @@ fn main() {
             iterations,
             sigma: 0.7,
         };
-        let score = median_ms(15, || {
+        let score = common::median_ms(15, || {
             std::hint::black_box(problem.score(&at, &proxy).unwrap());
         });
         let mut row = serde_json::json!({ "iterations": iterations, "score_ms": score });
         for params in [&[Dx][..], &[Dy, ThetaDeg], &[Dx, Dy, ThetaDeg]] {
-            let g = median_ms(7, || {
+            let g = common::median_ms(7, || {
                 std::hint::black_box(problem.score_and_gradient(&at, &proxy, params).unwrap());
             });
             row[format!("gradient_{}_ms", params.len())] = g.into();
@@ -71,26 +58,11 @@ fn main() {
         eprintln!("{row}");
         rows.push(row);
     }
-    let cpu = std::fs::read_to_string("/proc/cpuinfo")
-        .ok()
-        .and_then(|s| {
-            s.lines()
-                .find(|l| l.starts_with("model name"))
-                .map(|l| l.split(':').nth(1).unwrap_or("").trim().to_string())
-        })
-        .unwrap_or_else(|| "unknown".into());
+    let cpu = common::cpu_name();
     let out = serde_json::json!({
         "benchmark": "calibration score vs forward-mode gradient (P parameters), 256x256x28, rounded model, σ 0.7",
         "machine": { "cpu": cpu, "threads": rayon::current_num_threads() },
         "results": rows,
     });
-    let path = std::env::var("CASSI_BENCH_OUT").unwrap_or_else(|_| {
-        concat!(
-            env!("CARGO_MANIFEST_DIR"),
-            "/../../bench/results/calibration_score.json"
-        )
-        .into()
-    });
-    std::fs::write(&path, serde_json::to_string_pretty(&out).unwrap() + "\n").unwrap();
-    eprintln!("wrote {path}");
+    common::write_record("calibration_score.json", &out);
 }

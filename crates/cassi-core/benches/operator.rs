@@ -3,6 +3,8 @@
 //!
 //! Run: `cargo bench -p cassi-core --bench operator`
 
+mod common;
+
 use std::time::Instant;
 
 use cassi_core::optics::{Blurred, CassiOperator, Dispersion, DispersionModel};
@@ -116,26 +118,11 @@ fn main() {
             runs,
         ));
     }
-    let cpu = std::fs::read_to_string("/proc/cpuinfo")
-        .ok()
-        .and_then(|s| {
-            s.lines()
-                .find(|l| l.starts_with("model name"))
-                .map(|l| l.split(':').nth(1).unwrap_or("").trim().to_string())
-        })
-        .unwrap_or_else(|| "unknown".into());
+    let cpu = common::cpu_name();
     let out = serde_json::json!({
         "benchmark": "CASSI operator forward + adjoint",
         "machine": { "cpu": cpu, "threads": rayon::current_num_threads() },
         "results": rows,
     });
-    let path = std::env::var("CASSI_BENCH_OUT").unwrap_or_else(|_| {
-        concat!(
-            env!("CARGO_MANIFEST_DIR"),
-            "/../../bench/results/operator.json"
-        )
-        .into()
-    });
-    std::fs::write(&path, serde_json::to_string_pretty(&out).unwrap() + "\n").unwrap();
-    eprintln!("wrote {path}");
+    common::write_record("operator.json", &out);
 }

@@ -4,6 +4,8 @@
 //!
 //! Run: `cargo bench -p cassi-core --bench tv`
 
+mod common;
+
 use std::time::Instant;
 
 use cassi_core::denoise::{
@@ -124,14 +126,7 @@ fn main() {
         assert_eq!(s.iterations(), 5);
     }
 
-    let cpu = std::fs::read_to_string("/proc/cpuinfo")
-        .ok()
-        .and_then(|s| {
-            s.lines()
-                .find(|l| l.starts_with("model name"))
-                .map(|l| l.split(':').nth(1).unwrap_or("").trim().to_string())
-        })
-        .unwrap_or_else(|| "unknown".into());
+    let cpu = common::cpu_name();
     let out = serde_json::json!({
         "benchmark": "Chambolle TV denoising (skimage-exact): the GAP-TV budget is 100 calls x max_iter 5 on 256x256x28 in <= 600 ms",
         "budget_ms": 600.0,
@@ -139,9 +134,5 @@ fn main() {
         "machine": { "cpu": cpu, "threads": threads },
         "results": rows,
     });
-    let path = std::env::var("CASSI_BENCH_OUT").unwrap_or_else(|_| {
-        concat!(env!("CARGO_MANIFEST_DIR"), "/../../bench/results/tv.json").into()
-    });
-    std::fs::write(&path, serde_json::to_string_pretty(&out).unwrap() + "\n").unwrap();
-    eprintln!("wrote {path}");
+    common::write_record("tv.json", &out);
 }

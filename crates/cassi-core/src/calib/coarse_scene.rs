@@ -12,6 +12,7 @@
 use rayon::prelude::*;
 
 use crate::linop::LinearOperator;
+use crate::optics::operator::CubeRows;
 
 /// The basis of one cube shape.
 #[derive(Debug, Clone)]
@@ -45,6 +46,31 @@ fn taps(n: usize, cell: usize) -> (usize, Vec<(usize, f32)>) {
         .map(|i| (i / cell, (i % cell) as f32 / cell as f32))
         .collect();
     (nodes, t)
+}
+
+/// `row` ← the node values `line` interpolated linearly over cells of `C`
+/// pixels (the last node held past the edge).
+#[inline]
+fn expand_cells<const C: usize>(line: &[f32], row: &mut [f32]) {
+    let frac: [f32; C] = std::array::from_fn(|j| j as f32 / C as f32);
+    let nc = line.len();
+    let c = row.len() / C;
+    let mut chunks = row.chunks_exact_mut(C);
+    for (c, chunk) in (&mut chunks).enumerate() {
+        let a = line[c];
+        let d = if c + 1 < nc { line[c + 1] - a } else { 0.0 };
+        for j in 0..C {
+            chunk[j] = a + frac[j] * d;
+        }
+    }
+    let rest = chunks.into_remainder();
+    if !rest.is_empty() {
+        let a = line[c];
+        let d = if c + 1 < nc { line[c + 1] - a } else { 0.0 };
+        for (j, o) in rest.iter_mut().enumerate() {
+            *o = a + frac[j] * d;
+        }
+    }
 }
 
 impl CoarseScene {
@@ -93,61 +119,178 @@ impl CoarseScene {
 
     /// One band's coarse image (node rows × node cols) → its pixels.
     fn up_band(&self, coarse: &[f32], out: &mut [f32], line: &mut Vec<f32>) {
+        for (i, row) in out.chunks_mut(self.cols).enumerate() {
+            self.up_row(coarse, i, row, line);
+        }
+    }
+
+    /// Pixel row `i` of one band's coarse image.
+    #[inline]
+    fn up_row(&self, coarse: &[f32], i: usize, row: &mut [f32], line: &mut Vec<f32>) {
         let nc = self.node_cols;
         line.resize(nc, 0.0);
-        for (i, row) in out.chunks_mut(self.cols).enumerate() {
-            let (q, f) = self.row_taps[i];
-            let a = &coarse[q * nc..(q + 1) * nc];
-            if f == 0.0 {
-                line.copy_from_slice(a);
-            } else {
-                let b = &coarse[(q + 1) * nc..(q + 2) * nc];
-                line.iter_mut()
-                    .zip(a.iter().zip(b))
-                    .for_each(|(l, (&a, &b))| *l = a + f * (b - a));
-            }
-            // cell by cell: a + f·(b − a) over the cell's pixels
-            for (c, chunk) in row.chunks_mut(self.cell).enumerate() {
-                let a = line[c];
-                let d = if c + 1 < nc { line[c + 1] - a } else { 0.0 };
-                chunk
-                    .iter_mut()
-                    .zip(&self.fractions)
-                    .for_each(|(o, &f)| *o = a + f * d);
+        let (q, f) = self.row_taps[i];
+        let a = &coarse[q * nc..(q + 1) * nc];
+        if f == 0.0 {
+            line.copy_from_slice(a);
+        } else {
+            let b = &coarse[(q + 1) * nc..(q + 2) * nc];
+            line.iter_mut()
+                .zip(a.iter().zip(b))
+                .for_each(|(l, (&a, &b))| *l = a + f * (b - a));
+        }
+        // cell by cell: a + f·(b − a) over the cell's pixels (fixed-width
+        // cells for the widths the scene fit uses, which vectorise)
+        match self.cell {
+            4 => expand_cells::<4>(line, row),
+            8 => expand_cells::<8>(line, row),
+            _ => {
+                for (c, chunk) in row.chunks_mut(self.cell).enumerate() {
+                    let a = line[c];
+                    let d = if c + 1 < nc { line[c + 1] - a } else { 0.0 };
+                    chunk
+                        .iter_mut()
+                        .zip(&self.fractions)
+                        .for_each(|(o, &f)| *o = a + f * d);
+                }
             }
         }
     }
 
     /// The adjoint of [`Self::up_band`]: a band's pixels → its coarse image.
     fn down_band(&self, band: &[f32], coarse: &mut [f32], line: &mut Vec<f32>) {
-        let nc = self.node_cols;
-        line.resize(nc, 0.0);
         coarse.fill(0.0);
         for (i, row) in band.chunks(self.cols).enumerate() {
-            line.fill(0.0);
-            for (c, chunk) in row.chunks(self.cell).enumerate() {
-                let (mut sum, mut next) = (0.0f32, 0.0f32);
-                for (&v, &f) in chunk.iter().zip(&self.fractions) {
-                    sum += v;
-                    next += f * v;
-                }
-                line[c] += sum - next;
-                if c + 1 < nc {
-                    line[c + 1] += next;
-                }
+            self.add_down_row(row, i, coarse, line);
+        }
+    }
+
+    /// Adds the adjoint of [`Self::up_row`] of pixel row `i` to `coarse`.
+    #[inline]
+    fn add_down_row(&self, row: &[f32], i: usize, coarse: &mut [f32], line: &mut Vec<f32>) {
+        let nc = self.node_cols;
+        line.resize(nc, 0.0);
+        line.fill(0.0);
+        for (c, chunk) in row.chunks(self.cell).enumerate() {
+            let (mut sum, mut next) = (0.0f32, 0.0f32);
+            for (&v, &f) in chunk.iter().zip(&self.fractions) {
+                sum += v;
+                next += f * v;
             }
-            let (q, f) = self.row_taps[i];
-            coarse[q * nc..(q + 1) * nc]
-                .iter_mut()
-                .zip(line.iter())
-                .for_each(|(c, &l)| *c += l - f * l);
-            if f != 0.0 {
-                coarse[(q + 1) * nc..(q + 2) * nc]
-                    .iter_mut()
-                    .zip(line.iter())
-                    .for_each(|(c, &l)| *c += f * l);
+            line[c] += sum - next;
+            if c + 1 < nc {
+                line[c + 1] += next;
             }
         }
+        let (q, f) = self.row_taps[i];
+        coarse[q * nc..(q + 1) * nc]
+            .iter_mut()
+            .zip(line.iter())
+            .for_each(|(c, &l)| *c += l - f * l);
+        if f != 0.0 {
+            coarse[(q + 1) * nc..(q + 2) * nc]
+                .iter_mut()
+                .zip(line.iter())
+                .for_each(|(c, &l)| *c += f * l);
+        }
+    }
+
+    /// Band `k`'s coarse image from the coefficients `z` (the spectral
+    /// interpolation).
+    fn band_image(&self, z: &[f32], k: usize, coarse: &mut [f32]) {
+        let plane = self.plane();
+        coarse.fill(0.0);
+        for &(j, w) in self.band_taps[k].iter().filter(|t| t.1 != 0.0) {
+            coarse
+                .iter_mut()
+                .zip(&z[j * plane..(j + 1) * plane])
+                .for_each(|(c, &v)| *c += w * v);
+        }
+    }
+
+    /// The adjoint of [`Self::band_image`] over every band: the bands'
+    /// coarse images (bands × plane) → coefficients.
+    fn nodes_from_band_images(&self, images: &[f32], z: &mut [f32]) {
+        let plane = self.plane();
+        z.par_chunks_mut(plane).enumerate().for_each(|(j, out)| {
+            out.fill(0.0);
+            for (k, taps) in self.band_taps.iter().enumerate() {
+                for &(node, w) in taps {
+                    if node == j && w != 0.0 {
+                        out.iter_mut()
+                            .zip(&images[k * plane..(k + 1) * plane])
+                            .for_each(|(o, &v)| *o += w * v);
+                    }
+                }
+            }
+        });
+    }
+
+    /// Every band's coarse image (bands × plane) from `z`.
+    pub(crate) fn band_images(&self, z: &[f32], images: &mut Vec<f32>) {
+        let plane = self.plane();
+        images.resize(self.bands * plane, 0.0);
+        images
+            .par_chunks_mut(plane)
+            .enumerate()
+            .for_each(|(k, out)| self.band_image(z, k, out));
+    }
+
+    /// Uᵀ of a cube given row by row: `row(k, r, buf)` writes row `r` of
+    /// band `k` into `buf` (cols long); `images` is scratch (bands ×
+    /// plane). Bands in parallel.
+    pub(crate) fn adjoint_rows(
+        &self,
+        row: impl Fn(usize, usize, &mut [f32]) + Sync,
+        images: &mut Vec<f32>,
+        z: &mut [f32],
+    ) {
+        let plane = self.plane();
+        images.resize(self.bands * plane, 0.0);
+        images.par_chunks_mut(plane).enumerate().for_each_init(
+            || (vec![0.0f32; self.cols], Vec::new()),
+            |(buf, line), (k, coarse)| {
+                coarse.fill(0.0);
+                for i in 0..self.rows {
+                    row(k, i, buf);
+                    self.add_down_row(buf, i, coarse, line);
+                }
+            },
+        );
+        self.nodes_from_band_images(images, z);
+    }
+}
+
+/// U z one row at a time, from the bands' coarse images
+/// ([`CoarseScene::band_images`]): for products that read the cube once
+/// per row ([`CassiOperator::apply_rows`]), without storing it.
+pub(crate) struct CoarseRows<'a> {
+    pub basis: &'a CoarseScene,
+    pub images: &'a [f32],
+}
+
+/// A thread's buffers for [`CoarseRows`]: the last row made and which
+/// (band, row) it is (a band's taps read the same row in turn).
+#[derive(Default)]
+pub(crate) struct RowScratch {
+    line: Vec<f32>,
+    row: Vec<f32>,
+    made: Option<(usize, usize)>,
+}
+
+impl CubeRows for CoarseRows<'_> {
+    type Scratch = RowScratch;
+    #[inline]
+    fn row<'s>(&'s self, k: usize, r: usize, scratch: &'s mut RowScratch) -> &'s [f32] {
+        if scratch.made != Some((k, r)) {
+            let b = self.basis;
+            scratch.row.resize(b.cols, 0.0);
+            let plane = b.plane();
+            let image = &self.images[k * plane..(k + 1) * plane];
+            b.up_row(image, r, &mut scratch.row, &mut scratch.line);
+            scratch.made = Some((k, r));
+        }
+        &scratch.row
     }
 }
 
@@ -197,17 +340,11 @@ impl LinearOperator for CoarseScene {
     fn apply(&self, x: &[f32], y: &mut [f32]) {
         let plane = self.plane();
         y.par_chunks_mut(self.rows * self.cols)
-            .zip(self.band_taps.par_iter())
+            .enumerate()
             .for_each_init(
                 || (vec![0.0f32; plane], Vec::new()),
-                |(coarse, line), (band, taps)| {
-                    coarse.fill(0.0);
-                    for &(j, w) in taps.iter().filter(|t| t.1 != 0.0) {
-                        coarse
-                            .iter_mut()
-                            .zip(&x[j * plane..(j + 1) * plane])
-                            .for_each(|(c, &v)| *c += w * v);
-                    }
+                |(coarse, line), (k, band)| {
+                    self.band_image(x, k, coarse);
                     self.up_band(coarse, band, line);
                 },
             );
@@ -221,18 +358,7 @@ impl LinearOperator for CoarseScene {
                 .par_chunks_mut(plane)
                 .zip(y.par_chunks(self.rows * self.cols))
                 .for_each_init(Vec::new, |line, (c, band)| self.down_band(band, c, line));
-            x.par_chunks_mut(plane).enumerate().for_each(|(j, out)| {
-                out.fill(0.0);
-                for (k, taps) in self.band_taps.iter().enumerate() {
-                    for &(node, w) in taps {
-                        if node == j && w != 0.0 {
-                            out.iter_mut()
-                                .zip(&coarse[k * plane..(k + 1) * plane])
-                                .for_each(|(o, &v)| *o += w * v);
-                        }
-                    }
-                }
-            });
+            self.nodes_from_band_images(coarse, x);
         });
     }
 }

@@ -34,7 +34,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::coarse_scene::CoarseScene;
+use super::coarse_scene::{CoarseRows, CoarseScene};
 use super::{CalibrationProblem, reframe};
 use crate::cube::Cube;
 use crate::error::Result;
@@ -42,6 +42,7 @@ use crate::linop::LinearOperator;
 use crate::optics::ModelOperator;
 use crate::optics::blur::GaussianBlur;
 use crate::params::{Mismatch, Parameter};
+use crate::simd::Simd;
 use crate::solvers::{CglsParams, CglsScratch, Silent, cgls};
 
 /// Settings of the scene fit.
@@ -105,8 +106,10 @@ struct SceneOperator<'f> {
 /// Buffers of one [`SceneOperator`] application, per thread.
 #[derive(Default)]
 struct OperatorScratch {
-    cube: Vec<f32>,
+    /// The bands' coarse images (bands × node plane).
+    images: Vec<f32>,
     detector: Vec<f32>,
+    blurred: Vec<f32>,
     frame: Vec<f32>,
     tmp: Vec<f32>,
 }
@@ -116,12 +119,24 @@ thread_local! {
 }
 
 impl SceneOperator<'_> {
-    /// out ← H C A_ψ `cube` (the cube already in pixels).
-    fn frame_of_cube(&self, cube: &[f32], out: &mut [f32], s: &mut OperatorScratch) {
+    /// out ← H C A_ψ U z, U z given by its bands' coarse images: the
+    /// scene made a row at a time inside the CASSI product, never stored
+    /// (the stored cube's writing and reading cost as much as the product).
+    fn frame_of_images(&self, images: &[f32], out: &mut [f32], s: &mut OperatorScratch) {
         let (rows, det) = self.op.measurement_shape();
         let cols = self.fit.cols();
         s.detector.resize(rows * det, 0.0);
-        self.op.apply(cube, &mut s.detector);
+        let scene = CoarseRows {
+            basis: &self.fit.basis,
+            images,
+        };
+        self.op.cassi().apply_rows(&scene, &mut s.detector);
+        if let Some(blur) = self.op.blur() {
+            s.blurred.resize(rows * det, 0.0);
+            s.tmp.resize(rows * det, 0.0);
+            blur.apply(&s.detector, &mut s.blurred, &mut s.tmp);
+            std::mem::swap(&mut s.detector, &mut s.blurred);
+        }
         reframe(&s.detector, det, &mut s.frame, cols);
         self.fit.high_pass(&s.frame, out, &mut s.tmp);
     }
@@ -138,11 +153,10 @@ impl LinearOperator for SceneOperator<'_> {
 
     fn apply(&self, z: &[f32], out: &mut [f32]) {
         crate::scratch::with_taken(&OPERATOR_SCRATCH, |s| {
-            let mut cube = std::mem::take(&mut s.cube);
-            cube.resize(self.fit.basis.range_len(), 0.0);
-            self.fit.basis.apply(z, &mut cube);
-            self.frame_of_cube(&cube, out, s);
-            s.cube = cube;
+            let mut images = std::mem::take(&mut s.images);
+            self.fit.basis.band_images(z, &mut images);
+            self.frame_of_images(&images, out, s);
+            s.images = images;
         })
     }
 
@@ -153,9 +167,21 @@ impl LinearOperator for SceneOperator<'_> {
             s.frame.resize(rows * cols, 0.0);
             self.fit.high_pass(r, &mut s.frame, &mut s.tmp);
             reframe(&s.frame, cols, &mut s.detector, det);
-            s.cube.resize(self.fit.basis.range_len(), 0.0);
-            self.op.adjoint(&s.detector, &mut s.cube);
-            self.fit.basis.adjoint(&s.cube, z);
+            if let Some(blur) = self.op.blur() {
+                // B is symmetric (symmetric kernel, zero boundary): Bᵀ = B
+                s.blurred.resize(rows * det, 0.0);
+                s.tmp.resize(rows * det, 0.0);
+                blur.apply(&s.detector, &mut s.blurred, &mut s.tmp);
+                std::mem::swap(&mut s.detector, &mut s.blurred);
+            }
+            let cassi = self.op.cassi();
+            let simd = Simd::detect(false);
+            let detector = &s.detector;
+            self.fit.basis.adjoint_rows(
+                |k, i, row| cassi.adjoint_row(simd, detector, k, i, row),
+                &mut s.images,
+                z,
+            );
         })
     }
 }
@@ -256,8 +282,8 @@ impl<'a> SceneFit<'a> {
     pub(crate) fn jacobian(&self, at: &Solved, free: &[Parameter]) -> Result<Vec<Vec<f32>>> {
         let k = self.operator(&at.psi)?;
         let n = self.data.len();
-        let mut cube = vec![0.0f32; self.basis.range_len()];
-        self.basis.apply(&at.z, &mut cube);
+        let mut images = Vec::new();
+        self.basis.band_images(&at.z, &mut images);
         // K z = H y − r
         let kz: Vec<f32> = self
             .data
@@ -275,7 +301,9 @@ impl<'a> SceneFit<'a> {
             moved.blur_sigma_px = moved.blur_sigma_px.abs();
             let km = self.operator(&moved)?;
             let mut col = vec![0.0f32; n];
-            crate::scratch::with_taken(&OPERATOR_SCRATCH, |s| km.frame_of_cube(&cube, &mut col, s));
+            crate::scratch::with_taken(&OPERATOR_SCRATCH, |s| {
+                km.frame_of_images(&images, &mut col, s)
+            });
             // ∂r/∂p = −(K_{ψ+h} z − K_ψ z) / h
             let inv = 1.0 / h as f32;
             col.iter_mut()
@@ -568,6 +596,44 @@ mod tests {
             assert_eq!(k.op.measurement_shape().1 > y.cols(), wider);
             let e = adjoint_mismatch(&k, 3);
             assert!(e < 1e-5, "a1 {a1}: {e}");
+        }
+    }
+
+    /// K_ψ z made a row at a time equals the model's own operator applied
+    /// to the stored coarse cube, high-passed, sharp and blurred.
+    #[test]
+    fn the_row_by_row_product_is_the_models() {
+        let (y, mask) = measured(&truth(), false);
+        let problem =
+            CalibrationProblem::nominal(&y, &mask, BANDS, 2.0, DispersionModel::DispersedMask)
+                .unwrap();
+        let fit = SceneFit::new(&problem, SceneFitSettings::default()).unwrap();
+        let z: Vec<f32> = (0..fit.basis.domain_len())
+            .map(|i| ((i * 31) % 17) as f32 / 17.0)
+            .collect();
+        for sigma in [0.0, 0.6] {
+            let psi = Mismatch {
+                blur_sigma_px: sigma,
+                ..truth()
+            };
+            let k = fit.operator(&psi).unwrap();
+            let mut fused = vec![0.0f32; k.range_len()];
+            k.apply(&z, &mut fused);
+            let mut cube = vec![0.0f32; fit.basis.range_len()];
+            fit.basis.apply(&z, &mut cube);
+            let (rows, det) = k.op.measurement_shape();
+            let mut detector = vec![0.0f32; rows * det];
+            k.op.apply(&cube, &mut detector);
+            let mut frame = Vec::new();
+            reframe(&detector, det, &mut frame, y.cols());
+            let mut expected = vec![0.0f32; fit.data.len()];
+            fit.high_pass(&frame, &mut expected, &mut Vec::new());
+            let scale = expected.iter().fold(0.0f32, |m, v| m.max(v.abs()));
+            let worst = fused
+                .iter()
+                .zip(&expected)
+                .fold(0.0f32, |m, (a, b)| m.max((a - b).abs()));
+            assert!(worst <= 1e-5 * scale, "σ {sigma}: {worst} of {scale}");
         }
     }
 

@@ -57,6 +57,14 @@ impl ModelOperator {
         }
     }
 
+    /// The blur after the CASSI operator (`None` for a sharp instrument).
+    pub fn blur(&self) -> Option<&super::blur::GaussianBlur> {
+        match self {
+            Self::Sharp(_) => None,
+            Self::Blurred(b) => Some(b.blur()),
+        }
+    }
+
     /// σ of the blur, pixels (0 for a sharp instrument).
     pub fn blur_sigma_px(&self) -> f64 {
         match self {

@@ -297,6 +297,30 @@ impl CassiOperator {
     }
 }
 
+/// A cube read one row at a time by [`CassiOperator::apply_rows`].
+pub(crate) trait CubeRows: Sync {
+    /// A thread's buffers for making rows.
+    type Scratch: Default + Send;
+    /// Row `r` of band `k` (cols long), borrowed or made in `scratch`.
+    fn row<'a>(&'a self, k: usize, r: usize, scratch: &'a mut Self::Scratch) -> &'a [f32];
+}
+
+/// A stored cube (bands × rows × cols).
+struct StoredRows<'x> {
+    x: &'x [f32],
+    rows: usize,
+    cols: usize,
+}
+
+impl CubeRows for StoredRows<'_> {
+    type Scratch = ();
+    #[inline]
+    fn row<'a>(&'a self, k: usize, r: usize, _: &'a mut ()) -> &'a [f32] {
+        let at = (k * self.rows + r) * self.cols;
+        &self.x[at..at + self.cols]
+    }
+}
+
 /// Row `r + offset` if it lies on the detector.
 #[inline]
 fn shifted_row(r: usize, offset: i32, rows: usize) -> Option<usize> {
@@ -344,66 +368,9 @@ impl LinearOperator for CassiOperator {
     }
 
     fn apply(&self, x: &[f32], y: &mut [f32]) {
-        let (bands, rows, cols) = self.cube_shape();
         assert_eq!(x.len(), self.domain_len(), "CassiOperator::apply: x length");
-        assert_eq!(y.len(), self.range_len(), "CassiOperator::apply: y length");
-        // Each detector row gathers from the cube rows that land on it, so rows
-        // are independent: no atomics, same result for any thread count.
-        let simd = Simd::detect(false);
-        let det_cols = self.det_cols;
-        if let Some(l) = self.landing.as_ref().filter(|l| l.stored.get().is_none()) {
-            // the band masks row by row, never stored (see `Landing`); the
-            // same values as stored ones, so the same y
-            let width = l.masks.width();
-            y.par_chunks_mut(det_cols)
-                .with_min_len(8)
-                .enumerate()
-                .for_each_init(
-                    || vec![0.0f32; width],
-                    |buf, (yr, yrow)| {
-                        yrow.fill(0.0);
-                        for k in 0..bands {
-                            let band = &x[k * rows * cols..(k + 1) * rows * cols];
-                            let lo = l.masks.first_col(k);
-                            let mut filled = false;
-                            for tap in self.dispersion.taps(k) {
-                                let Some(r) = shifted_row(yr, -tap.row, rows) else {
-                                    continue;
-                                };
-                                if !filled {
-                                    let n = width.min(det_cols - lo);
-                                    l.masks.row(simd, k, yr, &mut buf[..n]);
-                                    filled = true;
-                                }
-                                let c0 = tap.col as usize;
-                                let mrow = &buf[c0 - lo..c0 - lo + cols];
-                                let xrow = &band[r * cols..(r + 1) * cols];
-                                accumulate(simd, &mut yrow[c0..c0 + cols], xrow, mrow, tap.weight);
-                            }
-                        }
-                    },
-                );
-            return;
-        }
-        y.par_chunks_mut(det_cols)
-            .with_min_len(8)
-            .enumerate()
-            .for_each(|(yr, yrow)| {
-                yrow.fill(0.0);
-                for k in 0..bands {
-                    let band = &x[k * rows * cols..(k + 1) * rows * cols];
-                    for tap in self.dispersion.taps(k) {
-                        // source row r with r + tap.row = yr
-                        let Some(r) = shifted_row(yr, -tap.row, rows) else {
-                            continue;
-                        };
-                        let xrow = &band[r * cols..(r + 1) * cols];
-                        let c0 = tap.col as usize;
-                        let mrow = self.mask_slice(k, r, yr, c0);
-                        accumulate(simd, &mut yrow[c0..c0 + cols], xrow, mrow, tap.weight);
-                    }
-                }
-            });
+        let (_, rows, cols) = self.cube_shape();
+        self.apply_rows(&StoredRows { x, rows, cols }, y);
     }
 
     fn adjoint(&self, y: &[f32], x: &mut [f32]) {
@@ -427,6 +394,70 @@ impl LinearOperator for CassiOperator {
 }
 
 impl CassiOperator {
+    /// y = A x for a cube given row by row (`x`): the same products as
+    /// [`LinearOperator::apply`], for a cube that is cheaper to make a row
+    /// at a time than to store (the scene fit's coarse scene).
+    pub(crate) fn apply_rows<R: CubeRows>(&self, x: &R, y: &mut [f32]) {
+        let (bands, rows, cols) = self.cube_shape();
+        assert_eq!(y.len(), self.range_len(), "CassiOperator::apply: y length");
+        // Each detector row gathers from the cube rows that land on it, so rows
+        // are independent: no atomics, same result for any thread count.
+        let simd = Simd::detect(false);
+
+        let det_cols = self.det_cols;
+        if let Some(l) = self.landing.as_ref().filter(|l| l.stored.get().is_none()) {
+            // the band masks row by row, never stored (see `Landing`); the
+            // same values as stored ones, so the same y
+            let width = l.masks.width();
+            y.par_chunks_mut(det_cols)
+                .with_min_len(8)
+                .enumerate()
+                .for_each_init(
+                    || (vec![0.0f32; width], R::Scratch::default()),
+                    |(buf, scratch), (yr, yrow)| {
+                        yrow.fill(0.0);
+                        for k in 0..bands {
+                            let lo = l.masks.first_col(k);
+                            let mut filled = false;
+                            for tap in self.dispersion.taps(k) {
+                                let Some(r) = shifted_row(yr, -tap.row, rows) else {
+                                    continue;
+                                };
+                                if !filled {
+                                    let n = width.min(det_cols - lo);
+                                    l.masks.row(simd, k, yr, &mut buf[..n]);
+                                    filled = true;
+                                }
+                                let c0 = tap.col as usize;
+                                let mrow = &buf[c0 - lo..c0 - lo + cols];
+                                let xrow = x.row(k, r, scratch);
+                                accumulate(simd, &mut yrow[c0..c0 + cols], xrow, mrow, tap.weight);
+                            }
+                        }
+                    },
+                );
+            return;
+        }
+        y.par_chunks_mut(det_cols)
+            .with_min_len(8)
+            .enumerate()
+            .for_each_init(R::Scratch::default, |scratch, (yr, yrow)| {
+                yrow.fill(0.0);
+                for k in 0..bands {
+                    for tap in self.dispersion.taps(k) {
+                        // source row r with r + tap.row = yr
+                        let Some(r) = shifted_row(yr, -tap.row, rows) else {
+                            continue;
+                        };
+                        let xrow = x.row(k, r, scratch);
+                        let c0 = tap.col as usize;
+                        let mrow = self.mask_slice(k, r, yr, c0);
+                        accumulate(simd, &mut yrow[c0..c0 + cols], xrow, mrow, tap.weight);
+                    }
+                }
+            });
+    }
+
     /// Row `r` of band `k` of Aᵀ `y` into `xrow`: what
     /// [`LinearOperator::adjoint`] writes there, for callers that use the
     /// rows as they come (the proxy's prior step) instead of a whole cube.
