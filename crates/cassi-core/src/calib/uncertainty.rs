@@ -437,6 +437,70 @@ pub(crate) fn scene_fit_uncertainty(
     free: &[Parameter],
     texture: &Mismatch,
 ) -> UncertaintyEstimate {
+    match scene_fit_covariance(fit, found, free, texture) {
+        Some(cov) => stated(fit.model(), Fit::Scene, free, &found.best.psi, &cov, 0),
+        None => unstated(free),
+    }
+}
+
+/// [`scene_fit_uncertainty`] after the fine pass: its covariance (its
+/// sandwich and its disagreement with the texture fit) for the parameters
+/// it moved (`fine_free`), the first pass's for the rest and their pairs;
+/// the floors at the fine pass's answer (the scene fit's: not derived for
+/// the fine pass).
+pub(crate) fn two_pass_uncertainty(
+    first: (&SceneFit<'_>, &SceneFitResult, &[Parameter]),
+    fine: (&SceneFit<'_>, &SceneFitResult, &[Parameter]),
+    texture: &Mismatch,
+) -> UncertaintyEstimate {
+    let (first_fit, first_found, free) = first;
+    let (fine_fit, fine_found, fine_free) = fine;
+    let (Some(mut cov), Some(fine_cov)) = (
+        scene_fit_covariance(first_fit, first_found, free, texture),
+        scene_fit_covariance(fine_fit, fine_found, fine_free, texture),
+    ) else {
+        return unstated(free);
+    };
+    let (n, m) = (free.len(), fine_free.len());
+    let index = |p: Parameter| free.iter().position(|&q| q == p);
+    for a in 0..m {
+        for b in 0..m {
+            if let (Some(i), Some(j)) = (index(fine_free[a]), index(fine_free[b])) {
+                cov[i * n + j] = fine_cov[a * m + b];
+            }
+        }
+    }
+    stated(
+        fine_fit.model(),
+        Fit::Scene,
+        free,
+        &fine_found.best.psi,
+        &cov,
+        0,
+    )
+}
+
+/// No stated errors for `free` (a flat direction).
+fn unstated(free: &[Parameter]) -> UncertaintyEstimate {
+    let none = Uncertainty(free.iter().map(|&p| (p, None)).collect());
+    UncertaintyEstimate {
+        standard: none.clone(),
+        interval_95: none,
+        trade_offs: Vec::new(),
+        fit: Some(Fit::Scene),
+        evaluations: 0,
+    }
+}
+
+/// The scene fit's covariance before the floors (n × n over `free`): the
+/// block sandwich plus the disagreement term; `None` when JᵀJ is not
+/// positive definite.
+fn scene_fit_covariance(
+    fit: &SceneFit<'_>,
+    found: &SceneFitResult,
+    free: &[Parameter],
+    texture: &Mismatch,
+) -> Option<Vec<f64>> {
     let n = free.len();
     let (rows, cols) = fit.frame_shape();
     let blocks = BLOCKS_PER_SIDE * BLOCKS_PER_SIDE;
@@ -455,17 +519,7 @@ pub(crate) fn scene_fit_uncertainty(
         }
     }
     let meat = block_spread(&g, n);
-    let model = fit.model();
-    let Some(inv) = invert_positive_definite(&jtj, n) else {
-        let none = Uncertainty(free.iter().map(|&p| (p, None)).collect());
-        return UncertaintyEstimate {
-            standard: none.clone(),
-            interval_95: none,
-            trade_offs: Vec::new(),
-            fit: Some(Fit::Scene),
-            evaluations: 0,
-        };
-    };
+    let inv = invert_positive_definite(&jtj, n)?;
     let mut cov = product(&product(&inv, &meat, n), &inv, n);
     let d: Vec<f64> = free
         .iter()
@@ -476,7 +530,7 @@ pub(crate) fn scene_fit_uncertainty(
             cov[i * n + j] += 0.5 * d[i] * d[j];
         }
     }
-    stated(model, Fit::Scene, free, &found.best.psi, &cov, 0)
+    Some(cov)
 }
 
 /// B/(B−1) Σ_b (g_b − ḡ)(g_b − ḡ)ᵀ over the blocks' gradients `g` (n each).

@@ -49,12 +49,14 @@
 //! Run: `cargo run --release -p cassi-bench --bin calibrate --
 //! [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] [--no-aligned]
 //! [--no-inverse-crime] [--model rounded|subpixel|dispersed-mask] [--preset NAME]
-//! [--no-texture] [--no-scene-fit] [--no-recon] [--no-limits] [--out PATH]
-//! [--scene-transform none|flip-cols|flip-rows|transpose] [--verbose]`
+//! [--no-texture] [--no-scene-fit] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene]
+//! [--no-recon] [--no-limits] [--out PATH] [--scene-transform none|flip-cols|flip-rows|transpose] [--verbose]`
 //! (`--no-texture`: the default preset without its texture fit, as it was
 //! before issue #14 — the "before" row; `--no-scene-fit`: without its
 //! scene fit, ending in the texture fit as the records `*_texture.json`
-//! were made; `--scene-transform`: every scene flipped or transposed — the
+//! were made; `--fine-pass RIDGE`: with the scene fit's experimental
+//! second pass (`calib::FinePass`, its default settings but this ridge
+//! and, with `--fine-pass-anchor`, this anchor); `--scene-transform`: every scene flipped or transposed — the
 //! tuning scenes in three more configurations against the mask, with their
 //! own `--seed-round`, for the uncertainty floors); without flags it
 //! reproduces the README's held-out table (every scene of the held-out
@@ -70,7 +72,7 @@ use std::time::Instant;
 use anyhow::{Context, Result, anyhow, bail, ensure};
 use cassi_bench::{median, physical_random_mismatch, psi_of, scene_name, shared_data};
 use cassi_core::calib::{
-    CalibrationProblem, DefaultPreset, PRESET_NAMES, Preset, calibrate, model_error_floor,
+    CalibrationProblem, DefaultPreset, FinePass, PRESET_NAMES, Preset, calibrate, model_error_floor,
 };
 use cassi_core::metrics::psnr;
 use cassi_core::optics::{
@@ -227,7 +229,7 @@ impl SceneTransform {
 
 const USAGE: &str = "calibrate [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] \
                      [--no-aligned] [--no-inverse-crime] [--no-wide-blur] [--model rounded|subpixel|dispersed-mask] \
-                     [--preset NAME] [--no-texture] [--no-scene-fit] [--no-recon] [--no-limits] [--out PATH] \
+                     [--preset NAME] [--no-texture] [--no-scene-fit] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--no-recon] [--no-limits] [--out PATH] \
                      [--scene-transform none|flip-cols|flip-rows|transpose] [--verbose]";
 
 fn parse_args(argv: &[String]) -> Result<Args> {
@@ -241,6 +243,8 @@ fn parse_args(argv: &[String]) -> Result<Args> {
     let mut preset_name = "default".to_string();
     let mut texture = true;
     let mut scene_fit = true;
+    let mut fine_pass = None;
+    let mut fine_pass_anchor = None;
     let mut out = None;
     let mut transform = SceneTransform::None;
     let mut it = argv.iter();
@@ -286,6 +290,22 @@ fn parse_args(argv: &[String]) -> Result<Args> {
             "--preset" => preset_name = value()?,
             "--no-texture" => texture = false,
             "--no-scene-fit" => scene_fit = false,
+            "--fine-pass" => {
+                let v = value()?;
+                let ridge: f64 = v.parse().with_context(|| format!("--fine-pass {v}"))?;
+                ensure!(
+                    ridge.is_finite() && ridge >= 0.0,
+                    "--fine-pass {v}: a ridge weight ≥ 0"
+                );
+                fine_pass = Some(ridge);
+            }
+            "--fine-pass-anchor" => {
+                fine_pass_anchor = Some(
+                    value()?
+                        .parse()
+                        .map_err(|e: String| anyhow!("--fine-pass-anchor {e}"))?,
+                );
+            }
             "--recon" => recon = true,
             "--no-recon" => recon = false,
             "--limits" => limits = true,
@@ -333,6 +353,30 @@ fn parse_args(argv: &[String]) -> Result<Args> {
             Preset::Paper(_) => bail!("--no-scene-fit applies to the default preset"),
         }
         preset_name += " (no scene fit)";
+    }
+    ensure!(
+        fine_pass.is_some() || fine_pass_anchor.is_none(),
+        "--fine-pass-anchor needs --fine-pass RIDGE"
+    );
+    let fine_pass_anchor = fine_pass_anchor.unwrap_or(FinePass::default().anchor);
+    if let Some(ridge) = fine_pass {
+        match &mut preset {
+            Preset::Default(d) => match d.scene_fit.as_mut() {
+                Some(settings) => {
+                    settings.fine_pass = Some(FinePass {
+                        ridge,
+                        anchor: fine_pass_anchor,
+                        ..FinePass::default()
+                    });
+                }
+                None => bail!("--fine-pass needs the scene fit"),
+            },
+            Preset::Paper(_) => bail!("--fine-pass applies to the default preset"),
+        }
+        preset_name += &format!(
+            " (fine pass, ridge {ridge} toward {})",
+            fine_pass_anchor.key()
+        );
     }
     let out = out.unwrap_or_else(|| {
         Path::new(env!("CARGO_MANIFEST_DIR"))
