@@ -624,12 +624,9 @@ fn scene_fit_stage(
         .collect();
     let found = fit_scene(&fit, start, &free)?;
     stage.count(found.evaluations);
+    let moves = |p: &Parameter| free.contains(p);
     let (found, u) = match settings.fine_pass {
-        None => {
-            let u = scene_fit_uncertainty(&fit, &found, &free, start);
-            (found, u)
-        }
-        Some(pass) => {
+        Some(pass) if FINE_PASS_FREE.iter().any(moves) => {
             let fine_settings = SceneFitSettings {
                 cell_px: pass.cell_px,
                 cold_solve: pass.first_solve,
@@ -644,14 +641,15 @@ fn scene_fit_stage(
                 RidgeAnchor::FirstPassScene => Some(scene.clone()),
             };
             let fine = fine.with_ridge(pass.ridge, anchor);
-            let moved: Vec<Parameter> = FINE_PASS_FREE
-                .into_iter()
-                .filter(|p| free.contains(p))
-                .collect();
+            let moved: Vec<Parameter> = FINE_PASS_FREE.into_iter().filter(moves).collect();
             let refined = fit_scene_from(&fine, &found.best.psi, Some(&scene), &moved)?;
             stage.count(refined.evaluations);
             let u = two_pass_uncertainty((&fit, &found, &free), (&fine, &refined, &moved), start);
             (refined, u)
+        }
+        _ => {
+            let u = scene_fit_uncertainty(&fit, &found, &free, start);
+            (found, u)
         }
     };
     let best = Scored {
@@ -661,9 +659,9 @@ fn scene_fit_stage(
     Ok((run.finish(stage, "scene fit (coarse scene per ψ)", best), u))
 }
 
-/// What the scene fit's fine pass refits ([`super::FinePass`]): on the
-/// tuning half, also freeing dy and α let them slide along their ridge
-/// (random-pose dy RMSE 0.048 → 0.119 px, α 0.077 → 0.20°).
+/// What the scene fit's fine pass refits ([`super::FinePass`]): in a
+/// probe on the tuning half (ridge toward zero, not recorded), also
+/// freeing dy and α let them slide along their ridge on random poses.
 const FINE_PASS_FREE: [Parameter; 3] = [Dx, ThetaDeg, A1];
 
 /// The blur widths the texture stage tries before its simplex: 0 … 1.5 px.
