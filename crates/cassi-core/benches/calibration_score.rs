@@ -15,6 +15,7 @@ use cassi_core::optics::{DispersionModel, SimulationSpec, simulate};
 use cassi_core::synth::{SceneSpec, random_binary_mask, synthetic_scene};
 
 fn main() {
+    let path = common::record_path("calibration_score.json");
     let scene = synthetic_scene(&SceneSpec {
         rows: 256,
         cols: 256,
@@ -64,5 +65,5 @@ fn main() {
         "machine": { "cpu": cpu, "threads": rayon::current_num_threads() },
         "results": rows,
     });
-    common::write_record("calibration_score.json", &out);
+    common::write_record(&path, &out);
 }

@@ -87,6 +87,7 @@ fn case(
 }
 
 fn main() {
+    let path = common::record_path("operator.json");
     let nominal = DispersionParams {
         a1: 2.0,
         alpha_deg: 0.0,
@@ -124,5 +125,5 @@ fn main() {
         "machine": { "cpu": cpu, "threads": rayon::current_num_threads() },
         "results": rows,
     });
-    common::write_record("operator.json", &out);
+    common::write_record(&path, &out);
 }

@@ -18,6 +18,7 @@ use cassi_core::solvers::CglsParams;
 use cassi_core::synth::random_binary_mask;
 
 fn main() {
+    let path = common::record_path("scene_fit_solve.json");
     let args: Vec<String> = std::env::args().collect();
     let label = args
         .iter()
@@ -73,5 +74,5 @@ fn main() {
         "machine": { "cpu": cpu, "threads": rayon::current_num_threads() },
         "results": rows,
     });
-    common::write_record("scene_fit_solve.json", &out);
+    common::write_record(&path, &out);
 }

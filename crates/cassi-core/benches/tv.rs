@@ -61,6 +61,7 @@ fn time_calls(den: &mut dyn FnMut(&mut Cube), x: &Cube, calls: usize, reps: usiz
 }
 
 fn main() {
+    let path = common::record_path("tv.json");
     let (bands, size) = (28, 256);
     let x = scene(bands, size);
     let voxels = (bands * size * size) as f64;
@@ -134,5 +135,5 @@ fn main() {
         "machine": { "cpu": cpu, "threads": threads },
         "results": rows,
     });
-    common::write_record("tv.json", &out);
+    common::write_record(&path, &out);
 }

@@ -30,10 +30,31 @@ pub fn cpu_name() -> String {
         .unwrap_or_else(|| "unknown".into())
 }
 
-/// Writes `record` to `bench/results/<name>` (or $CASSI_BENCH_OUT).
-pub fn write_record(name: &str, record: &serde_json::Value) {
-    let path = std::env::var("CASSI_BENCH_OUT")
-        .unwrap_or_else(|_| format!("{}/../../bench/results/{name}", env!("CARGO_MANIFEST_DIR")));
-    std::fs::write(&path, serde_json::to_string_pretty(record).unwrap() + "\n").unwrap();
-    eprintln!("wrote {path}");
+/// Where `bench/results/<name>` (or $CASSI_BENCH_OUT) goes, checked
+/// before the work: its folder must exist, so a bad path fails at once
+/// instead of after minutes of timing.
+pub fn record_path(name: &str) -> std::path::PathBuf {
+    let path =
+        std::path::PathBuf::from(std::env::var("CASSI_BENCH_OUT").unwrap_or_else(|_| {
+            format!("{}/../../bench/results/{name}", env!("CARGO_MANIFEST_DIR"))
+        }));
+    let folder = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => std::path::PathBuf::from("."),
+    };
+    if !folder.is_dir() {
+        panic!("the record's folder {} does not exist", folder.display());
+    }
+    path
+}
+
+/// Writes `record` to `path` whole or not at all (a temporary file beside
+/// it, renamed over it).
+pub fn write_record(path: &std::path::Path, record: &serde_json::Value) {
+    let tmp = path.with_extension("json.tmp");
+    let text = serde_json::to_string_pretty(record).unwrap() + "\n";
+    std::fs::write(&tmp, text).unwrap_or_else(|e| panic!("writing {}: {e}", tmp.display()));
+    std::fs::rename(&tmp, path)
+        .unwrap_or_else(|e| panic!("renaming {} to {}: {e}", tmp.display(), path.display()));
+    eprintln!("wrote {}", path.display());
 }
