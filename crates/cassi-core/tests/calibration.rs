@@ -1,7 +1,7 @@
 //! Self-calibration on small synthetic problems: the score is minimal at the
 //! truth, and the `default` preset recovers known parameters.
 
-use cassi_core::calib::{CalibrationProblem, DefaultPreset, ProxyParams, calibrate_default};
+use cassi_core::calib::{CalibrationProblem, DefaultPreset, Fit, ProxyParams, calibrate_default};
 use cassi_core::optics::{DispersionModel, SimulationSpec, simulate};
 use cassi_core::synth::{SceneSpec, random_binary_mask, synthetic_scene};
 use cassi_core::{Mismatch, Parameter};
@@ -174,14 +174,18 @@ fn default_preset_recovers_a_known_mask_misalignment() {
         }
         assert!(cal.score < cal.nominal_score / 2.0);
         // the texture fit replaces the subpixel model's proxy refinements
-        // (tilt, joint), and the dispersed-mask model ends in the scene fit;
+        // (tilt, joint), and the dispersed-mask model ends in the scene fit
+        // and its fine pass, each a stage;
         // the rounded model keeps its joint refinement and does not fit the
         // blur
         let last = cal.stages.last().map(|s| s.name.as_str()).unwrap_or("");
         match model {
             DispersionModel::DispersedMask => {
-                assert_eq!(cal.stages.len(), 6);
-                assert!(last.starts_with("scene fit"), "{last}");
+                assert_eq!(cal.stages.len(), 7);
+                let first = cal.stages[5].name.as_str();
+                assert!(first.starts_with("scene fit ("), "{first}");
+                assert!(last.starts_with("scene fit's fine pass"), "{last}");
+                assert_eq!(cal.uncertainty_fit, Some(Fit::SceneFinePass));
             }
             DispersionModel::Subpixel => {
                 assert_eq!(cal.stages.len(), 5);

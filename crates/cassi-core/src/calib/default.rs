@@ -16,7 +16,9 @@
 use serde::{Deserialize, Serialize};
 
 use super::rounded_dispersion::{rounded_dispersion, rounding_intervals};
-use super::scene_fit::{RidgeAnchor, SceneFit, SceneFitSettings, fit_scene, fit_scene_from};
+use super::scene_fit::{
+    RidgeAnchor, SceneFit, SceneFitResult, SceneFitSettings, fit_scene, fit_scene_from,
+};
 use super::stages::{Scored, Stage, StageRunner, lowest};
 use super::subpixel_tilt::subpixel_tilt;
 use super::texture::{SceneEstimate, TextureFit};
@@ -608,7 +610,9 @@ pub fn texture_fit(
 /// there too (mean RMSE / tolerance over the 45: 2 px 1.88, 1 px 1.71,
 /// 0.7 px 1.60, 0.5 px 1.46, 0.3 px 1.47; wider ones put textured scenes'
 /// blur high). Without the texture fit before it (from the proxy stages' ψ
-/// with its own σ grid) dy, θ, α and σ were worse.
+/// with its own σ grid) dy, θ, α and σ were worse. Then stage 7, its fine
+/// pass over dx, θ and a1 ([`super::FinePass`], in the settings by
+/// default), with the two passes' uncertainty.
 fn scene_fit_stage(
     run: &mut StageRunner<'_>,
     problem: &CalibrationProblem<'_>,
@@ -624,9 +628,16 @@ fn scene_fit_stage(
         .collect();
     let found = fit_scene(&fit, start, &free)?;
     stage.count(found.evaluations);
+    let scored = |found: &SceneFitResult| Scored {
+        parameters: found.best.psi,
+        score: found.best.score,
+    };
     let moves = |p: &Parameter| free.contains(p);
-    let (found, u) = match settings.fine_pass {
+    match settings.fine_pass {
         Some(pass) if FINE_PASS_FREE.iter().any(moves) => {
+            run.finish(stage, SCENE_FIT_STAGE, scored(&found));
+            problem.check_cancelled()?;
+            let stage = run.start();
             let fine_settings = SceneFitSettings {
                 cell_px: pass.cell_px,
                 cold_solve: pass.first_solve,
@@ -645,19 +656,19 @@ fn scene_fit_stage(
             let refined = fit_scene_from(&fine, &found.best.psi, Some(&scene), &moved)?;
             stage.count(refined.evaluations);
             let u = two_pass_uncertainty((&fit, &found, &free), (&fine, &refined, &moved), start);
-            (refined, u)
+            // its score is the penalised one on the finer scene: not
+            // comparable with the first pass's
+            let name = format!("scene fit's fine pass ({}-px scene, ridge)", pass.cell_px);
+            Ok((run.finish(stage, name, scored(&refined)), u))
         }
         _ => {
             let u = scene_fit_uncertainty(&fit, &found, &free, start);
-            (found, u)
+            Ok((run.finish(stage, SCENE_FIT_STAGE, scored(&found)), u))
         }
-    };
-    let best = Scored {
-        parameters: found.best.psi,
-        score: found.best.score,
-    };
-    Ok((run.finish(stage, "scene fit (coarse scene per ψ)", best), u))
+    }
 }
+
+const SCENE_FIT_STAGE: &str = "scene fit (coarse scene per ψ)";
 
 /// What the scene fit's fine pass refits ([`super::FinePass`]): in a
 /// probe on the tuning half (ridge toward zero, not recorded), also

@@ -62,13 +62,14 @@ pub struct SceneFitSettings {
     /// BFGS steps at most.
     pub max_steps: usize,
     /// A second pass over dx, θ and a1 on a finer, ridge-regularised scene
-    /// (experimental, off by default: see [`FinePass`]). `None` in records
-    /// made before it (which round-trip without the field).
+    /// (on by default: see [`FinePass`]). `None`: the first pass alone, as
+    /// in settings written before the pass existed (which read back
+    /// without it).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub fine_pass: Option<FinePass>,
 }
 
-/// The scene fit's second pass (experimental, off by default): from the
+/// The scene fit's second pass, on by default: from the
 /// first pass's answer, dx, θ and a1 refitted with σ, dy and α held, the
 /// scene on `cell_px` nodes with a ridge penalty λ‖z − z₀‖² in the score
 /// (λ = `ridge` × the mean squared column norm of K at the pass's start;
@@ -78,9 +79,10 @@ pub struct SceneFitSettings {
 /// tuning half a 4-px scene solved to convergence kept the same bias, and
 /// one stopped early (60 CGLS iterations from zero) removed it — the ridge
 /// makes that early stop explicit, so the answer does not hang on an
-/// iteration count. Measured
-/// on the tuning half only (`calibrate_physical_tuning_fine_pass*.json`);
-/// its stated errors use the scene fit's floors, not derived for it.
+/// iteration count. Tuned on the tuning half
+/// (`calibrate_physical_tuning_fine_pass*.json`), where its own floors were
+/// derived (`Fit::SceneFinePass`); reported on the held-out half
+/// (`calibrate_physical_held_out.json`).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct FinePass {
     /// Spacing of its scene's nodes, pixels.
@@ -171,7 +173,7 @@ impl Default for SceneFitSettings {
                 tolerance: 1e-5,
             },
             max_steps: 20,
-            fine_pass: None,
+            fine_pass: Some(FinePass::default()),
         }
     }
 }
@@ -820,10 +822,17 @@ mod tests {
     }
 
     /// Settings written before the fine pass read back without one; with
-    /// one they round-trip, its anchor by name.
+    /// one (the default) they round-trip, its anchor by name.
     #[test]
     fn settings_round_trip_with_and_without_the_fine_pass() {
-        let plain = SceneFitSettings::default();
+        assert_eq!(
+            SceneFitSettings::default().fine_pass,
+            Some(FinePass::default())
+        );
+        let plain = SceneFitSettings {
+            fine_pass: None,
+            ..SceneFitSettings::default()
+        };
         let json = serde_json::to_string(&plain).unwrap();
         assert!(!json.contains("fine_pass"), "{json}");
         assert_eq!(

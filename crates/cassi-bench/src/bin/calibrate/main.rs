@@ -49,14 +49,15 @@
 //! Run: `cargo run --release -p cassi-bench --bin calibrate --
 //! [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] [--no-aligned]
 //! [--no-inverse-crime] [--model rounded|subpixel|dispersed-mask] [--preset NAME]
-//! [--no-texture] [--no-scene-fit] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene]
+//! [--no-texture] [--no-scene-fit] [--no-fine-pass] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene]
 //! [--no-recon] [--no-limits] [--out PATH] [--scene-transform none|flip-cols|flip-rows|transpose] [--verbose]`
 //! (`--no-texture`: the default preset without its texture fit, as it was
 //! before issue #14 — the "before" row; `--no-scene-fit`: without its
 //! scene fit, ending in the texture fit as the records `*_texture.json`
-//! were made; `--fine-pass RIDGE`: with the scene fit's experimental
-//! second pass (`calib::FinePass`, its default settings but this ridge
-//! and, with `--fine-pass-anchor`, this anchor); `--scene-transform`: every scene flipped or transposed — the
+//! were made; `--no-fine-pass`: the scene fit without its second pass
+//! (`calib::FinePass`), as the records before it were made;
+//! `--fine-pass RIDGE`: the pass with this ridge and, with
+//! `--fine-pass-anchor`, this anchor); `--scene-transform`: every scene flipped or transposed — the
 //! tuning scenes in three more configurations against the mask, with their
 //! own `--seed-round`, for the uncertainty floors); without flags it
 //! reproduces the README's held-out table (every scene of the held-out
@@ -229,7 +230,7 @@ impl SceneTransform {
 
 const USAGE: &str = "calibrate [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] \
                      [--no-aligned] [--no-inverse-crime] [--no-wide-blur] [--model rounded|subpixel|dispersed-mask] \
-                     [--preset NAME] [--no-texture] [--no-scene-fit] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--no-recon] [--no-limits] [--out PATH] \
+                     [--preset NAME] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--no-recon] [--no-limits] [--out PATH] \
                      [--scene-transform none|flip-cols|flip-rows|transpose] [--verbose]";
 
 fn parse_args(argv: &[String]) -> Result<Args> {
@@ -245,6 +246,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
     let mut scene_fit = true;
     let mut fine_pass = None;
     let mut fine_pass_anchor = None;
+    let mut no_fine_pass = false;
     let mut out = None;
     let mut transform = SceneTransform::None;
     let mut it = argv.iter();
@@ -290,6 +292,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
             "--preset" => preset_name = value()?,
             "--no-texture" => texture = false,
             "--no-scene-fit" => scene_fit = false,
+            "--no-fine-pass" => no_fine_pass = true,
             "--fine-pass" => {
                 let v = value()?;
                 let ridge: f64 = v.parse().with_context(|| format!("--fine-pass {v}"))?;
@@ -358,6 +361,21 @@ fn parse_args(argv: &[String]) -> Result<Args> {
         fine_pass.is_some() || fine_pass_anchor.is_none(),
         "--fine-pass-anchor needs --fine-pass RIDGE"
     );
+    ensure!(
+        !(no_fine_pass && fine_pass.is_some()),
+        "--no-fine-pass and --fine-pass RIDGE: one or the other"
+    );
+    // the scene fit as it was before its fine pass became the default
+    if no_fine_pass {
+        match &mut preset {
+            Preset::Default(d) => match d.scene_fit.as_mut() {
+                Some(settings) => settings.fine_pass = None,
+                None => bail!("--no-fine-pass needs the scene fit"),
+            },
+            Preset::Paper(_) => bail!("--no-fine-pass applies to the default preset"),
+        }
+        preset_name += " (no fine pass)";
+    }
     let fine_pass_anchor = fine_pass_anchor.unwrap_or(FinePass::default().anchor);
     if let Some(ridge) = fine_pass {
         match &mut preset {
