@@ -634,7 +634,7 @@ fn scene_fit_stage(
     };
     let moves = |p: &Parameter| free.contains(p);
     match settings.fine_pass {
-        Some(pass) if FINE_PASS_FREE.iter().any(moves) => {
+        Some(pass) if pass.free.parameters().iter().any(moves) => {
             run.finish(stage, SCENE_FIT_STAGE, scored(&found));
             problem.check_cancelled()?;
             let stage = run.start();
@@ -652,7 +652,13 @@ fn scene_fit_stage(
                 RidgeAnchor::FirstPassScene => Some(scene.clone()),
             };
             let fine = fine.with_ridge(pass.ridge, anchor);
-            let moved: Vec<Parameter> = FINE_PASS_FREE.into_iter().filter(moves).collect();
+            let moved: Vec<Parameter> = pass
+                .free
+                .parameters()
+                .iter()
+                .copied()
+                .filter(moves)
+                .collect();
             let refined = fit_scene_from(&fine, &found.best.psi, Some(&scene), &moved)?;
             stage.count(refined.evaluations);
             let u = two_pass_uncertainty((&fit, &found, &free), (&fine, &refined, &moved), start);
@@ -669,11 +675,6 @@ fn scene_fit_stage(
 }
 
 const SCENE_FIT_STAGE: &str = "scene fit (coarse scene per ψ)";
-
-/// What the scene fit's fine pass refits ([`super::FinePass`]): in a
-/// probe on the tuning half (ridge toward zero, not recorded), also
-/// freeing dy and α let them slide along their ridge on random poses.
-const FINE_PASS_FREE: [Parameter; 3] = [Dx, ThetaDeg, A1];
 
 /// The blur widths the texture stage tries before its simplex: 0 … 1.5 px.
 const BLUR_GRID_MAX_PX: f64 = 1.5;

@@ -38,7 +38,9 @@ pub use default::{DefaultPreset, calibrate_default, texture_fit};
 pub use gradient::Parameter;
 pub use nelder_mead::nelder_mead;
 pub use paper::{GradientStage, PaperPreset, calibrate_paper};
-pub use scene_fit::{FinePass, RidgeAnchor, SceneFitSettings, coarse_scene_of, scene_fit_score};
+pub use scene_fit::{
+    FinePass, FinePassFree, RidgeAnchor, SceneFitSettings, coarse_scene_of, scene_fit_score,
+};
 pub use score::{CalibrationProblem, ProxyParams};
 pub use texture::{SCENE_SMOOTH_PX, SceneEstimate};
 

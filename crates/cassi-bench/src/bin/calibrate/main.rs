@@ -50,6 +50,7 @@
 //! [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] [--no-aligned]
 //! [--no-inverse-crime] [--model rounded|subpixel|dispersed-mask] [--preset NAME]
 //! [--no-texture] [--no-scene-fit] [--no-fine-pass] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene]
+//! [--fine-pass-free pose-and-slope|geometry]
 //! [--no-recon] [--no-limits] [--out PATH] [--scene-transform none|flip-cols|flip-rows|transpose] [--verbose]`
 //! (`--no-texture`: the default preset without its texture fit, as it was
 //! before issue #14 — the "before" row; `--no-scene-fit`: without its
@@ -57,7 +58,8 @@
 //! were made; `--no-fine-pass`: the scene fit without its second pass
 //! (`calib::FinePass`), as the records before it were made;
 //! `--fine-pass RIDGE`: the pass with this ridge and, with
-//! `--fine-pass-anchor`, this anchor); `--scene-transform`: every scene flipped or transposed — the
+//! `--fine-pass-anchor` and `--fine-pass-free`, this anchor and these
+//! parameters); `--scene-transform`: every scene flipped or transposed — the
 //! tuning scenes in three more configurations against the mask, with their
 //! own `--seed-round`, for the uncertainty floors); without flags it
 //! reproduces the README's held-out table (every scene of the held-out
@@ -230,7 +232,7 @@ impl SceneTransform {
 
 const USAGE: &str = "calibrate [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] \
                      [--no-aligned] [--no-inverse-crime] [--no-wide-blur] [--model rounded|subpixel|dispersed-mask] \
-                     [--preset NAME] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--no-recon] [--no-limits] [--out PATH] \
+                     [--preset NAME] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry] [--no-recon] [--no-limits] [--out PATH] \
                      [--scene-transform none|flip-cols|flip-rows|transpose] [--verbose]";
 
 fn parse_args(argv: &[String]) -> Result<Args> {
@@ -246,6 +248,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
     let mut scene_fit = true;
     let mut fine_pass = None;
     let mut fine_pass_anchor = None;
+    let mut fine_pass_free = None;
     let mut no_fine_pass = false;
     let mut out = None;
     let mut transform = SceneTransform::None;
@@ -309,6 +312,13 @@ fn parse_args(argv: &[String]) -> Result<Args> {
                         .map_err(|e: String| anyhow!("--fine-pass-anchor {e}"))?,
                 );
             }
+            "--fine-pass-free" => {
+                fine_pass_free = Some(
+                    value()?
+                        .parse()
+                        .map_err(|e: String| anyhow!("--fine-pass-free {e}"))?,
+                );
+            }
             "--recon" => recon = true,
             "--no-recon" => recon = false,
             "--limits" => limits = true,
@@ -358,8 +368,8 @@ fn parse_args(argv: &[String]) -> Result<Args> {
         preset_name += " (no scene fit)";
     }
     ensure!(
-        fine_pass.is_some() || fine_pass_anchor.is_none(),
-        "--fine-pass-anchor needs --fine-pass RIDGE"
+        fine_pass.is_some() || (fine_pass_anchor.is_none() && fine_pass_free.is_none()),
+        "--fine-pass-anchor and --fine-pass-free need --fine-pass RIDGE"
     );
     ensure!(
         !(no_fine_pass && fine_pass.is_some()),
@@ -377,6 +387,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
         preset_name += " (no fine pass)";
     }
     let fine_pass_anchor = fine_pass_anchor.unwrap_or(FinePass::default().anchor);
+    let fine_pass_free = fine_pass_free.unwrap_or(FinePass::default().free);
     if let Some(ridge) = fine_pass {
         match &mut preset {
             Preset::Default(d) => match d.scene_fit.as_mut() {
@@ -384,6 +395,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
                     settings.fine_pass = Some(FinePass {
                         ridge,
                         anchor: fine_pass_anchor,
+                        free: fine_pass_free,
                         ..FinePass::default()
                     });
                 }
@@ -392,9 +404,14 @@ fn parse_args(argv: &[String]) -> Result<Args> {
             Preset::Paper(_) => bail!("--fine-pass applies to the default preset"),
         }
         preset_name += &format!(
-            " (fine pass, ridge {ridge} toward {})",
+            " (fine pass, ridge {ridge} toward {}",
             fine_pass_anchor.key()
         );
+        // records made before the free set was a choice name no set
+        if fine_pass_free != FinePass::default().free {
+            preset_name += &format!(", refitting {}", fine_pass_free.key());
+        }
+        preset_name += ")";
     }
     let out = out.unwrap_or_else(|| {
         Path::new(env!("CARGO_MANIFEST_DIR"))
