@@ -507,10 +507,9 @@ pub(crate) fn scene_fit_uncertainty(
 /// it removes a bias the two fits share (aligned tuning cases: dx 0.25 px
 /// in both, then 0.01); measured against the texture fit it made aligned
 /// dx's stated error 0.15 px for errors of 0.05 (tuning half, median;
-/// held out 0.2 px for 0.007) and, being rank one, reported dx–θ and a1–θ
-/// trade-offs in 21 of 25 held-out cases where the errors do not
-/// correlate (−0.03, −0.11). The fine pass's floors ([`SCENE_FINE_PASS`])
-/// at its answer.
+/// held out 0.17 px for 0.007). Trade-offs are read without the term
+/// ([`stated`]). The fine pass's floors ([`SCENE_FINE_PASS`]) at its
+/// answer.
 pub(crate) fn two_pass_uncertainty(
     first: (&SceneFit<'_>, &SceneFitResult, &[Parameter]),
     fine: (&SceneFit<'_>, &SceneFitResult, &[Parameter]),
