@@ -165,14 +165,20 @@ impl FinePassFree {
 impl std::str::FromStr for FinePassFree {
     type Err = String;
     fn from_str(s: &str) -> std::result::Result<Self, String> {
-        FinePassFree::ALL
-            .into_iter()
-            .find(|a| a.key() == s)
-            .ok_or_else(|| {
-                let keys: Vec<&str> = FinePassFree::ALL.iter().map(|a| a.key()).collect();
-                format!("'{s}': expected one of {}", keys.join(", "))
-            })
+        by_key(s, &FinePassFree::ALL, FinePassFree::key)
     }
+}
+
+/// The one of `all` whose `key` is `s`, or an error naming them all.
+fn by_key<T: Copy>(
+    s: &str,
+    all: &[T],
+    key: fn(T) -> &'static str,
+) -> std::result::Result<T, String> {
+    all.iter().copied().find(|&a| key(a) == s).ok_or_else(|| {
+        let keys: Vec<&str> = all.iter().map(|&a| key(a)).collect();
+        format!("'{s}': expected one of {}", keys.join(", "))
+    })
 }
 
 impl RidgeAnchor {
@@ -190,13 +196,7 @@ impl RidgeAnchor {
 impl std::str::FromStr for RidgeAnchor {
     type Err = String;
     fn from_str(s: &str) -> std::result::Result<Self, String> {
-        RidgeAnchor::ALL
-            .into_iter()
-            .find(|a| a.key() == s)
-            .ok_or_else(|| {
-                let keys: Vec<&str> = RidgeAnchor::ALL.iter().map(|a| a.key()).collect();
-                format!("'{s}': expected one of {}", keys.join(", "))
-            })
+        by_key(s, &RidgeAnchor::ALL, RidgeAnchor::key)
     }
 }
 
