@@ -611,8 +611,8 @@ pub fn texture_fit(
 /// 0.7 px 1.60, 0.5 px 1.46, 0.3 px 1.47; wider ones put textured scenes'
 /// blur high). Without the texture fit before it (from the proxy stages' ψ
 /// with its own σ grid) dy, θ, α and σ were worse. Then stage 7, its fine
-/// pass over dx, θ and a1 ([`super::FinePass`], in the settings by
-/// default), with the two passes' uncertainty.
+/// pass ([`super::FinePass`], in the settings by default; over dx, θ and
+/// a1 unless its `free` says otherwise), with the two passes' uncertainty.
 fn scene_fit_stage(
     run: &mut StageRunner<'_>,
     problem: &CalibrationProblem<'_>,

@@ -137,7 +137,8 @@ pub enum FinePassFree {
     /// scenes as they are (45 cases, probe of a scratch build with this
     /// set): aligned dy RMSE 0.069 → 0.017 px and α 0.103 → 0.028° against
     /// `PoseAndSlope`, aligned dx 0.015 → 0.047 px; not yet checked in the
-    /// other configurations nor held out.
+    /// other configurations nor held out, and its stated errors use the
+    /// floors derived for `PoseAndSlope`.
     Geometry,
 }
 
