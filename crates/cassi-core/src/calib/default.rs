@@ -17,13 +17,14 @@ use serde::{Deserialize, Serialize};
 
 use super::rounded_dispersion::{rounded_dispersion, rounding_intervals};
 use super::scene_fit::{
-    RidgeAnchor, SceneFit, SceneFitResult, SceneFitSettings, fit_scene, fit_scene_from,
+    FinePassFree, RidgeAnchor, SceneFit, SceneFitResult, SceneFitSettings, fit_scene,
+    fit_scene_from,
 };
 use super::stages::{Scored, Stage, StageRunner, lowest};
 use super::subpixel_tilt::subpixel_tilt;
 use super::texture::{SceneEstimate, TextureFit};
 use super::uncertainty::{
-    UncertaintyEstimate, curvature_uncertainty, scene_fit_uncertainty, texture_uncertainty,
+    Fit, UncertaintyEstimate, curvature_uncertainty, scene_fit_uncertainty, texture_uncertainty,
     two_pass_uncertainty,
 };
 use super::{Calibration, CalibrationProblem, ProxyParams, StageReport, Uncertainty};
@@ -611,8 +612,9 @@ pub fn texture_fit(
 /// 0.7 px 1.60, 0.5 px 1.46, 0.3 px 1.47; wider ones put textured scenes'
 /// blur high). Without the texture fit before it (from the proxy stages' ψ
 /// with its own σ grid) dy, θ, α and σ were worse. Then stage 7, its fine
-/// pass ([`super::FinePass`], in the settings by default; over dx, θ and
-/// a1 unless its `free` says otherwise), with the two passes' uncertainty.
+/// pass ([`super::FinePass`], in the settings by default; over dx, dy, θ,
+/// a1 and α unless its `free` says otherwise), with the two passes'
+/// uncertainty.
 fn scene_fit_stage(
     run: &mut StageRunner<'_>,
     problem: &CalibrationProblem<'_>,
@@ -661,7 +663,12 @@ fn scene_fit_stage(
                 .collect();
             let refined = fit_scene_from(&fine, &found.best.psi, Some(&scene), &moved)?;
             stage.count(refined.evaluations);
-            let u = two_pass_uncertainty((&fit, &found, &free), (&fine, &refined, &moved), start);
+            let floors = match pass.free {
+                FinePassFree::Geometry => Fit::SceneFinePass,
+                FinePassFree::PoseAndSlope => Fit::ScenePoseAndSlopePass,
+            };
+            let first = (&fit, &found, free.as_slice());
+            let u = two_pass_uncertainty(first, (&fine, &refined, &moved), start, floors);
             // its score is the penalised one on the finer scene: not
             // comparable with the first pass's
             let name = format!("scene fit's fine pass ({}-px scene, ridge)", pass.cell_px);
@@ -674,7 +681,8 @@ fn scene_fit_stage(
     }
 }
 
-const SCENE_FIT_STAGE: &str = "scene fit (coarse scene per ψ)";
+/// The name of the scene fit's first pass in the stage reports.
+pub const SCENE_FIT_STAGE: &str = "scene fit (coarse scene per ψ)";
 
 /// The blur widths the texture stage tries before its simplex: 0 … 1.5 px.
 const BLUR_GRID_MAX_PX: f64 = 1.5;

@@ -34,7 +34,7 @@ pub use uncertainty::{
 use serde::{Deserialize, Serialize};
 
 pub use adam::AdamSettings;
-pub use default::{DefaultPreset, calibrate_default, texture_fit};
+pub use default::{DefaultPreset, SCENE_FIT_STAGE, calibrate_default, texture_fit};
 pub use gradient::Parameter;
 pub use nelder_mead::nelder_mead;
 pub use paper::{GradientStage, PaperPreset, calibrate_paper};

@@ -168,19 +168,23 @@ pub enum Fit {
     Texture,
     /// The scene fit (the coarse scene solved per ψ) without its fine pass.
     Scene,
-    /// The scene fit finished by its fine pass ([`super::FinePass`]), the
-    /// default preset's last stage.
+    /// The scene fit finished by its fine pass ([`super::FinePass`]) with
+    /// the geometry free ([`super::FinePassFree::Geometry`]), the default
+    /// preset's last stage.
     SceneFinePass,
+    /// The same with the pose and slope free only
+    /// ([`super::FinePassFree::PoseAndSlope`]).
+    ScenePoseAndSlopePass,
 }
 
 impl Floors {
     /// The scene fit runs for the dispersed-mask model only (the preset),
-    /// so `Fit::Scene` and `Fit::SceneFinePass` have that model's floors
-    /// whatever `model` says.
+    /// so its three fits' floors are that model's whatever `model` says.
     fn of(model: DispersionModel, fit: Fit) -> &'static Floors {
         match (fit, model.samples_mask_per_band()) {
             (Fit::Scene, _) => &SCENE_DISPERSED_MASK,
             (Fit::SceneFinePass, _) => &SCENE_FINE_PASS,
+            (Fit::ScenePoseAndSlopePass, _) => &SCENE_POSE_AND_SLOPE_PASS,
             (Fit::Texture, true) => &DISPERSED_MASK,
             (Fit::Texture, false) => &SUBPIXEL,
         }
@@ -259,7 +263,39 @@ const SCENE_DISPERSED_MASK: Floors = Floors {
 };
 
 /// The scene fit finished by its fine pass ([`super::FinePass`], ridge 0.01
-/// toward the first pass's scene), from the same four tuning
+/// toward the first pass's scene, dx, dy, θ, a1 and α refitted), from the
+/// same four tuning configurations as [`SCENE_DISPERSED_MASK`] run with the
+/// pass (`calibrate_physical_tuning_fine_pass_geometry.json`,
+/// `…_geometry_flip_cols.json`, `…_geometry_flip_rows.json`,
+/// `…_geometry_transpose.json`; 180 sharp and 80 wide cases), derived by
+/// `bench/uncertainty_floors.py … --by-scene` (leave-one-out factor
+/// 1.00–1.18) with the disagreement term of [`two_pass_uncertainty`]. σ is
+/// the first pass's estimate. dx's and a1's sharp floors are nil: the fine
+/// pass's sandwich and the fits' disagreement alone covered 79 % and 86 %
+/// of the sharp cases (the aligned slide along dx–a1 it removes was what
+/// held the first pass's up), while their 95 % floors stay, for the rare
+/// case that slides anyway. dy's and α's sharp floors fell 0.049 → 0.015
+/// px and 0.073 → 0.019° from the pose-and-slope pass's
+/// ([`SCENE_POSE_AND_SLOPE_PASS`], which kept the first pass's dy and α).
+const SCENE_FINE_PASS: Floors = Floors {
+    // dx, dy, θ, a1, α, blur
+    sharp: [1e-6, 0.015, 0.00734, 1.2e-6, 0.0189, 0.0417],
+    wide: [0.192, 0.157, 0.0386, 0.00813, 0.22, 0.102],
+    sharp_95: [0.0964, 0.117, 0.0256, 0.00523, 0.11, 0.0852],
+    wide_95: [0.857, 0.269, 0.106, 0.125, 0.431, 0.139],
+    correlation: [
+        [1.00, 0.19, -0.04, -0.47, -0.18, 0.03],
+        [0.19, 1.00, 0.36, 0.01, -0.94, 0.00],
+        [-0.04, 0.36, 1.00, -0.11, -0.41, 0.08],
+        [-0.47, 0.01, -0.11, 1.00, -0.01, -0.19],
+        [-0.18, -0.94, -0.41, -0.01, 1.00, -0.03],
+        [0.03, 0.00, 0.08, -0.19, -0.03, 1.00],
+    ],
+};
+
+/// The fine pass refitting the pose and slope only
+/// ([`super::FinePassFree::PoseAndSlope`], ridge 0.01 toward the first
+/// pass's scene), from the same four tuning
 /// configurations as [`SCENE_DISPERSED_MASK`] run with the pass
 /// (`calibrate_physical_tuning_fine_pass_r0.01.json`, `…_flip_cols.json`,
 /// `…_flip_rows.json`, `…_transpose.json`; 180 sharp and 80 wide cases),
@@ -271,7 +307,7 @@ const SCENE_DISPERSED_MASK: Floors = Floors {
 /// 84 % of the sharp cases (the aligned slide along dx–a1 it removes was
 /// what held the first pass's up), while their 95 % floors stay, for the
 /// rare case that slides anyway.
-const SCENE_FINE_PASS: Floors = Floors {
+const SCENE_POSE_AND_SLOPE_PASS: Floors = Floors {
     // dx, dy, θ, a1, α, blur
     sharp: [1e-6, 0.0494, 0.00774, 1e-6, 0.0733, 0.0417],
     wide: [0.147, 0.137, 0.039, 0.00349, 0.217, 0.102],
@@ -508,12 +544,12 @@ pub(crate) fn scene_fit_uncertainty(
 /// in both, then 0.01); measured against the texture fit it made aligned
 /// dx's stated error 0.15 px for errors of 0.05 (tuning half, median;
 /// held out 0.17 px for 0.007). Trade-offs are read without the term
-/// ([`stated`]). The fine pass's floors ([`SCENE_FINE_PASS`]) at its
-/// answer.
+/// ([`stated`]). `fit`'s floors at the fine pass's answer.
 pub(crate) fn two_pass_uncertainty(
     first: (&SceneFit<'_>, &SceneFitResult, &[Parameter]),
     fine: (&SceneFit<'_>, &SceneFitResult, &[Parameter]),
     texture: &Mismatch,
+    fit: Fit,
 ) -> UncertaintyEstimate {
     let (first_fit, first_found, free) = first;
     let (fine_fit, fine_found, fine_free) = fine;
@@ -521,7 +557,7 @@ pub(crate) fn two_pass_uncertainty(
         scene_fit_sandwich(first_fit, first_found, free),
         scene_fit_sandwich(fine_fit, fine_found, fine_free),
     ) else {
-        return unstated(Fit::SceneFinePass, free);
+        return unstated(fit, free);
     };
     let (n, m) = (free.len(), fine_free.len());
     let index = |p: Parameter| free.iter().position(|&q| q == p);
@@ -535,7 +571,7 @@ pub(crate) fn two_pass_uncertainty(
     let spread = with_disagreement(cov, free, (&first_found.best.psi, texture));
     stated(
         fine_fit.model(),
-        Fit::SceneFinePass,
+        fit,
         free,
         &fine_found.best.psi,
         &spread,
@@ -711,11 +747,12 @@ fn invert_positive_definite(a: &[f64], n: usize) -> Option<Vec<f64>> {
 mod tests {
     use super::*;
 
-    const FITS: [(DispersionModel, Fit); 4] = [
+    const FITS: [(DispersionModel, Fit); 5] = [
         (DispersionModel::Subpixel, Fit::Texture),
         (DispersionModel::DispersedMask, Fit::Texture),
         (DispersionModel::DispersedMask, Fit::Scene),
         (DispersionModel::DispersedMask, Fit::SceneFinePass),
+        (DispersionModel::DispersedMask, Fit::ScenePoseAndSlopePass),
     ];
 
     #[test]
@@ -790,7 +827,7 @@ mod tests {
             );
             // the two ridges the benchmark showed (dx–a1: −0.65 to −0.75 on
             // five tuning scenes, −0.48 and −0.47 on the scene fit's 260
-            // pooled cases without and with its fine pass)
+            // pooled cases without and with either fine pass)
             assert!(r_of(Parameter::Dy, Parameter::AlphaDeg) < -TRADE_OFF_CORRELATION);
             assert!(r_of(Parameter::Dx, Parameter::A1) < -0.45);
         }

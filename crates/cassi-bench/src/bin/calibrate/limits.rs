@@ -19,13 +19,20 @@
 //!   replaced step by step — the proxy reconstruction at the TRUE ψ
 //!   (smoothed as shipped: what remains once the front end's ψ no longer
 //!   shapes x̃), the true scene smoothed as shipped (what remains once x̃ is
-//!   the scene), the true scene unsmoothed (the texture objective itself).
+//!   the scene), the true scene unsmoothed (the texture objective itself);
+//! * the scene fit's objective (its first pass's score, the coarse scene
+//!   solved cold at each point: [`scene_fit_score`]) at the truth, at the
+//!   first pass's answer and at the final one. Where the truth scores
+//!   lower than the first pass's answer, a miss is the search's (a start
+//!   on the wrong side of a ridge); where it scores higher, the objective
+//!   itself prefers the miss.
 
 use std::time::Instant;
 
 use cassi_bench::{predict_on_detector, psi_of};
 use cassi_core::calib::{
-    CalibrationProblem, DefaultPreset, SCENE_SMOOTH_PX, SceneEstimate, nelder_mead, texture_fit,
+    CalibrationProblem, DefaultPreset, SCENE_SMOOTH_PX, SceneEstimate, SceneFitSettings,
+    nelder_mead, scene_fit_score, texture_fit,
 };
 use cassi_core::optics::DispersionModel;
 use cassi_core::{Cube, Mask, Measurement, Mismatch, Parameter};
@@ -303,6 +310,50 @@ pub fn error_budget(
     Ok(Value::Object(out))
 }
 
+/// The scene fit's first-pass objective at the truth, at the first pass's
+/// answer (`first_pass`) and at the final answer (`blind`); see the module
+/// doc. `settings` the preset's scene fit (its fine pass is not scored).
+pub fn scene_objective(
+    problem: &CalibrationProblem<'_>,
+    settings: &SceneFitSettings,
+    first_pass: &Mismatch,
+    blind: &Mismatch,
+    truth: &Mismatch,
+) -> anyhow::Result<Value> {
+    let t = Instant::now();
+    let first = SceneFitSettings {
+        fine_pass: None,
+        ..*settings
+    };
+    let score = |psi: &Mismatch| scene_fit_score(problem, &first, psi);
+    let (at_truth, at_first_pass, at_estimate) = (score(truth)?, score(first_pass)?, score(blind)?);
+    // one pixel along dx and a1 from the first pass's answer: every band
+    // moved (dx), band 0 moved with the last held, the last band moved
+    // with band 0 held (where the rare ~1 px misses sit)
+    let per_band = 1.0 / (problem.nominal.bands().max(2) - 1) as f64;
+    let mut ridge_probes = Vec::new();
+    for (name, dx, a1) in [
+        ("all_bands", 1.0, 0.0),
+        ("first_band", 1.0, -per_band),
+        ("last_band", 0.0, per_band),
+    ] {
+        for sign in [-1.0, 1.0] {
+            let mut probe = *first_pass;
+            probe.dx += sign * dx;
+            probe.a1 += sign * a1;
+            ridge_probes.push(json!({ "moved": name, "sign": sign, "score": score(&probe)? }));
+        }
+    }
+    Ok(json!({
+        "at_truth": at_truth,
+        "at_first_pass": at_first_pass,
+        "at_estimate": at_estimate,
+        "ridge_probes": ridge_probes,
+        "truth_scores_lower": at_truth < at_first_pass,
+        "seconds": t.elapsed().as_secs_f64(),
+    }))
+}
+
 /// The error budget's keys, in order.
 const BUDGET_KEYS: [&str; 3] = ["proxy_at_truth", "true_scene_smoothed", "true_scene"];
 
@@ -326,8 +377,17 @@ pub fn describe(limits: &Value) -> String {
         .filter(|k| limits["error_budget"].get(**k).is_some())
         .map(|k| line(&format!("x̃ {k}"), &limits["error_budget"][*k]["error"]))
         .collect();
+    let objective = &limits["scene_objective"];
+    let scene_objective = match objective["at_truth"].as_f64() {
+        Some(truth) => format!(
+            "\n  scene fit's objective: truth {truth:.5e}, first pass {:.5e}, final {:.5e}",
+            objective["at_first_pass"].as_f64().unwrap_or(f64::NAN),
+            objective["at_estimate"].as_f64().unwrap_or(f64::NAN),
+        ),
+        None => String::new(),
+    };
     format!(
-        "{}  | f {:.4e} (truth {:.4e}), {} evals in {} legs, {:.1} s\n{}{}",
+        "{}  | f {:.4e} (truth {:.4e}), {} evals in {} legs, {:.1} s\n{}{}{scene_objective}",
         line("oracle", &o["error"]),
         o["objective"].as_f64().unwrap_or(f64::NAN),
         o["objective_at_truth"].as_f64().unwrap_or(f64::NAN),
@@ -366,9 +426,19 @@ pub fn summarise(rows: &[&Value]) -> Option<Value> {
         .iter()
         .filter(|r| r["limits"]["oracle_scene"]["all_within_tolerance"] == true)
         .count();
+    // misses (some parameter out of tolerance) whose truth the scene fit's
+    // objective scores lower than the first pass's answer: the search's
+    let objective = |r: &&Value| r["limits"]["scene_objective"]["truth_scores_lower"].as_bool();
+    let missed: Vec<&&Value> = with
+        .iter()
+        .filter(|r| r["all_within_tolerance"] == false && objective(r).is_some())
+        .collect();
+    let search_misses = missed.iter().filter(|r| objective(r) == Some(true)).count();
     Some(json!({
         "n": with.len(),
         "oracle_all_within_tolerance": all_within as f64 / with.len() as f64,
+        "misses_scored": missed.len(),
+        "misses_truth_scores_lower": search_misses,
         "parameters": per_parameter(|p| {
             let blind: Vec<f64> = collect(&|r| r["error"][p.key()].as_f64());
             let oracle: Vec<f64> =
@@ -433,6 +503,16 @@ pub fn print(limits: &Value) {
         "",
         budget.join("  ")
     );
+    if let (Some(n), Some(lower)) = (
+        limits["misses_scored"].as_u64(),
+        limits["misses_truth_scores_lower"].as_u64(),
+    ) && n > 0
+    {
+        eprintln!(
+            "{:<23} misses whose truth the scene fit's objective scores lower (the search's): {lower} of {n}",
+            ""
+        );
+    }
     eprintln!(
         "{:<23} limits (blind RMSE / scene-known RMSE / median CRB): {} | scene-known all-within {:.0}%",
         "",

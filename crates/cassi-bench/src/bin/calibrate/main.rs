@@ -75,7 +75,8 @@ use std::time::Instant;
 use anyhow::{Context, Result, anyhow, bail, ensure};
 use cassi_bench::{median, physical_random_mismatch, psi_of, scene_name, shared_data};
 use cassi_core::calib::{
-    CalibrationProblem, DefaultPreset, FinePass, PRESET_NAMES, Preset, calibrate, model_error_floor,
+    CalibrationProblem, DefaultPreset, FinePass, PRESET_NAMES, Preset, SCENE_FIT_STAGE, calibrate,
+    model_error_floor,
 };
 use cassi_core::metrics::psnr;
 use cassi_core::optics::{
@@ -717,6 +718,11 @@ fn run_case(args: &Args, case: &Case, name: &str, scene: &Cube, mask: &Mask) -> 
         // the budget runs the default preset's texture stage
         if let Some(preset) = texture_preset(args) {
             lim["error_budget"] = limits::error_budget(&problem, preset, scene, &est, &truth)?;
+            let first_pass = cal.stages.iter().find(|s| s.name == SCENE_FIT_STAGE);
+            if let (Some(settings), Some(first)) = (&preset.scene_fit, first_pass) {
+                lim["scene_objective"] =
+                    limits::scene_objective(&problem, settings, &first.parameters, &est, &truth)?;
+            }
         }
         eprintln!("{}", limits::describe(&lim));
         // ρ's own limit: GAP-TV with the ψ the scene-known fit reaches
