@@ -664,7 +664,7 @@ fn scene_fit_stage(
             let refined = fit_scene_from(&fine, &found.best.psi, Some(&scene), &moved)?;
             stage.count(refined.evaluations);
             let floors = match pass.free {
-                FinePassFree::Geometry => Fit::SceneFinePass,
+                FinePassFree::Geometry | FinePassFree::All => Fit::SceneFinePass,
                 FinePassFree::PoseAndSlope => Fit::ScenePoseAndSlopePass,
             };
             let first = (&fit, &found, free.as_slice());

@@ -553,21 +553,15 @@ pub(crate) fn two_pass_uncertainty(
 ) -> UncertaintyEstimate {
     let (first_fit, first_found, free) = first;
     let (fine_fit, fine_found, fine_free) = fine;
-    let (Some(mut cov), Some(fine_cov)) = (
+    let (Some(first_cov), Some(fine_cov)) = (
         scene_fit_sandwich(first_fit, first_found, free),
         scene_fit_sandwich(fine_fit, fine_found, fine_free),
     ) else {
         return unstated(fit, free);
     };
-    let (n, m) = (free.len(), fine_free.len());
-    let index = |p: Parameter| free.iter().position(|&q| q == p);
-    for a in 0..m {
-        for b in 0..m {
-            if let (Some(i), Some(j)) = (index(fine_free[a]), index(fine_free[b])) {
-                cov[i * n + j] = fine_cov[a * m + b];
-            }
-        }
-    }
+    let Some(cov) = with_block(&first_cov, free, &fine_cov, fine_free) else {
+        return unstated(fit, free);
+    };
     let spread = with_disagreement(cov, free, (&first_found.best.psi, texture));
     stated(
         fine_fit.model(),
@@ -577,6 +571,51 @@ pub(crate) fn two_pass_uncertainty(
         &spread,
         0,
     )
+}
+
+/// The covariance `first` (over `free`) with the block of `moved` (a
+/// subset of `free`) replaced by `fine`, the cross terms between `moved`
+/// and the rest carried by the same linear map, T = L_fine L_first⁻¹ (L
+/// the blocks' Cholesky factors): the result is T-congruent to `first`, so
+/// it stays a covariance (|r| ≤ 1). The fine block put in alone mixes one
+/// fit's variances with another's covariances: on a real snapshot it made
+/// a1–σ's correlation −1.15. `None` when either block is not positive
+/// definite.
+fn with_block(
+    first: &[f64],
+    free: &[Parameter],
+    fine: &[f64],
+    moved: &[Parameter],
+) -> Option<Vec<f64>> {
+    let (n, m) = (free.len(), moved.len());
+    let index: Vec<usize> = moved
+        .iter()
+        .map(|&p| free.iter().position(|&q| q == p))
+        .collect::<Option<_>>()?;
+    let block: Vec<f64> = (0..m * m)
+        .map(|ab| first[index[ab / m] * n + index[ab % m]])
+        .collect();
+    let (l_first, l_fine) = (cholesky(&block, m)?, cholesky(fine, m)?);
+    // T = L_fine L_first⁻¹, row by row: t L_first = l_fine's row
+    let mut t = vec![0.0f64; m * m];
+    for a in 0..m {
+        for b in (0..m).rev() {
+            let known: f64 = (b + 1..m).map(|k| t[a * m + k] * l_first[k * m + b]).sum();
+            t[a * m + b] = (l_fine[a * m + b] - known) / l_first[b * m + b];
+        }
+    }
+    let mut out = first.to_vec();
+    for a in 0..m {
+        for b in 0..m {
+            out[index[a] * n + index[b]] = fine[a * m + b];
+        }
+        for j in (0..n).filter(|j| !index.contains(j)) {
+            let cross: f64 = (0..m).map(|b| t[a * m + b] * first[index[b] * n + j]).sum();
+            out[index[a] * n + j] = cross;
+            out[j * n + index[a]] = cross;
+        }
+    }
+    Some(out)
 }
 
 /// No stated errors for `free` (a flat direction) from `fit`.
@@ -709,9 +748,9 @@ fn product(a: &[f64], b: &[f64], n: usize) -> Vec<f64> {
     out
 }
 
-/// The inverse of a symmetric positive definite n × n matrix (Cholesky);
-/// `None` when it is not positive definite.
-fn invert_positive_definite(a: &[f64], n: usize) -> Option<Vec<f64>> {
+/// The lower-triangular L with L Lᵀ = `a` (n × n, symmetric); `None` when
+/// `a` is not positive definite.
+fn cholesky(a: &[f64], n: usize) -> Option<Vec<f64>> {
     let mut l = vec![0.0f64; n * n];
     for j in 0..n {
         let d = a[j * n + j] - (0..j).map(|k| l[j * n + k] * l[j * n + k]).sum::<f64>();
@@ -725,6 +764,13 @@ fn invert_positive_definite(a: &[f64], n: usize) -> Option<Vec<f64>> {
             l[i * n + j] = v / d;
         }
     }
+    Some(l)
+}
+
+/// The inverse of a symmetric positive definite n × n matrix (Cholesky);
+/// `None` when it is not positive definite.
+fn invert_positive_definite(a: &[f64], n: usize) -> Option<Vec<f64>> {
+    let l = cholesky(a, n)?;
     // columns of A⁻¹ by forward and back substitution
     let mut inv = vec![0.0f64; n * n];
     for c in 0..n {
@@ -908,6 +954,55 @@ mod tests {
             .map(|&p| model_error_floor(model, fit, p, scene.blur_sigma_px))
             .collect();
         assert!(names(&trade_offs(model, fit, &free, &spread.total, &floor)));
+    }
+
+    /// The fine pass's block goes in with the cross terms mapped along: the
+    /// result is a covariance (positive definite, |r| ≤ 1) where putting
+    /// the block in alone is not, the unmoved block is untouched, and the
+    /// same block changes nothing.
+    #[test]
+    fn the_fine_block_keeps_the_covariance_a_covariance() {
+        use Parameter::{A1, BlurSigmaPx, Dx};
+        let free = [Dx, A1, BlurSigmaPx];
+        // sd 0.2, 0.01, 0.1; dx–a1 −0.3, dx–σ +0.3, a1–σ −0.9
+        let first = [
+            0.04, -6e-4, 0.006, //
+            -6e-4, 1e-4, -9e-4, //
+            0.006, -9e-4, 0.01,
+        ];
+        let moved = [Dx, A1];
+        // the fine pass pins a1 ten times tighter
+        let fine = [0.01, -1e-4, -1e-4, 1e-6 * 1.5];
+        let corr =
+            |c: &[f64], i: usize, j: usize| c[i * 3 + j] / (c[i * 3 + i] * c[j * 3 + j]).sqrt();
+        let mut naive = first;
+        for (a, b, v) in [
+            (0, 0, fine[0]),
+            (0, 1, fine[1]),
+            (1, 0, fine[2]),
+            (1, 1, fine[3]),
+        ] {
+            naive[a * 3 + b] = v;
+        }
+        assert!(corr(&naive, 1, 2).abs() > 1.0, "{}", corr(&naive, 1, 2));
+        assert!(invert_positive_definite(&naive, 3).is_none());
+        let out = with_block(&first, &free, &fine, &moved).unwrap();
+        assert!(invert_positive_definite(&out, 3).is_some());
+        for i in 0..3 {
+            for j in 0..3 {
+                assert!((out[i * 3 + j] - out[j * 3 + i]).abs() < 1e-15);
+                assert!(corr(&out, i, j).abs() <= 1.0 + 1e-12);
+            }
+        }
+        for (a, b) in [(0, 0), (0, 1), (1, 1)] {
+            assert!((out[a * 3 + b] - fine[a * 2 + b]).abs() < 1e-15);
+        }
+        assert_eq!(out[8], first[8]);
+        let block = [first[0], first[1], first[3], first[4]];
+        let same = with_block(&first, &free, &block, &moved).unwrap();
+        for (a, b) in same.iter().zip(&first) {
+            assert!((a - b).abs() < 1e-12, "{same:?}");
+        }
     }
 
     #[test]
