@@ -98,3 +98,18 @@ pub fn predict_on_detector(
     }
     Some(out)
 }
+
+/// min_s ‖y − s·m‖² / ‖y‖²: the share of `y` a scaled `m` leaves unexplained.
+pub fn relative_residual2(y: &[f64], m: &[f64]) -> f64 {
+    let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
+    let (ym, mm, yy) = (dot(y, m), dot(m, m), dot(y, y));
+    let s = if mm > 0.0 { ym / mm } else { 0.0 };
+    ((yy - s * ym) / yy).max(0.0)
+}
+
+/// Where a bench writes its record: $CASSI_BENCH_OUT, else
+/// `bench/results/<name>`.
+pub fn bench_out(name: &str) -> String {
+    std::env::var("CASSI_BENCH_OUT")
+        .unwrap_or_else(|_| format!("{}/../../bench/results/{name}", env!("CARGO_MANIFEST_DIR")))
+}

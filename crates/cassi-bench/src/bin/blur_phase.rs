@@ -27,7 +27,7 @@
 //! → `bench/results/blur_phase.json` (or $CASSI_BENCH_OUT).
 
 use anyhow::Result;
-use cassi_bench::{predict_on_detector, shared_data};
+use cassi_bench::{bench_out, predict_on_detector, relative_residual2, shared_data};
 use cassi_core::optics::{DispersionModel, PhysicalSpec, simulate_physical};
 use cassi_core::{Cube, Mask, Mismatch, STANDARD_WAVELENGTHS_NM};
 use cassi_eval::machine::Machine;
@@ -78,14 +78,6 @@ fn phases(bands: usize) -> Vec<(&'static str, Mismatch)> {
     ]
 }
 
-/// min_s ‖y − s·m‖² / ‖y‖².
-fn relative_residual2(y: &[f64], m: &[f64]) -> f64 {
-    let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
-    let (ym, mm, yy) = (dot(y, m), dot(m, m), dot(y, y));
-    let s = if mm > 0.0 { ym / mm } else { 0.0 };
-    ((yy - s * ym) / yy).max(0.0)
-}
-
 /// The σ the model fits to `y` with the scene and every other parameter
 /// known, and the residual there.
 fn fitted_sigma(y: &[f64], mask: &Mask, scene: &Cube, truth: &Mismatch) -> (f64, f64) {
@@ -122,13 +114,7 @@ fn main() -> Result<()> {
         [flag, n] if flag == "--scenes" => n.parse()?,
         _ => anyhow::bail!("usage: blur_phase [--scenes N]"),
     };
-    let out = std::env::var("CASSI_BENCH_OUT").unwrap_or_else(|_| {
-        concat!(
-            env!("CARGO_MANIFEST_DIR"),
-            "/../../bench/results/blur_phase.json"
-        )
-        .into()
-    });
+    let out = bench_out("blur_phase.json");
     let data = shared_data();
     let mask = cassi_io::load_frame(data.join("masks/tsa_simu_mask256.mat"), Some("mask"))?;
     let scenes = cassi_bench::cave_scenes(&data)?;

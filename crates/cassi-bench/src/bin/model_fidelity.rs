@@ -24,7 +24,10 @@
 use std::time::Instant;
 
 use anyhow::Result;
-use cassi_bench::{median, physical_random_mismatch, predict_on_detector, psi_of, shared_data};
+use cassi_bench::{
+    bench_out, median, physical_random_mismatch, predict_on_detector, psi_of, relative_residual2,
+    shared_data,
+};
 use cassi_core::calib::nelder_mead;
 use cassi_core::linop::LinearOperator;
 use cassi_core::optics::{DispersionModel, ModelOperator, PhysicalSpec, simulate_physical};
@@ -38,14 +41,6 @@ const SLOTS: u64 = 2;
 const FIT_STEPS: [f64; 6] = [0.1, 0.1, 0.05, 0.005, 0.1, 0.1];
 const FIT_EVALS: usize = 300;
 const TIMING_REPEATS: usize = 30;
-
-/// min_s ‖y − s·m‖² / ‖y‖².
-fn relative_residual2(y: &[f64], m: &[f64]) -> f64 {
-    let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
-    let (ym, mm, yy) = (dot(y, m), dot(m, m), dot(y, y));
-    let s = if mm > 0.0 { ym / mm } else { 0.0 };
-    ((yy - s * ym) / yy).max(0.0)
-}
 
 fn per_parameter(f: impl Fn(Parameter) -> f64) -> Value {
     Value::Object(
@@ -113,13 +108,7 @@ fn main() -> Result<()> {
         [flag, n] if flag == "--scenes" => n.parse()?,
         _ => anyhow::bail!("usage: model_fidelity [--scenes N]"),
     };
-    let out = std::env::var("CASSI_BENCH_OUT").unwrap_or_else(|_| {
-        concat!(
-            env!("CARGO_MANIFEST_DIR"),
-            "/../../bench/results/model_fidelity.json"
-        )
-        .into()
-    });
+    let out = bench_out("model_fidelity.json");
     let data = shared_data();
     let mask = cassi_io::load_frame(data.join("masks/tsa_simu_mask256.mat"), Some("mask"))?;
     let scenes = cassi_bench::cave_scenes(&data)?;
