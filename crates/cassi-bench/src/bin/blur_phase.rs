@@ -143,14 +143,8 @@ fn main() -> Result<()> {
                     detector: Some(DETECTOR),
                     ..PhysicalSpec::default()
                 };
-                let y = simulate_physical(
-                    &scene,
-                    &mask,
-                    &STANDARD_WAVELENGTHS_NM,
-                    &truth,
-                    &spec,
-                    None,
-                )?;
+                let y =
+                    simulate_physical(scene, &mask, &STANDARD_WAVELENGTHS_NM, &truth, &spec, None)?;
                 let y: Vec<f64> = y.as_slice().iter().map(|&v| v as f64).collect();
                 let (fitted, residual) = fitted_sigma(&y, &mask, scene, &truth);
                 let at_truth = predict_on_detector(
