@@ -23,8 +23,14 @@
 //! (only the mask's code and the blur), then tuning-half scenes: a model
 //! study, not a figure.
 //!
+//! With θ = α = 0 each case is also fitted by a prototype of the fix
+//! ([`cell_model`]: each mask cell a crisp square blurred and integrated at
+//! its own offset).
+//!
 //! Run: `cargo run --release -p cassi-bench --bin blur_phase [-- --scenes N]`
 //! → `bench/results/blur_phase.json` (or $CASSI_BENCH_OUT).
+
+mod cell_model;
 
 use anyhow::Result;
 use cassi_bench::{bench_out, predict_on_detector, relative_residual2, shared_data};
@@ -33,7 +39,7 @@ use cassi_core::{Cube, Mask, Mismatch, STANDARD_WAVELENGTHS_NM};
 use cassi_eval::machine::Machine;
 use serde_json::json;
 
-const DETECTOR: (usize, usize) = (256, 310);
+pub(crate) const DETECTOR: (usize, usize) = (256, 310);
 const SIGMAS: [f64; 2] = [0.3, 0.6];
 const STEP: f64 = 0.01;
 
@@ -147,6 +153,20 @@ fn main() -> Result<()> {
                     simulate_physical(scene, &mask, &STANDARD_WAVELENGTHS_NM, &truth, &spec, None)?;
                 let y: Vec<f64> = y.as_slice().iter().map(|&v| v as f64).collect();
                 let (fitted, residual) = fitted_sigma(&y, &mask, scene, &truth);
+                // the prototype of the fix, where it applies (θ = α = 0)
+                let cell = (truth.theta_deg == 0.0 && truth.alpha_deg == 0.0).then(|| {
+                    let at = relative_residual2(&y, &cell_model::forward(&mask, scene, &truth));
+                    (
+                        cell_model::fitted_sigma(&y, &mask, scene, &truth),
+                        at.sqrt(),
+                    )
+                });
+                if let Some((cs, at)) = cell {
+                    eprintln!(
+                        "    cell model: fitted σ {cs:.3} (error {:+.3}), residual at the truth {at:.4}",
+                        cs - sigma
+                    );
+                }
                 let at_truth = predict_on_detector(
                     &mask,
                     scene,
@@ -167,6 +187,10 @@ fn main() -> Result<()> {
                     "fitted_sigma_px": fitted, "error_px": fitted - sigma,
                     "relative_residual_at_fitted_sigma": residual,
                     "relative_residual_at_truth": at_truth,
+                    "cell_model": cell.map(|(fitted, at)| json!({
+                        "fitted_sigma_px": fitted, "error_px": fitted - sigma,
+                        "relative_residual_at_truth": at,
+                    })),
                 }));
             }
         }

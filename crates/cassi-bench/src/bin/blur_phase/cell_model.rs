@@ -1,0 +1,129 @@
+//! A prototype of the fix `blur_phase` points to, for θ = α = 0 only: the
+//! instrument as a sum of mask cells, each a crisp square of value
+//! M_ij · x_k(its centre) (the share of it over the scene), blurred and
+//! integrated at its own offset on the detector. Slow (every cell of every
+//! band) and without derivatives: a measurement of what the model would
+//! gain, not an operator.
+
+use cassi_bench::relative_residual2;
+use cassi_core::{Cube, Mask, Mismatch};
+
+use super::DETECTOR;
+
+/// (G_σ ∗ tri)(t): the Gaussian integrated over a pixel and a mask cell,
+/// at any offset t (the blur model's taps are its integer samples).
+fn kernel(sigma: f64, t: f64) -> f64 {
+    if sigma <= 0.0 {
+        return (1.0 - t.abs()).max(0.0);
+    }
+    let cdf = |z: f64| 0.5 * (1.0 + libm::erf(z / std::f64::consts::SQRT_2));
+    let pdf = |z: f64| (-0.5 * z * z).exp() / (2.0 * std::f64::consts::PI).sqrt();
+    let f = |x: f64| x * cdf(x / sigma) + sigma * pdf(x / sigma);
+    f(t + 1.0) - 2.0 * f(t) + f(t - 1.0)
+}
+
+/// The instrument as a sum of mask cells, for θ = α = 0: cell (i, j) of
+/// band k is a crisp square of value M_ij · x_k(at its centre), centred on
+/// the detector at (i + dy, j + dx + a1·k), blurred and integrated:
+/// (G∗tri)(r − i − dy)·(G∗tri)(c − j − dx − a1·k). The model with each
+/// band's code blurred at its own fractional offset (what the
+/// dispersed-mask model approximates by interpolating the code linearly
+/// and blurring after).
+pub fn forward(mask: &Mask, scene: &Cube, psi: &Mismatch) -> Vec<f64> {
+    let (rows, cols) = mask.shape();
+    let (dr, dc) = DETECTOR;
+    let sigma = psi.blur_sigma_px;
+    let reach = (4.0 * sigma).ceil() as i64 + 2;
+    let at = |band: &[f32], r: f64, c: f64| {
+        let r = r.clamp(0.0, (rows - 1) as f64);
+        let c = c.clamp(0.0, (cols - 1) as f64);
+        let (r0, c0) = (r.floor() as usize, c.floor() as usize);
+        let (r1, c1) = ((r0 + 1).min(rows - 1), (c0 + 1).min(cols - 1));
+        let (fr, fc) = (r - r0 as f64, c - c0 as f64);
+        let v = |i: usize, j: usize| band[i * cols + j] as f64;
+        (1.0 - fr) * ((1.0 - fc) * v(r0, c0) + fc * v(r0, c1))
+            + fr * ((1.0 - fc) * v(r1, c0) + fc * v(r1, c1))
+    };
+    // every cell of a band sits at the same fraction: one set of taps per
+    // band and axis, (offset from the cell's floor, weight)
+    let taps = |centre: f64| -> (i64, Vec<(i64, f64)>) {
+        let base = centre.floor();
+        let taps = (-reach..=reach + 1)
+            .map(|t| (t, kernel(sigma, (base + t as f64) - centre)))
+            .filter(|&(_, w)| w != 0.0)
+            .collect();
+        (base as i64, taps)
+    };
+    let (row_base, row_taps) = taps(psi.dy);
+    let mut y = vec![0.0f64; dr * dc];
+    let mut q = vec![0.0f64; rows * dc];
+    for k in 0..scene.bands() {
+        let band = scene.band(k);
+        let (col_base, col_taps) = taps(psi.dx + psi.a1 * k as f64);
+        q.iter_mut().for_each(|v| *v = 0.0);
+        for i in 0..rows {
+            for j in 0..cols {
+                let m = mask.get(i, j) as f64;
+                if m == 0.0 {
+                    continue;
+                }
+                // the share of the cell over the scene (light only there)
+                let inside = |centre: f64, n: usize| {
+                    ((centre + 0.5).min(n as f64 - 0.5) - (centre - 0.5).max(-0.5)).clamp(0.0, 1.0)
+                };
+                let share = inside(i as f64 + psi.dy, rows) * inside(j as f64 + psi.dx, cols);
+                if share == 0.0 {
+                    continue;
+                }
+                let p = share * m * at(band, i as f64 + psi.dy, j as f64 + psi.dx);
+                for &(t, w) in &col_taps {
+                    let c = j as i64 + col_base + t;
+                    if (0..dc as i64).contains(&c) {
+                        q[i * dc + c as usize] += p * w;
+                    }
+                }
+            }
+        }
+        for i in 0..rows {
+            for &(t, w) in &row_taps {
+                let r = i as i64 + row_base + t;
+                if !(0..dr as i64).contains(&r) {
+                    continue;
+                }
+                let (src, dst) = (&q[i * dc..][..dc], &mut y[r as usize * dc..][..dc]);
+                for (o, &v) in dst.iter_mut().zip(src) {
+                    *o += w * v;
+                }
+            }
+        }
+    }
+    y
+}
+
+/// The σ this model fits to `y`, everything else at `truth` (golden
+/// section on [0, 0.9]).
+pub fn fitted_sigma(y: &[f64], mask: &Mask, scene: &Cube, truth: &Mismatch) -> f64 {
+    let score = |sigma: f64| {
+        let psi = Mismatch {
+            blur_sigma_px: sigma,
+            ..*truth
+        };
+        relative_residual2(y, &forward(mask, scene, &psi))
+    };
+    let (mut a, mut b) = (0.0f64, 0.9f64);
+    let g = (5f64.sqrt() - 1.0) / 2.0;
+    let (mut c, mut d) = (b - g * (b - a), a + g * (b - a));
+    let (mut fc, mut fd) = (score(c), score(d));
+    while b - a > 0.002 {
+        if fc < fd {
+            (b, d, fd) = (d, c, fc);
+            c = b - g * (b - a);
+            fc = score(c);
+        } else {
+            (a, c, fc) = (c, d, fd);
+            d = a + g * (b - a);
+            fd = score(d);
+        }
+    }
+    0.5 * (a + b)
+}
