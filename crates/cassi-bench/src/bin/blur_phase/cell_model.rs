@@ -127,3 +127,62 @@ pub fn fitted_sigma(y: &[f64], mask: &Mask, scene: &Cube, truth: &Mismatch) -> f
     }
     0.5 * (a + b)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use cassi_bench::predict_on_detector;
+    use cassi_core::optics::DispersionModel;
+
+    /// Where the dispersed-mask operator is exact — every cell on whole
+    /// pixels, sharp or blurred — the prototype must be that operator
+    /// (the kernel's integer samples are the blur model's taps); away from
+    /// whole pixels with a blur they must differ, or the bench measures
+    /// nothing.
+    #[test]
+    fn the_cell_model_is_the_operator_on_whole_pixels_and_not_between() {
+        // 28 bands fill the 310 columns: the model's frame is the detector
+        // (with fewer its blur would lose light at a narrower edge)
+        let (bands, rows, cols) = (28, 256, 256);
+        let mask = cassi_core::synth::random_binary_mask(rows, cols, 0.5, 7).unwrap();
+        let scene = Cube::from_vec(
+            bands,
+            rows,
+            cols,
+            (0..bands * rows * cols)
+                .map(|i| {
+                    let (k, r, c) = (i / (rows * cols), i / cols % rows, i % cols);
+                    0.6 + 0.3 * ((r as f32 * 0.05 + k as f32).sin() * (c as f32 * 0.07).cos())
+                })
+                .collect(),
+        )
+        .unwrap();
+        let gap = |psi: &Mismatch| {
+            let cell = forward(&mask, &scene, psi);
+            let model =
+                predict_on_detector(&mask, &scene, psi, DispersionModel::DispersedMask, DETECTOR)
+                    .unwrap();
+            relative_residual2(&model, &cell).sqrt()
+        };
+        for (dx, dy, sigma) in [
+            (0.0, 0.0, 0.0),
+            (0.0, 0.0, 0.5),
+            (1.0, -1.0, 0.5),
+            (2.0, 1.0, 0.3),
+        ] {
+            let psi = Mismatch {
+                dx,
+                dy,
+                blur_sigma_px: sigma,
+                ..Mismatch::nominal(2.0)
+            };
+            assert!(gap(&psi) < 1e-4, "dx {dx} dy {dy} σ {sigma}: {}", gap(&psi));
+        }
+        let between = Mismatch {
+            dy: 0.5,
+            blur_sigma_px: 0.5,
+            ..Mismatch::nominal(2.0)
+        };
+        assert!(gap(&between) > 1e-3, "{}", gap(&between));
+    }
+}
