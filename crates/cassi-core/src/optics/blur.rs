@@ -162,6 +162,30 @@ fn convolve_line(src: &[f32], dst: &mut [f32], w: &[f32], r: usize) {
     }
 }
 
+/// F(x) = x Φ(x/σ) + σ φ(x/σ), the Gaussian's second antiderivative, and
+/// ∂F/∂σ = φ(x/σ); σ > 0.
+fn second_antiderivative(sigma: f64) -> (impl Fn(f64) -> f64, impl Fn(f64) -> f64) {
+    let pdf = |z: f64| (-0.5 * z * z).exp() / (2.0 * std::f64::consts::PI).sqrt();
+    let cdf = |z: f64| 0.5 * (1.0 + libm::erf(z / std::f64::consts::SQRT_2));
+    (
+        move |x: f64| x * cdf(x / sigma) + sigma * pdf(x / sigma),
+        move |x: f64| pdf(x / sigma),
+    )
+}
+
+/// (G_σ ∗ tri)(t) = F(t+1) − 2F(t) + F(t−1): the share of a unit square's
+/// light, centred t pixels from a pixel's centre, that the pixel collects
+/// through the blur — the taps' formula at any offset (the taps are its
+/// integer samples, before normalising), for models that place a crisp
+/// code between pixels (`cassi-bench`'s `blur_phase`). σ = 0: the triangle.
+pub fn pixel_kernel(sigma: f64, t: f64) -> f64 {
+    if sigma <= 0.0 {
+        return (1.0 - t.abs()).max(0.0);
+    }
+    let (f, _) = second_antiderivative(sigma);
+    f(t + 1.0) - 2.0 * f(t) + f(t - 1.0)
+}
+
 /// The normalised taps and their exact σ-derivative (the radius ⌈4σ⌉ + 1 is
 /// held: the taps it adds or drops weigh < e⁻⁸).
 fn kernel(sigma: f64) -> (Vec<f32>, Vec<f32>) {
@@ -169,11 +193,7 @@ fn kernel(sigma: f64) -> (Vec<f32>, Vec<f32>) {
         return (vec![1.0], vec![0.0]);
     }
     let r = (4.0 * sigma).ceil() as i64 + 1;
-    let pdf = |z: f64| (-0.5 * z * z).exp() / (2.0 * std::f64::consts::PI).sqrt();
-    let cdf = |z: f64| 0.5 * (1.0 + libm::erf(z / std::f64::consts::SQRT_2));
-    // F(x) = x Φ(x/σ) + σ φ(x/σ), and ∂F/∂σ = φ(x/σ)
-    let f = |x: f64| x * cdf(x / sigma) + sigma * pdf(x / sigma);
-    let df = |x: f64| pdf(x / sigma);
+    let (f, df) = second_antiderivative(sigma);
     let second = |g: &dyn Fn(f64) -> f64, i: i64| {
         let x = i as f64;
         g(x + 1.0) - 2.0 * g(x) + g(x - 1.0)
@@ -460,6 +480,33 @@ mod tests {
             .fold(0.0, f64::max);
         let scale = d.iter().fold(0.0f32, |m, v| m.max(v.abs())) as f64;
         assert!(worst < 2e-3 * scale, "{worst} vs {scale}");
+    }
+
+    /// The kernel at any offset: its integer samples are the taps, it
+    /// collects all of a square's light summed over the pixels at any
+    /// offset, it is the triangle without blur, and it moves with t.
+    #[test]
+    fn the_pixel_kernel_is_the_taps_between_pixels() {
+        for sigma in [0.3, 0.5, 1.2] {
+            let blur = GaussianBlur::new(sigma, 9, 9).unwrap();
+            let r = blur.radius() as i64;
+            for (i, &tap) in (-r..=r).zip(blur.taps()) {
+                assert!(
+                    (pixel_kernel(sigma, i as f64) - tap as f64).abs() < 1e-6,
+                    "σ {sigma} {i}"
+                );
+            }
+            for f in [0.0, 0.25, 0.5, 0.8] {
+                let total: f64 = (-12..=12).map(|i| pixel_kernel(sigma, i as f64 - f)).sum();
+                assert!((total - 1.0).abs() < 1e-9, "σ {sigma} f {f}: {total}");
+            }
+            // a square half a pixel off lands evenly on its two neighbours
+            assert!((pixel_kernel(sigma, 0.5) - pixel_kernel(sigma, -0.5)).abs() < 1e-12);
+            assert!(pixel_kernel(sigma, 0.0) > pixel_kernel(sigma, 0.5));
+        }
+        for t in [-1.5, -0.75, 0.0, 0.3, 1.0] {
+            assert_eq!(pixel_kernel(0.0, t), (1.0 - f64::abs(t)).max(0.0));
+        }
     }
 
     #[test]

@@ -11,7 +11,7 @@ pub mod physical;
 pub mod simulate;
 pub mod warp;
 
-pub use blur::{Blurred, GaussianBlur};
+pub use blur::{Blurred, GaussianBlur, pixel_kernel};
 pub use dispersion::{Dispersion, DispersionModel, Tap};
 pub use input_checks::{MaskCode, mask_code, validate_measurement, validate_mismatch_for_mask};
 pub use model_operator::ModelOperator;

@@ -6,21 +6,10 @@
 //! gain, not an operator.
 
 use cassi_bench::relative_residual2;
+use cassi_core::optics::pixel_kernel as kernel;
 use cassi_core::{Cube, Mask, Mismatch};
 
 use super::DETECTOR;
-
-/// (G_σ ∗ tri)(t): the Gaussian integrated over a pixel and a mask cell,
-/// at any offset t (the blur model's taps are its integer samples).
-fn kernel(sigma: f64, t: f64) -> f64 {
-    if sigma <= 0.0 {
-        return (1.0 - t.abs()).max(0.0);
-    }
-    let cdf = |z: f64| 0.5 * (1.0 + libm::erf(z / std::f64::consts::SQRT_2));
-    let pdf = |z: f64| (-0.5 * z * z).exp() / (2.0 * std::f64::consts::PI).sqrt();
-    let f = |x: f64| x * cdf(x / sigma) + sigma * pdf(x / sigma);
-    f(t + 1.0) - 2.0 * f(t) + f(t - 1.0)
-}
 
 /// The instrument as a sum of mask cells, for θ = α = 0: cell (i, j) of
 /// band k is a crisp square of value M_ij · x_k(at its centre), centred on
