@@ -108,8 +108,18 @@ pub fn relative_residual2(y: &[f64], m: &[f64]) -> f64 {
 }
 
 /// Where a bench writes its record: $CASSI_BENCH_OUT, else
-/// `bench/results/<name>`.
-pub fn bench_out(name: &str) -> String {
-    std::env::var("CASSI_BENCH_OUT")
-        .unwrap_or_else(|_| format!("{}/../../bench/results/{name}", env!("CARGO_MANIFEST_DIR")))
+/// `bench/results/<name>`; its folder made before the work starts, so a
+/// bad path fails at once rather than after the run.
+pub fn bench_out(name: &str) -> anyhow::Result<String> {
+    use anyhow::Context;
+    let out = std::env::var("CASSI_BENCH_OUT")
+        .unwrap_or_else(|_| format!("{}/../../bench/results/{name}", env!("CARGO_MANIFEST_DIR")));
+    if let Some(dir) = std::path::Path::new(&out)
+        .parent()
+        .filter(|d| !d.as_os_str().is_empty())
+    {
+        std::fs::create_dir_all(dir)
+            .with_context(|| format!("creating the output folder {}", dir.display()))?;
+    }
+    Ok(out)
 }

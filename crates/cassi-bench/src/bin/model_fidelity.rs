@@ -108,7 +108,7 @@ fn main() -> Result<()> {
         [flag, n] if flag == "--scenes" => n.parse()?,
         _ => anyhow::bail!("usage: model_fidelity [--scenes N]"),
     };
-    let out = bench_out("model_fidelity.json");
+    let out = bench_out("model_fidelity.json")?;
     let data = shared_data();
     let mask = cassi_io::load_frame(data.join("masks/tsa_simu_mask256.mat"), Some("mask"))?;
     let scenes = cassi_bench::cave_scenes(&data)?;

@@ -33,7 +33,7 @@
 mod cell_model;
 
 use anyhow::Result;
-use cassi_bench::{bench_out, predict_on_detector, relative_residual2, shared_data};
+use cassi_bench::{bench_out, predict_on_detector, relative_residual2, scene_name, shared_data};
 use cassi_core::optics::{DispersionModel, PhysicalSpec, simulate_physical};
 use cassi_core::{Cube, Mask, Mismatch, STANDARD_WAVELENGTHS_NM};
 use cassi_eval::machine::Machine;
@@ -120,7 +120,7 @@ fn main() -> Result<()> {
         [flag, n] if flag == "--scenes" => n.parse()?,
         _ => anyhow::bail!("usage: blur_phase [--scenes N]"),
     };
-    let out = bench_out("blur_phase.json");
+    let out = bench_out("blur_phase.json")?;
     let data = shared_data();
     let mask = cassi_io::load_frame(data.join("masks/tsa_simu_mask256.mat"), Some("mask"))?;
     let scenes = cassi_bench::cave_scenes(&data)?;
@@ -128,13 +128,10 @@ fn main() -> Result<()> {
     // a constant scene first: only the mask's code and the blur differ
     let (bands, rows, cols) = (STANDARD_WAVELENGTHS_NM.len(), mask.rows(), mask.cols());
     let flat = Cube::from_vec(bands, rows, cols, vec![1.0; bands * rows * cols])?;
-    let mut inputs = vec![(Some("constant scene".to_string()), flat)];
+    let mut inputs = vec![("constant scene".to_string(), flat)];
     for path in scenes.iter().take(scenes_wanted.min(5)) {
         let scene = cassi_io::load_cube(path, None, cassi_io::CubeLayout::Auto)?;
-        inputs.push((
-            path.file_stem().map(|s| s.to_string_lossy().into_owned()),
-            scene,
-        ));
+        inputs.push((scene_name(path), scene));
     }
     for (name, scene) in &inputs {
         for sigma in SIGMAS {
@@ -177,7 +174,7 @@ fn main() -> Result<()> {
                 .map(|m| relative_residual2(&y, &m).sqrt());
                 eprintln!(
                     "{:<28} σ {sigma:.2}  {phase:<48} fitted σ {fitted:.3} (error {:+.3}), residual {residual:.4} (at the truth {:.4})",
-                    name.as_deref().unwrap_or("?"),
+                    name,
                     fitted - sigma,
                     at_truth.unwrap_or(f64::NAN)
                 );

@@ -22,7 +22,8 @@
 //!   the scene), the true scene unsmoothed (the texture objective itself);
 //! * the scene fit's objective (its first pass's score, the coarse scene
 //!   solved cold at each point: [`scene_fit_score`]) at the truth, at the
-//!   first pass's answer and at the final one. Where the truth scores
+//!   first pass's answer, at the final one and one pixel from the first
+//!   pass's answer along dx and a1 (six probes). Where the truth scores
 //!   lower than the first pass's answer, a miss is the search's (a start
 //!   on the wrong side of a ridge); where it scores higher, the objective
 //!   itself prefers the miss.
