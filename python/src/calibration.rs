@@ -42,7 +42,7 @@ impl PyCalibration {
         &self.inner.preset
     }
 
-    /// The dispersion model fitted ("rounded", "subpixel" or "dispersed-mask").
+    /// The dispersion model fitted ("rounded", "subpixel", "dispersed-mask" or "crisp-cells").
     #[getter]
     fn model(&self) -> &'static str {
         self.inner.model.name()
@@ -186,7 +186,10 @@ enum Message {
 ///         preset's default: continuous a1 and α, the mask sampled once where each band lands,
 ///         with the optical blur σ and standard errors whose coverage is
 ///         measured), "subpixel" (the mask interpolated twice; its own
-///         measured floors; the paper preset's default) or "rounded" (the
+///         measured floors; the paper preset's default), "crisp-cells"
+///         (dispersed-mask with each side of a pixel's mask edge blurred
+///         from where it lies: σ unbiased with the scene known, but the
+///         blind fit reads it high; not the default) or "rounded" (the
 ///         paper's discrete model).
 ///     preset: "default" (ours) or "paper" (the paper's Algorithm 1).
 ///     progress: called with a dict {name, evaluations, seconds,

@@ -43,9 +43,10 @@ use errors::{Failure, compute, value_error};
 ///     mismatch: None (nominal), "paper", a dict of parameters (keys of
 ///         `cassi.PARAMETERS`: dx, dy px; theta_deg °; a1 px/band;
 ///         alpha_deg °; blur_sigma_px px) or a Calibration.
-///     model: "rounded" (integer band offsets), "subpixel" or
+///     model: "rounded" (integer band offsets), "subpixel",
 ///         "dispersed-mask" (subpixel, the mask sampled where each band
-///         lands); default: a
+///         lands) or "crisp-cells" (dispersed-mask, each side of a pixel's
+///         mask edge blurred from where it lies); default: a
 ///         Calibration's own model, else "rounded".
 ///     **params: single mismatch parameters by key, e.g. dx=1.5.
 ///
@@ -233,7 +234,7 @@ fn noise_model(
 ///     scene: cube (bands, rows, cols), values in [0, 1].
 ///     mask: nominal coded aperture (rows, cols), the scene's size.
 ///     mismatch: as for `Operator` (None: nominal); **params override single keys.
-///     model: "rounded", "subpixel" or "dispersed-mask" (default: a Calibration's own, else
+///     model: "rounded", "subpixel", "dispersed-mask" or "crisp-cells" (default: a Calibration's own, else
 ///         "rounded").
 ///     stride: nominal dispersion, px per band (the nominal a1).
 ///     noise: add detector noise (Poisson at `photon_peak` photo-electrons at

@@ -121,7 +121,12 @@ fn the_true_subpixel_model_beats_the_nominal_one_on_cave() {
             let tru = score(&solve(&method, &truth.op, truth.y.as_slice(), shape));
             let old = score(&solve(
                 &method,
-                &OldDiag(truth.op.cassi()),
+                &OldDiag(
+                    truth
+                        .op
+                        .sharp()
+                        .expect("the subpixel model is tapped and sharp"),
+                ),
                 truth.y.as_slice(),
                 shape,
             ));
@@ -135,7 +140,12 @@ fn the_true_subpixel_model_beats_the_nominal_one_on_cave() {
                     let m = Method::GapTv { gap, tv_iterations };
                     score(&solve(
                         &m,
-                        &OldDiag(truth.op.cassi()),
+                        &OldDiag(
+                            truth
+                                .op
+                                .sharp()
+                                .expect("the subpixel model is tapped and sharp"),
+                        ),
                         truth.y.as_slice(),
                         shape,
                     ))

@@ -7,7 +7,7 @@ mod common;
 
 use std::time::Instant;
 
-use cassi_core::optics::{Blurred, CassiOperator, Dispersion, DispersionModel};
+use cassi_core::optics::{Blurred, CassiOperator, Dispersion, DispersionModel, ModelOperator};
 use cassi_core::{DispersionParams, Frame, LinearOperator, Mismatch, Rng};
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -32,24 +32,27 @@ fn case(
             .collect(),
     )
     .unwrap();
-    // the dispersed-mask model samples the mask per band: built from the
-    // nominal mask (no pose), its band masks stored at the first adjoint
-    // (the warm-up), as in an iterative solver
-    let cassi = if model.samples_mask_per_band() {
+    // the models that sample the mask per band: built from the nominal
+    // mask (no pose) through ModelOperator (the crisp-cell model's blur is
+    // its own); the dispersed-mask model's band masks are stored at the
+    // first adjoint (the warm-up), as in an iterative solver
+    let op: Box<dyn LinearOperator> = if model.samples_mask_per_band() {
         let m = Mismatch {
             a1: params.a1,
             alpha_deg: params.alpha_deg,
+            blur_sigma_px,
             ..Mismatch::nominal(params.a1)
         };
-        CassiOperator::with_mismatch(&mask, bands, &m, model).unwrap()
+        Box::new(ModelOperator::new(&mask, bands, &m, model).unwrap())
     } else {
-        CassiOperator::new(mask, Dispersion::new(bands, params, model).unwrap()).unwrap()
-    };
-    let (rows, cols) = cassi.measurement_shape();
-    let op: Box<dyn LinearOperator> = if blur_sigma_px > 0.0 {
-        Box::new(Blurred::new(cassi, blur_sigma_px, rows, cols).unwrap())
-    } else {
-        Box::new(cassi)
+        let cassi =
+            CassiOperator::new(mask, Dispersion::new(bands, params, model).unwrap()).unwrap();
+        let (rows, cols) = cassi.measurement_shape();
+        if blur_sigma_px > 0.0 {
+            Box::new(Blurred::new(cassi, blur_sigma_px, rows, cols).unwrap())
+        } else {
+            Box::new(cassi)
+        }
     };
     let x: Vec<f32> = (0..op.domain_len()).map(|_| rng.uniform() as f32).collect();
     let mut y = vec![0.0f32; op.range_len()];
@@ -115,6 +118,14 @@ fn main() {
             28,
             paper,
             DispersionModel::DispersedMask,
+            0.5,
+            runs,
+        ));
+        rows.push(case(
+            size,
+            28,
+            paper,
+            DispersionModel::CrispCells,
             0.5,
             runs,
         ));

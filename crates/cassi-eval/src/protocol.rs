@@ -185,7 +185,9 @@ pub fn prepare(
     };
     let measurement = match study.instrument {
         DispersionModel::Rounded => simulate(scene, mask, &spec)?,
-        DispersionModel::Subpixel | DispersionModel::DispersedMask => {
+        DispersionModel::Subpixel
+        | DispersionModel::DispersedMask
+        | DispersionModel::CrispCells => {
             cassi_core::optics::simulate_oversampled(scene, mask, &spec, 2)?
         }
     };

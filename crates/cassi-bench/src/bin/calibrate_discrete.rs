@@ -223,7 +223,9 @@ fn recovered(truth: &Mismatch, est: &Mismatch, model: DispersionModel, bands: us
             };
             taps(truth) == taps(est)
         }
-        DispersionModel::Subpixel | DispersionModel::DispersedMask => {
+        DispersionModel::Subpixel
+        | DispersionModel::DispersedMask
+        | DispersionModel::CrispCells => {
             (est.a1 - truth.a1).abs() <= 0.005 && (est.alpha_deg - truth.alpha_deg).abs() <= 0.25
         }
     };

@@ -15,8 +15,9 @@
 //! Why: the subpixel model interpolates the mask twice (the pose warp on
 //! the mask grid, then the dispersion's split of the coded band), the
 //! dispersed-mask model once where each band lands, as a camera integrates
-//! the crisp mask. Tuning-half scenes only: this is a model study, not a
-//! held-out figure.
+//! the crisp mask; the crisp-cell model also blurs each side of a pixel's
+//! mask edge from where it lies. Tuning-half scenes only: this is a model
+//! study, not a held-out figure.
 //!
 //! Run: `cargo run --release -p cassi-bench --bin model_fidelity [-- --scenes N]`
 //! → `bench/results/model_fidelity.json` (or $CASSI_BENCH_OUT).
@@ -129,7 +130,11 @@ fn main() -> Result<()> {
                 simulate_physical(&scene, &mask, &STANDARD_WAVELENGTHS_NM, &truth, &spec, None)?;
             let y: Vec<f64> = y.as_slice().iter().map(|&v| v as f64).collect();
             let mut models = serde_json::Map::new();
-            for model in [DispersionModel::Subpixel, DispersionModel::DispersedMask] {
+            for model in [
+                DispersionModel::Subpixel,
+                DispersionModel::DispersedMask,
+                DispersionModel::CrispCells,
+            ] {
                 let at_truth = predict_on_detector(&mask, &scene, &truth, model, DETECTOR)
                     .map(|m| relative_residual2(&y, &m).sqrt());
                 let fit = scene_known_fit(&y, &mask, &scene, &truth, model);

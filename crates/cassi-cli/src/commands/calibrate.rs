@@ -27,9 +27,11 @@ pub struct CalibrateArgs {
     /// Dispersion model of candidate instruments: `dispersed-mask` (the
     /// default preset's default, for real instruments: continuous a1 and α,
     /// the mask sampled once where each band lands, as a camera integrates
-    /// it), `subpixel` (the same dispersion with the mask interpolated twice;
-    /// the paper preset's default) or `rounded` (whole-pixel band offsets,
-    /// the reference code's model).
+    /// it), `crisp-cells` (the same with each side of a pixel's mask edge
+    /// blurred from where it lies: slower; see the README for when it
+    /// helps), `subpixel` (the same dispersion with the mask interpolated
+    /// twice; the paper preset's default) or `rounded` (whole-pixel band
+    /// offsets, the reference code's model).
     #[arg(long)]
     pub model: Option<DispersionModel>,
     /// Output calibration JSON (for `cassi reconstruct --calibration`).

@@ -518,7 +518,9 @@ fn joint_refinement(run: &mut StageRunner<'_>, scores: &Scores<'_>, best: Mismat
             vec![0.002, 0.002, 0.002],
             preset.max_evaluations / 2,
         ),
-        DispersionModel::Subpixel | DispersionModel::DispersedMask => (
+        DispersionModel::Subpixel
+        | DispersionModel::DispersedMask
+        | DispersionModel::CrispCells => (
             vec![Dx, Dy, ThetaDeg, AlphaDeg, A1],
             vec![0.05, 0.05, 0.05, 0.1, (0.25 * (a1_hi - a1_lo)).max(1e-4)],
             vec![0.005, 0.005, 0.005, 0.01, 0.0005],

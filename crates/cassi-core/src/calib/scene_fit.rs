@@ -42,7 +42,6 @@ use crate::linop::LinearOperator;
 use crate::optics::ModelOperator;
 use crate::optics::blur::GaussianBlur;
 use crate::params::{Mismatch, Parameter};
-use crate::simd::Simd;
 use crate::solvers::{CglsParams, CglsScratch, Silent, cgls};
 
 /// Settings of the scene fit.
@@ -283,7 +282,6 @@ struct OperatorScratch {
     /// The bands' coarse images (bands × node plane).
     images: Vec<f32>,
     detector: Vec<f32>,
-    blurred: Vec<f32>,
     frame: Vec<f32>,
     tmp: Vec<f32>,
 }
@@ -304,13 +302,7 @@ impl SceneOperator<'_> {
             basis: &self.fit.basis,
             images,
         };
-        self.op.cassi().apply_rows(&scene, &mut s.detector);
-        if let Some(blur) = self.op.blur() {
-            s.blurred.resize(rows * det, 0.0);
-            s.tmp.resize(rows * det, 0.0);
-            blur.apply(&s.detector, &mut s.blurred, &mut s.tmp);
-            std::mem::swap(&mut s.detector, &mut s.blurred);
-        }
+        self.op.apply_rows(&scene, &mut s.detector);
         reframe(&s.detector, det, &mut s.frame, cols);
         self.fit.high_pass(&s.frame, out, &mut s.tmp);
     }
@@ -341,21 +333,10 @@ impl LinearOperator for SceneOperator<'_> {
             s.frame.resize(rows * cols, 0.0);
             self.fit.high_pass(r, &mut s.frame, &mut s.tmp);
             reframe(&s.frame, cols, &mut s.detector, det);
-            if let Some(blur) = self.op.blur() {
-                // B is symmetric (symmetric kernel, zero boundary): Bᵀ = B
-                s.blurred.resize(rows * det, 0.0);
-                s.tmp.resize(rows * det, 0.0);
-                blur.apply(&s.detector, &mut s.blurred, &mut s.tmp);
-                std::mem::swap(&mut s.detector, &mut s.blurred);
-            }
-            let cassi = self.op.cassi();
-            let simd = Simd::detect(false);
-            let detector = &s.detector;
-            self.fit.basis.adjoint_rows(
-                |k, i, row| cassi.adjoint_row(simd, detector, k, i, row),
-                &mut s.images,
-                z,
-            );
+            let images = &mut s.images;
+            self.op.with_adjoint_rows(&s.detector, |row| {
+                self.fit.basis.adjoint_rows(row, images, z)
+            });
         })
     }
 }

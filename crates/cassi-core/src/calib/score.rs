@@ -260,8 +260,9 @@ pub(crate) fn fit_to_model(measurement: &Measurement, det: usize) -> (Vec<f32>, 
 /// toward unsplit operators (α → 0 with dy compensating); the line search
 /// restores a full step at no extra operator cost. ε̄ = 5 % of the mean Φ
 /// keeps τ bounded where a residual sits on barely-lit detector pixels.
-/// A blurred model couples neighbours whatever its dispersion and gets the
-/// same majoriser and line search.
+/// A blurred model (and the crisp-cell model, blurred or not) couples
+/// neighbours whatever its dispersion and gets the same majoriser and line
+/// search.
 /// ε̄ as a fraction of the mean Φ (see [`StepNorm`]).
 pub(crate) const EPS_FRACTION: f32 = 0.05;
 
@@ -288,6 +289,7 @@ impl StepNorm {
         match op {
             ModelOperator::Sharp(a) => Self::new(a),
             ModelOperator::Blurred(b) => Self::majorised(b),
+            ModelOperator::Cells(c) => Self::majorised(c),
         }
     }
 

@@ -36,6 +36,12 @@ pub enum DispersionModel {
     /// interpolation of the mask per band): the model for real cameras.
     #[serde(rename = "dispersed-mask")]
     DispersedMask,
+    /// `DispersedMask` with each mask cell a crisp square blurred at its
+    /// own sub-pixel landing offset
+    /// ([`CrispCellOperator`](super::CrispCellOperator)): a blurred
+    /// instrument's code between detector rows as a camera makes it.
+    #[serde(rename = "crisp-cells")]
+    CrispCells,
 }
 
 impl DispersionModel {
@@ -51,11 +57,21 @@ impl DispersionModel {
             Self::Rounded => "rounded",
             Self::Subpixel => "subpixel",
             Self::DispersedMask => "dispersed-mask",
+            Self::CrispCells => "crisp-cells",
         }
     }
 
     /// Every model, in the order the command line lists them.
-    pub const ALL: [DispersionModel; 3] = [Self::Rounded, Self::Subpixel, Self::DispersedMask];
+    pub const ALL: [DispersionModel; 4] = [
+        Self::Rounded,
+        Self::Subpixel,
+        Self::DispersedMask,
+        Self::CrispCells,
+    ];
+
+    /// The models a [`CassiOperator`](super::CassiOperator) represents (a
+    /// few taps per band); the crisp-cell model has its own operator.
+    pub const TAPPED: [DispersionModel; 3] = [Self::Rounded, Self::Subpixel, Self::DispersedMask];
 
     /// Whether fractional offsets act (everything but `Rounded`): a1 and α
     /// are then continuous parameters.
@@ -65,7 +81,14 @@ impl DispersionModel {
 
     /// Whether the mask is sampled per band where that band lands.
     pub fn samples_mask_per_band(self) -> bool {
-        self == Self::DispersedMask
+        matches!(self, Self::DispersedMask | Self::CrispCells)
+    }
+
+    /// Whether each crisp mask cell is blurred at its own landing offset
+    /// (its operator is a [`CrispCellOperator`](super::CrispCellOperator),
+    /// not taps).
+    pub fn places_cells(self) -> bool {
+        self == Self::CrispCells
     }
 }
 
@@ -76,8 +99,9 @@ impl std::str::FromStr for DispersionModel {
             "rounded" => Ok(Self::Rounded),
             "subpixel" => Ok(Self::Subpixel),
             "dispersed-mask" => Ok(Self::DispersedMask),
+            "crisp-cells" => Ok(Self::CrispCells),
             other => Err(format!(
-                "unknown dispersion model '{other}' (expected 'rounded', 'subpixel' or 'dispersed-mask')"
+                "unknown dispersion model '{other}' (expected 'rounded', 'subpixel', 'dispersed-mask' or 'crisp-cells')"
             )),
         }
     }
@@ -262,7 +286,11 @@ fn band_taps(dc: f64, dr: f64, model: DispersionModel) -> Vec<Tap> {
             col: dc.round_ties_even() as i32,
             weight: 1.0,
         }],
-        DispersionModel::Subpixel | DispersionModel::DispersedMask => {
+        // the crisp-cell model's detector and offsets are the dispersed-mask
+        // model's (its operator places cells itself)
+        DispersionModel::Subpixel
+        | DispersionModel::DispersedMask
+        | DispersionModel::CrispCells => {
             let (c0, r0) = (dc.floor(), dr.floor());
             let (fc, fr) = (dc - c0, dr - r0);
             let (c0, r0) = (c0 as i32, r0 as i32);

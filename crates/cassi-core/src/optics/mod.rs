@@ -2,6 +2,7 @@
 //! operator and its adjoint, detector noise, simulation.
 
 pub mod blur;
+pub mod crisp_cells;
 pub mod dispersion;
 pub mod input_checks;
 pub mod model_operator;
@@ -11,7 +12,8 @@ pub mod physical;
 pub mod simulate;
 pub mod warp;
 
-pub use blur::{Blurred, GaussianBlur, pixel_kernel};
+pub use blur::{Blurred, GaussianBlur, pixel_kernel, pixel_strip_kernel};
+pub use crisp_cells::CrispCellOperator;
 pub use dispersion::{Dispersion, DispersionModel, Tap};
 pub use input_checks::{MaskCode, mask_code, validate_measurement, validate_mismatch_for_mask};
 pub use model_operator::ModelOperator;

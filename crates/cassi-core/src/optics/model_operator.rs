@@ -5,17 +5,27 @@
 //! on the way to a solver.
 
 use super::blur::Blurred;
+use super::crisp_cells::CrispCellOperator;
 use super::dispersion::DispersionModel;
-use super::operator::CassiOperator;
+use super::operator::{CassiOperator, CubeRows};
 use crate::cube::{Cube, Frame, Mask, Measurement};
 use crate::error::{Result, shape_error};
 use crate::linop::{AatNormaliser, LinearOperator, NonNegativeOperator};
 use crate::params::Mismatch;
+use crate::simd::Simd;
 
-/// y = B(σ) A(ψ) x, or A(ψ) x for a sharp instrument (σ = 0).
+thread_local! {
+    /// The crisp-cell model's Aᵀ y, read row by row.
+    static ADJOINT_CUBE: std::cell::RefCell<Vec<f32>> = std::cell::RefCell::default();
+}
+
+/// y = B(σ) A(ψ) x, or A(ψ) x for a sharp instrument (σ = 0), or the
+/// crisp-cell model's operator (its blur inside; sharp, it is the
+/// dispersed-mask model's taps).
 pub enum ModelOperator {
     Sharp(CassiOperator),
     Blurred(Blurred<CassiOperator>),
+    Cells(CrispCellOperator),
 }
 
 impl ModelOperator {
@@ -28,6 +38,21 @@ impl ModelOperator {
         model: DispersionModel,
     ) -> Result<Self> {
         psi.validate()?;
+        let model = match model {
+            // sharp, the crisp-cell model is the dispersed-mask model
+            // (tested), whose taps are faster
+            DispersionModel::CrispCells if psi.blur_sigma_px == 0.0 => {
+                DispersionModel::DispersedMask
+            }
+            DispersionModel::CrispCells => {
+                return Ok(Self::Cells(CrispCellOperator::new(
+                    nominal_mask,
+                    bands,
+                    psi,
+                )?));
+            }
+            other => other,
+        };
         let sharp = CassiOperator::with_mismatch(nominal_mask, bands, &psi.sharp(), model)?;
         Self::from_sharp(sharp, psi.blur_sigma_px)
     }
@@ -41,11 +66,13 @@ impl ModelOperator {
         Ok(Self::Blurred(Blurred::new(sharp, sigma_px, rows, cols)?))
     }
 
-    /// The CASSI operator before the blur.
-    pub fn cassi(&self) -> &CassiOperator {
+    /// The tapped CASSI operator before any blur (`None` for the
+    /// crisp-cell model, which blurs each cell where it lands).
+    pub fn cassi(&self) -> Option<&CassiOperator> {
         match self {
-            Self::Sharp(a) => a,
-            Self::Blurred(b) => b.inner(),
+            Self::Sharp(a) => Some(a),
+            Self::Blurred(b) => Some(b.inner()),
+            Self::Cells(_) => None,
         }
     }
 
@@ -53,14 +80,15 @@ impl ModelOperator {
     pub fn sharp(&self) -> Option<&CassiOperator> {
         match self {
             Self::Sharp(a) => Some(a),
-            Self::Blurred(_) => None,
+            Self::Blurred(_) | Self::Cells(_) => None,
         }
     }
 
-    /// The blur after the CASSI operator (`None` for a sharp instrument).
+    /// The blur after the tapped CASSI operator (`None` for a sharp
+    /// instrument and for the crisp-cell model).
     pub fn blur(&self) -> Option<&super::blur::GaussianBlur> {
         match self {
-            Self::Sharp(_) => None,
+            Self::Sharp(_) | Self::Cells(_) => None,
             Self::Blurred(b) => Some(b.blur()),
         }
     }
@@ -70,38 +98,78 @@ impl ModelOperator {
         match self {
             Self::Sharp(_) => 0.0,
             Self::Blurred(b) => b.blur().sigma(),
+            Self::Cells(c) => c.blur_sigma_px(),
         }
     }
 
     /// (bands, rows, cols) of the cubes it takes.
     pub fn cube_shape(&self) -> (usize, usize, usize) {
-        self.cassi().cube_shape()
+        match self {
+            Self::Sharp(a) => a.cube_shape(),
+            Self::Blurred(b) => b.inner().cube_shape(),
+            Self::Cells(c) => c.cube_shape(),
+        }
     }
 
     /// (rows, detector cols) of the measurements it makes.
     pub fn measurement_shape(&self) -> (usize, usize) {
-        self.cassi().measurement_shape()
+        match self {
+            Self::Sharp(a) => a.measurement_shape(),
+            Self::Blurred(b) => b.inner().measurement_shape(),
+            Self::Cells(c) => c.measurement_shape(),
+        }
     }
 
     /// y = B A x for a cube of [`Self::cube_shape`].
     pub fn forward(&self, cube: &Cube) -> Result<Measurement> {
+        if let Self::Sharp(a) = self {
+            return a.forward(cube);
+        }
+        if cube.shape() != self.cube_shape() {
+            let (l, h, w) = self.cube_shape();
+            let (cl, ch, cw) = cube.shape();
+            return Err(shape_error(
+                "scene cube (bands, rows, cols)",
+                format!("({cl}, {ch}, {cw})"),
+                format!("({l}, {h}, {w}) to match the {h}×{w} mask and {l} bands"),
+            ));
+        }
+        let (rows, cols) = self.measurement_shape();
+        let mut y = Frame::zeros(rows, cols);
+        self.apply(cube.as_slice(), y.as_mut_slice());
+        Ok(y)
+    }
+
+    /// y = A x for a cube given row by row (the scene fit's coarse scene,
+    /// never stored by the tapped models).
+    pub(crate) fn apply_rows<R: CubeRows>(&self, x: &R, y: &mut [f32]) {
         match self {
-            Self::Sharp(a) => a.forward(cube),
-            Self::Blurred(_) => {
-                if cube.shape() != self.cube_shape() {
-                    let (l, h, w) = self.cube_shape();
-                    let (cl, ch, cw) = cube.shape();
-                    return Err(shape_error(
-                        "scene cube (bands, rows, cols)",
-                        format!("({cl}, {ch}, {cw})"),
-                        format!("({l}, {h}, {w}) to match the {h}×{w} mask and {l} bands"),
-                    ));
-                }
-                let (rows, cols) = self.measurement_shape();
-                let mut y = Frame::zeros(rows, cols);
-                self.apply(cube.as_slice(), y.as_mut_slice());
-                Ok(y)
-            }
+            Self::Sharp(a) => a.apply_rows(x, y),
+            Self::Blurred(b) => b.apply_after(|ax| b.inner().apply_rows(x, ax), y),
+            Self::Cells(c) => c.apply_rows(x, y),
+        }
+    }
+
+    /// Runs `f` with the rows of Aᵀ y: `f` gets a function that writes row
+    /// `r` of band `k` into its buffer (for the scene fit, which sums
+    /// them into its coarse scene as they come).
+    pub(crate) fn with_adjoint_rows<T>(
+        &self,
+        y: &[f32],
+        f: impl FnOnce(&(dyn Fn(usize, usize, &mut [f32]) + Sync)) -> T,
+    ) -> T {
+        let simd = Simd::detect(false);
+        match self {
+            Self::Sharp(a) => f(&|k, r, row| a.adjoint_row(simd, y, k, r, row)),
+            Self::Blurred(b) => b.adjoint_before(y, |by| {
+                f(&|k, r, row| b.inner().adjoint_row(simd, by, k, r, row))
+            }),
+            Self::Cells(c) => crate::scratch::with_taken(&ADJOINT_CUBE, |x| {
+                let (_, rows, cols) = c.cube_shape();
+                x.resize(c.domain_len(), 0.0);
+                c.adjoint(y, x);
+                f(&|k, r, row| row.copy_from_slice(&x[(k * rows + r) * cols..][..cols]))
+            }),
         }
     }
 
@@ -109,6 +177,7 @@ impl ModelOperator {
         match self {
             Self::Sharp(a) => a,
             Self::Blurred(b) => b,
+            Self::Cells(c) => c,
         }
     }
 }

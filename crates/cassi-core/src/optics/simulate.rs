@@ -86,7 +86,14 @@ pub fn simulate_oversampled(
         a1: m.a1 * f as f64,
         ..m
     };
-    let fine = CassiOperator::with_mismatch(&fine_mask, bands, &fine_mismatch, spec.model)?
+    // the fine grid's block mask is crisp cells already: the crisp-cell
+    // model's instrument is the dispersed-mask model there
+    let fine_model = if spec.model.places_cells() {
+        DispersionModel::DispersedMask
+    } else {
+        spec.model
+    };
+    let fine = CassiOperator::with_mismatch(&fine_mask, bands, &fine_mismatch, fine_model)?
         .forward(&fine_scene)?;
     let coarse_cols = cols + Dispersion::new(bands, m.dispersion(), spec.model)?.extra_cols();
     let mut clean = Frame::zeros(rows, coarse_cols);

@@ -194,12 +194,81 @@ impl LandingMasks {
     /// Band `k`'s mask on detector row `row`, columns `first_col(k) ..` into
     /// `out` (at most `width()` long: fewer where the detector ends).
     pub(crate) fn row(&self, simd: Simd, k: usize, row: usize, out: &mut [f32]) {
+        let lo = self.first_col(k);
+        let len = out.len();
+        let out = std::cell::RefCell::new(out);
+        self.for_each_run(
+            k,
+            row,
+            len,
+            |c, top, bottom, fr| out.borrow_mut()[c - lo] = (top + fr * (bottom - top)) as f32,
+            |a, b, corners, fc, fr| {
+                lerp_run(simd, &mut out.borrow_mut()[a - lo..b - lo], corners, fc, fr)
+            },
+        );
+    }
+
+    /// Band `k`'s mask on detector row `row` as the crisp-cell model reads
+    /// it, columns `first_col(k) ..` (each slice at most `width()` long):
+    /// the two mask rows either side of each pixel's mask edge, each
+    /// interpolated along its row (`top`, `bottom`), and the share of the
+    /// pixel below the edge (`below`); [`Self::row`] is
+    /// top + below · (bottom − top).
+    pub(crate) fn strips_row(
+        &self,
+        simd: Simd,
+        k: usize,
+        row: usize,
+        top: &mut [f32],
+        bottom: &mut [f32],
+        below: &mut [f32],
+    ) {
+        let lo = self.first_col(k);
+        let len = top.len();
+        let outs = std::cell::RefCell::new((top, bottom, below));
+        self.for_each_run(
+            k,
+            row,
+            len,
+            |c, t, b, fr| {
+                let (top, bottom, below) = &mut *outs.borrow_mut();
+                (top[c - lo], bottom[c - lo], below[c - lo]) = (t as f32, b as f32, fr as f32);
+            },
+            |a, b, corners, fc, fr| {
+                let (top, bottom, below) = &mut *outs.borrow_mut();
+                let r = a - lo..b - lo;
+                strips_run(
+                    simd,
+                    (&mut top[r.clone()], &mut bottom[r.clone()], &mut below[r]),
+                    corners,
+                    fc,
+                    fr,
+                )
+            },
+        );
+    }
+
+    /// Band `k`'s detector row `row` over `len` columns from
+    /// `first_col(k)`, column by column (`general(col, top, bottom, fr)`:
+    /// the two mask rows' values at the source column and the source's
+    /// row fraction) or, where the four neighbours are contiguous, a run
+    /// at a time (`run(a, b, corners, (fc, dfc), (fr, dfr))`: columns
+    /// a..b, the neighbours' slices, the fractions at a and their change
+    /// per column).
+    #[allow(clippy::type_complexity)]
+    fn for_each_run(
+        &self,
+        k: usize,
+        row: usize,
+        len: usize,
+        mut general: impl FnMut(usize, f64, f64, f64),
+        mut run: impl FnMut(usize, usize, (&[f32], &[f32], &[f32], &[f32]), (f32, f32), (f32, f32)),
+    ) {
         let map = &self.map;
         let (mr, mc) = (self.mask.rows() as i64, self.mask.cols() as i64);
         let m = self.mask.as_slice();
         let lo = self.first_col(k);
-        let hi = lo + out.len();
-        let out_row = out;
+        let hi = lo + len;
         let (dc, dr) = self.offsets[k];
         // source of detector pixel (col, row) for band k: the pose's
         // source of (col − dc, row − dr)
@@ -210,32 +279,21 @@ impl LandingMasks {
             let qc = col as f64 - dc - map.cx - map.dx;
             (map.cos * qc + base_c, -map.sin * qc + base_r)
         };
-        let lerp = |m00: f32, m01: f32, m10: f32, m11: f32, fc: f64, fr: f64| {
-            let (m00, m01, m10, m11) = (m00 as f64, m01 as f64, m10 as f64, m11 as f64);
-            let top = m00 + fc * (m01 - m00);
-            let bottom = m10 + fc * (m11 - m10);
-            (top + fr * (bottom - top)) as f32
-        };
         // any pixel, edges and outside included
-        let at = |j: i64, i: i64| -> f32 {
+        let at = |j: i64, i: i64| -> f64 {
             if i >= 0 && j >= 0 && i < mc && j < mr {
-                m[(j * mc + i) as usize]
+                m[(j * mc + i) as usize] as f64
             } else {
                 0.0
             }
         };
-        let general = |col: usize| -> f32 {
+        let mut general = |col: usize| {
             let (uc, ur) = source(col);
             let (i0, j0) = (fast_floor(uc), fast_floor(ur));
             let (fc, fr) = (uc - i0 as f64, ur - j0 as f64);
-            lerp(
-                at(j0, i0),
-                at(j0, i0 + 1),
-                at(j0 + 1, i0),
-                at(j0 + 1, i0 + 1),
-                fc,
-                fr,
-            )
+            let (m00, m01) = (at(j0, i0), at(j0, i0 + 1));
+            let (m10, m11) = (at(j0 + 1, i0), at(j0 + 1, i0 + 1));
+            general(col, m00 + fc * (m01 - m00), m10 + fc * (m11 - m10), fr)
         };
         // Along a row the source moves by (cos θ, −sin θ) per column, so
         // ⌊u_col⌋ − col and ⌊u_row⌋ hold for long runs (θ ≤ 1°: ≥ 57
@@ -245,10 +303,10 @@ impl LandingMasks {
         while col < hi {
             let (uc, ur) = source(col);
             let (i0, j0) = (fast_floor(uc), fast_floor(ur));
-            let run = run_length(uc - i0 as f64, map.cos - 1.0)
+            let run_len = run_length(uc - i0 as f64, map.cos - 1.0)
                 .min(run_length(ur - j0 as f64, -map.sin))
                 .min(hi - col);
-            let end = col + run;
+            let end = col + run_len;
             let di = i0 - col as i64;
             let (a, b) = if j0 >= 0 && j0 + 1 < mr {
                 // c + di ≥ 0 and c + di + 1 < mc
@@ -259,7 +317,7 @@ impl LandingMasks {
                 (end, end)
             };
             for c in col..a {
-                out_row[c - lo] = general(c);
+                general(c);
             }
             if b > a {
                 let top_row = &m[(j0 * mc) as usize..((j0 + 1) * mc) as usize];
@@ -277,16 +335,16 @@ impl LandingMasks {
                 // fractions at column a, and their change per column
                 let (uc, ur) = source(a);
                 let (fc, fr) = (uc - (a as i64 + di) as f64, ur - j0 as f64);
-                lerp_run(
-                    simd,
-                    &mut out_row[a - lo..b - lo],
+                run(
+                    a,
+                    b,
                     (t0, t1, b0, b1),
                     (fc as f32, (map.cos - 1.0) as f32),
                     (fr as f32, -map.sin as f32),
                 );
             }
             for c in b..end {
-                out_row[c - lo] = general(c);
+                general(c);
             }
             col = end;
         }
@@ -307,6 +365,24 @@ kernel!(lerp_run, lerp_run_port, lerp_run_avx,
         let top = t0[t] + fc * (t1[t] - t0[t]);
         let bottom = b0[t] + fc * (b1[t] - b0[t]);
         *o = top + fr * (bottom - top);
+    }
+});
+
+// One run of a crisp-cell row: each pixel's two mask rows and the share
+// below its mask edge ([`LandingMasks::strips_row`]).
+kernel!(strips_run, strips_run_port, strips_run_avx,
+(out: (&mut [f32], &mut [f32], &mut [f32]), corners: (&[f32], &[f32], &[f32], &[f32]),
+ col_fraction: (f32, f32), row_fraction: (f32, f32)) -> () = {
+    let (top, bottom, below) = out;
+    let (t0, t1, b0, b1) = corners;
+    let n = top.len();
+    let (bottom, below) = (&mut bottom[..n], &mut below[..n]);
+    let (t0, t1, b0, b1) = (&t0[..n], &t1[..n], &b0[..n], &b1[..n]);
+    for t in 0..n {
+        let fc = col_fraction.0 + t as f32 * col_fraction.1;
+        top[t] = t0[t] + fc * (t1[t] - t0[t]);
+        bottom[t] = b0[t] + fc * (b1[t] - b0[t]);
+        below[t] = row_fraction.0 + t as f32 * row_fraction.1;
     }
 });
 

@@ -23,9 +23,12 @@
 //! (only the mask's code and the blur), then tuning-half scenes: a model
 //! study, not a figure.
 //!
-//! With θ = α = 0 each case is also fitted by a prototype of the fix
-//! ([`cell_model`]: each mask cell a crisp square blurred and integrated at
-//! its own offset).
+//! Each case is also fitted by the crisp-cell model (the fix:
+//! `cassi_core::optics::CrispCellOperator`, each side of a pixel's mask
+//! edge blurred from where it lies) and, with θ = α = 0, by the prototype
+//! that measured what the fix would gain ([`cell_model`]: each mask cell a
+//! crisp square of the scene at its centre, blurred and integrated at its
+//! own offset).
 //!
 //! Run: `cargo run --release -p cassi-bench --bin blur_phase [-- --scenes N]`
 //! → `bench/results/blur_phase.json` (or $CASSI_BENCH_OUT).
@@ -86,13 +89,19 @@ fn phases(bands: usize) -> Vec<(&'static str, Mismatch)> {
 
 /// The σ the model fits to `y` with the scene and every other parameter
 /// known, and the residual there.
-fn fitted_sigma(y: &[f64], mask: &Mask, scene: &Cube, truth: &Mismatch) -> (f64, f64) {
+fn fitted_sigma(
+    y: &[f64],
+    mask: &Mask,
+    scene: &Cube,
+    truth: &Mismatch,
+    model: DispersionModel,
+) -> (f64, f64) {
     let score = |sigma: f64| {
         let psi = Mismatch {
             blur_sigma_px: sigma,
             ..*truth
         };
-        predict_on_detector(mask, scene, &psi, DispersionModel::DispersedMask, DETECTOR)
+        predict_on_detector(mask, scene, &psi, model, DETECTOR)
             .map_or(f64::INFINITY, |m| relative_residual2(y, &m))
     };
     let grid: Vec<f64> = (0..=90).map(|i| i as f64 * STEP).collect();
@@ -149,7 +158,24 @@ fn main() -> Result<()> {
                 let y =
                     simulate_physical(scene, &mask, &STANDARD_WAVELENGTHS_NM, &truth, &spec, None)?;
                 let y: Vec<f64> = y.as_slice().iter().map(|&v| v as f64).collect();
-                let (fitted, residual) = fitted_sigma(&y, &mask, scene, &truth);
+                let (fitted, residual) =
+                    fitted_sigma(&y, &mask, scene, &truth, DispersionModel::DispersedMask);
+                // the crisp-cell model (the fix, any pose)
+                let (crisp, crisp_residual) =
+                    fitted_sigma(&y, &mask, scene, &truth, DispersionModel::CrispCells);
+                let crisp_at_truth = predict_on_detector(
+                    &mask,
+                    scene,
+                    &truth,
+                    DispersionModel::CrispCells,
+                    DETECTOR,
+                )
+                .map(|m| relative_residual2(&y, &m).sqrt());
+                eprintln!(
+                    "    crisp cells: fitted σ {crisp:.3} (error {:+.3}), residual {crisp_residual:.4} (at the truth {:.4})",
+                    crisp - sigma,
+                    crisp_at_truth.unwrap_or(f64::NAN)
+                );
                 // the prototype of the fix, where it applies (θ = α = 0)
                 let cell = (truth.theta_deg == 0.0 && truth.alpha_deg == 0.0).then(|| {
                     let at = relative_residual2(&y, &cell_model::forward(&mask, scene, &truth));
@@ -184,6 +210,11 @@ fn main() -> Result<()> {
                     "fitted_sigma_px": fitted, "error_px": fitted - sigma,
                     "relative_residual_at_fitted_sigma": residual,
                     "relative_residual_at_truth": at_truth,
+                    "crisp_cells": json!({
+                        "fitted_sigma_px": crisp, "error_px": crisp - sigma,
+                        "relative_residual_at_fitted_sigma": crisp_residual,
+                        "relative_residual_at_truth": crisp_at_truth,
+                    }),
                     "cell_model": cell.map(|(fitted, at)| json!({
                         "fitted_sigma_px": fitted, "error_px": fitted - sigma,
                         "relative_residual_at_truth": at,
@@ -194,9 +225,10 @@ fn main() -> Result<()> {
     }
     let record = json!({
         "benchmark": "blur_phase",
-        "what": "the σ the dispersed-mask model fits, scene and every other parameter known, \
-                 to the 4× simulator (no noise) with the bands landing on whole pixels, at ½, \
-                 spread over [0, 1), with dy ½, θ, α alone and all together",
+        "what": "the σ the dispersed-mask model and the crisp-cell model fit, scene and every \
+                 other parameter known, to the 4× simulator (no noise) with the bands landing on \
+                 whole pixels, at ½, spread over [0, 1), with dy ½, θ, α alone and all together \
+                 (and the cell-model prototype where θ = α = 0)",
         "machine": Machine::this(),
         "detector": DETECTOR,
         "cases": cases,

@@ -48,7 +48,7 @@
 //!
 //! Run: `cargo run --release -p cassi-bench --bin calibrate --
 //! [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] [--no-aligned]
-//! [--no-inverse-crime] [--model rounded|subpixel|dispersed-mask] [--preset NAME]
+//! [--no-inverse-crime] [--model rounded|subpixel|dispersed-mask|crisp-cells] [--preset NAME]
 //! [--no-texture] [--no-scene-fit] [--no-fine-pass] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene]
 //! [--fine-pass-free pose-and-slope|geometry|all]
 //! [--no-recon] [--no-limits] [--out PATH] [--scene-transform none|flip-cols|flip-rows|transpose] [--verbose]`
@@ -232,7 +232,7 @@ impl SceneTransform {
 }
 
 const USAGE: &str = "calibrate [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] \
-                     [--no-aligned] [--no-inverse-crime] [--no-wide-blur] [--model rounded|subpixel|dispersed-mask] \
+                     [--no-aligned] [--no-inverse-crime] [--no-wide-blur] [--model rounded|subpixel|dispersed-mask|crisp-cells] \
                      [--preset NAME] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all] [--no-recon] [--no-limits] [--out PATH] \
                      [--scene-transform none|flip-cols|flip-rows|transpose] [--verbose]";
 
