@@ -45,7 +45,7 @@ use crate::cube::Mask;
 use crate::error::Result;
 use crate::linop::{AatNormaliser, LinearOperator, NonNegativeOperator, row_sum_majoriser};
 use crate::params::Mismatch;
-use crate::simd::Simd;
+use crate::simd::{Simd, kernel};
 
 /// Fraction bins (P): the lower strip's kernel is interpolated between
 /// fractions 1/P apart.
@@ -229,14 +229,18 @@ impl CrispCellOperator {
                                 let (head, tail) = out.split_at_mut((1 + b) * det);
                                 let (kernel, tail) = (&mut head[lo..], &mut tail[lo..]);
                                 let (lower, upper) = tail.split_at_mut(det);
-                                for n in run {
-                                    let s = scene[n];
-                                    let d = (bottom[n] - top[n]) * s;
-                                    let t = share(below[n], b);
-                                    kernel[n] += top[n] * s;
-                                    lower[n] += (1.0 - t) * d;
-                                    upper[n] += t * d;
-                                }
+                                let n = run.clone();
+                                deposit_run(
+                                    simd,
+                                    (
+                                        &mut kernel[n.clone()],
+                                        &mut lower[n.clone()],
+                                        &mut upper[n.clone()],
+                                    ),
+                                    (&top[n.clone()], &bottom[n.clone()], &below[n.clone()]),
+                                    &scene[n],
+                                    b as f32,
+                                );
                             }
                         }
                     },
@@ -258,7 +262,7 @@ impl CrispCellOperator {
                                 continue;
                             }
                             let from = &slots[(src as usize * SLOTS + slot) * det..][..det];
-                            out.iter_mut().zip(from).for_each(|(o, &v)| *o += w * v);
+                            axpy(simd, out, from, w);
                         }
                     }
                 });
@@ -275,11 +279,45 @@ fn bin(below: f32) -> usize {
     ((below * PHASES as f32).max(0.0) as usize).min(PHASES - 1)
 }
 
-/// The share of `below` that goes to bin `b` + 1 (the rest to bin `b`).
-#[inline]
-fn share(below: f32, b: usize) -> f32 {
-    (below * PHASES as f32 - b as f32).clamp(0.0, 1.0)
-}
+// One run of a detector row's pixels whose lower bin is `b`: each pixel's
+// upper-side light top·s into K's slot, and the lower side's difference
+// (bottom − top)·s split between bins b and b + 1 by the share t of
+// `below` past bin b (compiled for the baseline target and for AVX: the
+// same arithmetic per element).
+kernel!(deposit_run, deposit_run_port, deposit_run_avx,
+(slots: (&mut [f32], &mut [f32], &mut [f32]), strips: (&[f32], &[f32], &[f32]), scene: &[f32],
+ b: f32) -> () = {
+    let (kernel, lower, upper) = slots;
+    let (top, bottom, below) = strips;
+    let n = kernel.len();
+    let (lower, upper, top, bottom, below, scene) =
+        (&mut lower[..n], &mut upper[..n], &top[..n], &bottom[..n], &below[..n], &scene[..n]);
+    for i in 0..n {
+        let s = scene[i];
+        let d = (bottom[i] - top[i]) * s;
+        let t = (below[i] * PHASES as f32 - b).clamp(0.0, 1.0);
+        kernel[i] += top[i] * s;
+        lower[i] += (1.0 - t) * d;
+        upper[i] += t * d;
+    }
+});
+
+// The transpose of [`deposit_run`] for one run: what each pixel's scene
+// value receives from K's slot and bins b, b + 1.
+kernel!(back_run, back_run_port, back_run_avx,
+(back: &mut [f32], slots: (&[f32], &[f32], &[f32]), strips: (&[f32], &[f32], &[f32]),
+ b: f32) -> () = {
+    let (kernel, lower, upper) = slots;
+    let (top, bottom, below) = strips;
+    let n = back.len();
+    let (kernel, lower, upper, top, bottom, below) =
+        (&kernel[..n], &lower[..n], &upper[..n], &top[..n], &bottom[..n], &below[..n]);
+    for i in 0..n {
+        let t = (below[i] * PHASES as f32 - b).clamp(0.0, 1.0);
+        let d = (1.0 - t) * lower[i] + t * upper[i];
+        back[i] = top[i] * kernel[i] + (bottom[i] - top[i]) * d;
+    }
+});
 
 /// The runs of `below` whose pixels share their lower bin (one run per
 /// band row when θ = 0: the products inside a run are slices).
@@ -299,6 +337,14 @@ fn bin_runs(below: &[f32]) -> impl Iterator<Item = (std::ops::Range<usize>, usiz
         Some((run, b))
     })
 }
+
+// out += w · x, compiled for the baseline target and for AVX (the same
+// arithmetic per element in either copy).
+kernel!(axpy, axpy_port, axpy_avx, (out: &mut [f32], x: &[f32], w: f32) -> () = {
+    for (o, &v) in out.iter_mut().zip(x) {
+        *o += w * v;
+    }
+});
 
 /// Runs `f` with the thread's scratch, its buffers `lens` long (contents
 /// unspecified).
@@ -345,6 +391,7 @@ impl LinearOperator for CrispCellOperator {
         assert_eq!(x.len(), self.domain_len(), "CrispCellOperator::adjoint: x");
         let (_, rows, cols) = self.cube_shape();
         let det = self.det_cols;
+        let simd = Simd::detect(false);
         with_scratch([rows * SLOTS * det, rows * det], |[slots, frame]| {
             // along the rows: B_colᵀ = B_col (symmetric taps, zero outside)
             self.blur.apply_along_rows(y, frame);
@@ -364,51 +411,54 @@ impl LinearOperator for CrispCellOperator {
                             continue;
                         }
                         let from = &frame[r as usize * det..][..det];
-                        out.iter_mut().zip(from).for_each(|(o, &v)| *o += w * v);
+                        axpy(simd, out, from, w);
                     }
                 });
-            // each scene row gathers what its taps' detector rows read
+            // each band's scene rows gather what their taps' detector rows
+            // read; a band's taps read rows i + r0 and i + r0 + 1, and the
+            // next scene row the same one row down, so the two latest
+            // back-projected rows are kept (by parity) and each is made once
             let slots = &*slots;
-            let simd = Simd::detect(false);
-            x.par_chunks_mut(cols)
-                .with_min_len(8)
-                .enumerate()
-                .for_each_init(
-                    || (vec![0.0f32; det], vec![0.0f32; 3 * self.landing.width()]),
-                    |(back, strips), (at, xrow)| {
-                        let (k, i) = (at / rows, at % rows);
+            x.par_chunks_mut(rows * cols).enumerate().for_each_init(
+                || {
+                    let strips = vec![0.0f32; 3 * self.landing.width()];
+                    (vec![0.0f32; 2 * det], [usize::MAX; 2], strips)
+                },
+                |(back, held, strips), (k, band)| {
+                    let (lo, hi) = self.band_cols(k);
+                    let taps = self.dispersion.taps(k);
+                    held.fill(usize::MAX);
+                    for (i, xrow) in band.chunks_mut(cols).enumerate() {
                         xrow.fill(0.0);
-                        let (lo, hi) = self.band_cols(k);
-                        let taps = self.dispersion.taps(k);
-                        for (n, tap) in taps.iter().enumerate() {
+                        for tap in taps {
                             let r = i as i64 + tap.row as i64;
                             if r < 0 || r >= rows as i64 {
                                 continue;
                             }
                             let r = r as usize;
-                            // the row's back-projection, once per tap row
-                            if n == 0 || taps[n - 1].row != tap.row {
+                            let back = &mut back[(r % 2) * det..][..det];
+                            if held[r % 2] != r {
+                                held[r % 2] = r;
                                 let from = &slots[r * SLOTS * det..(r + 1) * SLOTS * det];
                                 let (top, bottom, below) = self.strips(simd, k, r, strips);
                                 let back = &mut back[lo..hi];
-                                for (run, b) in bin_runs(below) {
-                                    let kernel = &from[lo..];
-                                    let lower = &from[(1 + b) * det + lo..];
-                                    let upper = &from[(2 + b) * det + lo..];
-                                    for n in run {
-                                        let t = share(below[n], b);
-                                        let d = (1.0 - t) * lower[n] + t * upper[n];
-                                        back[n] = top[n] * kernel[n] + (bottom[n] - top[n]) * d;
-                                    }
+                                for (n, b) in bin_runs(below) {
+                                    let at = |slot: usize| &from[slot * det + lo..][n.clone()];
+                                    back_run(
+                                        simd,
+                                        &mut back[n.clone()],
+                                        (at(0), at(1 + b), at(2 + b)),
+                                        (&top[n.clone()], &bottom[n.clone()], &below[n.clone()]),
+                                        b as f32,
+                                    );
                                 }
                             }
                             let c0 = tap.col as usize;
-                            xrow.iter_mut()
-                                .zip(&back[c0..c0 + cols])
-                                .for_each(|(o, &v)| *o += tap.weight * v);
+                            axpy(simd, xrow, &back[c0..c0 + cols], tap.weight);
                         }
-                    },
-                );
+                    }
+                },
+            );
         });
     }
 }

@@ -7,9 +7,9 @@
 use super::blur::Blurred;
 use super::crisp_cells::CrispCellOperator;
 use super::dispersion::DispersionModel;
-use super::operator::{CassiOperator, CubeRows};
-use crate::cube::{Cube, Frame, Mask, Measurement};
-use crate::error::{Result, shape_error};
+use super::operator::{CassiOperator, CubeRows, checked_forward};
+use crate::cube::{Cube, Mask, Measurement};
+use crate::error::Result;
 use crate::linop::{AatNormaliser, LinearOperator, NonNegativeOperator};
 use crate::params::Mismatch;
 use crate::simd::Simd;
@@ -122,22 +122,7 @@ impl ModelOperator {
 
     /// y = B A x for a cube of [`Self::cube_shape`].
     pub fn forward(&self, cube: &Cube) -> Result<Measurement> {
-        if let Self::Sharp(a) = self {
-            return a.forward(cube);
-        }
-        if cube.shape() != self.cube_shape() {
-            let (l, h, w) = self.cube_shape();
-            let (cl, ch, cw) = cube.shape();
-            return Err(shape_error(
-                "scene cube (bands, rows, cols)",
-                format!("({cl}, {ch}, {cw})"),
-                format!("({l}, {h}, {w}) to match the {h}×{w} mask and {l} bands"),
-            ));
-        }
-        let (rows, cols) = self.measurement_shape();
-        let mut y = Frame::zeros(rows, cols);
-        self.apply(cube.as_slice(), y.as_mut_slice());
-        Ok(y)
+        checked_forward(self, self.cube_shape(), self.measurement_shape(), cube)
     }
 
     /// y = A x for a cube given row by row (the scene fit's coarse scene,

@@ -192,19 +192,7 @@ impl CassiOperator {
 
     /// y = A x for a cube of [`Self::cube_shape`].
     pub fn forward(&self, cube: &Cube) -> Result<Measurement> {
-        if cube.shape() != self.cube_shape() {
-            let (l, h, w) = self.cube_shape();
-            let (cl, ch, cw) = cube.shape();
-            return Err(shape_error(
-                "scene cube (bands, rows, cols)",
-                format!("({cl}, {ch}, {cw})"),
-                format!("({l}, {h}, {w}) to match the {h}×{w} mask and {l} bands"),
-            ));
-        }
-        let (rows, cols) = self.measurement_shape();
-        let mut y = Frame::zeros(rows, cols);
-        self.apply(cube.as_slice(), y.as_mut_slice());
-        Ok(y)
+        checked_forward(self, self.cube_shape(), self.measurement_shape(), cube)
     }
 
     /// x = Aᵀ y for a measurement of [`Self::measurement_shape`].
@@ -302,6 +290,28 @@ impl CassiOperator {
             });
         d
     }
+}
+
+/// y = A x of an operator taking (bands, rows, cols) cubes of `cube_shape`
+/// to `measurement_shape` frames, a cube of another shape refused by name.
+pub(crate) fn checked_forward(
+    op: &dyn LinearOperator,
+    cube_shape: (usize, usize, usize),
+    (rows, cols): (usize, usize),
+    cube: &Cube,
+) -> Result<Measurement> {
+    if cube.shape() != cube_shape {
+        let (l, h, w) = cube_shape;
+        let (cl, ch, cw) = cube.shape();
+        return Err(shape_error(
+            "scene cube (bands, rows, cols)",
+            format!("({cl}, {ch}, {cw})"),
+            format!("({l}, {h}, {w}) to match the {h}×{w} mask and {l} bands"),
+        ));
+    }
+    let mut y = Frame::zeros(rows, cols);
+    op.apply(cube.as_slice(), y.as_mut_slice());
+    Ok(y)
 }
 
 /// A cube read one row at a time by [`CassiOperator::apply_rows`].
