@@ -50,7 +50,7 @@
 //! [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] [--no-aligned]
 //! [--no-inverse-crime] [--model rounded|subpixel|dispersed-mask|crisp-cells] [--preset NAME]
 //! [--no-texture] [--no-scene-fit] [--no-fine-pass] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene]
-//! [--fine-pass-free pose-and-slope|geometry|all]
+//! [--fine-pass-free pose-and-slope|geometry|all] [--scene-cell PX]
 //! [--no-recon] [--no-limits] [--out PATH] [--scene-transform none|flip-cols|flip-rows|transpose] [--verbose]`
 //! (`--no-texture`: the default preset without its texture fit, as it was
 //! before issue #14 — the "before" row; `--no-scene-fit`: without its
@@ -233,7 +233,7 @@ impl SceneTransform {
 
 const USAGE: &str = "calibrate [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] \
                      [--no-aligned] [--no-inverse-crime] [--no-wide-blur] [--model rounded|subpixel|dispersed-mask|crisp-cells] \
-                     [--preset NAME] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all] [--no-recon] [--no-limits] [--out PATH] \
+                     [--preset NAME] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all] [--scene-cell PX] [--no-recon] [--no-limits] [--out PATH] \
                      [--scene-transform none|flip-cols|flip-rows|transpose] [--verbose]";
 
 fn parse_args(argv: &[String]) -> Result<Args> {
@@ -251,6 +251,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
     let mut fine_pass_anchor = None;
     let mut fine_pass_free = None;
     let mut no_fine_pass = false;
+    let mut scene_cell: Option<usize> = None;
     let mut out = None;
     let mut transform = SceneTransform::None;
     let mut it = argv.iter();
@@ -297,6 +298,12 @@ fn parse_args(argv: &[String]) -> Result<Args> {
             "--no-texture" => texture = false,
             "--no-scene-fit" => scene_fit = false,
             "--no-fine-pass" => no_fine_pass = true,
+            "--scene-cell" => {
+                let v = value()?;
+                let px: usize = v.parse().with_context(|| format!("--scene-cell {v}"))?;
+                ensure!(px >= 1, "--scene-cell {v}: a node spacing of at least 1 px");
+                scene_cell = Some(px);
+            }
             "--fine-pass" => {
                 let v = value()?;
                 let ridge: f64 = v.parse().with_context(|| format!("--fine-pass {v}"))?;
@@ -386,6 +393,17 @@ fn parse_args(argv: &[String]) -> Result<Args> {
             Preset::Paper(_) => bail!("--no-fine-pass applies to the default preset"),
         }
         preset_name += " (no fine pass)";
+    }
+    // the scene fit's first pass on another node spacing (a model study)
+    if let Some(px) = scene_cell {
+        match &mut preset {
+            Preset::Default(d) => match d.scene_fit.as_mut() {
+                Some(settings) => settings.cell_px = px,
+                None => bail!("--scene-cell needs the scene fit"),
+            },
+            Preset::Paper(_) => bail!("--scene-cell applies to the default preset"),
+        }
+        preset_name += &format!(" (first pass on {px}-px nodes)");
     }
     let fine_pass_anchor = fine_pass_anchor.unwrap_or(FinePass::default().anchor);
     let fine_pass_free = fine_pass_free.unwrap_or(FinePass::default().free);
