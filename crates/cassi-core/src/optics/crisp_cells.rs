@@ -30,8 +30,9 @@
 //! At σ = 0 (D_f = f at the pixel itself) and wherever every mask edge
 //! falls on a pixel edge (f = 0: D = 0) this is the dispersed-mask model
 //! (tested). Every product is a sum of non-negative terms (T_f, D_f ≥ 0),
-//! so A ≥ 0. Detector rows in parallel forward, scene rows in the adjoint:
-//! each output sums in one order whatever the thread count.
+//! so A ≥ 0. Detector rows in parallel forward, bands in the adjoint (each
+//! keeps its two latest back-projected detector rows): each output sums in
+//! one order whatever the thread count.
 
 use std::cell::RefCell;
 
