@@ -11,7 +11,7 @@ from cassi import _cassi
 from conftest import inner
 
 
-@pytest.mark.parametrize("model", ["rounded", "subpixel"])
+@pytest.mark.parametrize("model", ["rounded", "subpixel", "dispersed-mask", "crisp-cells"])
 @pytest.mark.parametrize(
     "psi",
     [
