@@ -123,3 +123,31 @@ pub fn bench_out(name: &str) -> anyhow::Result<String> {
     }
     Ok(out)
 }
+
+/// What a tuning-half model study (`blur_phase`, `model_fidelity`) reads:
+/// its record's path, the TSA simulation mask and the first `scenes` CAVE
+/// scenes (at most the tuning half's five).
+pub struct ModelStudy {
+    pub out: String,
+    pub mask: cassi_core::Mask,
+    pub scenes: Vec<std::path::PathBuf>,
+}
+
+/// The inputs of the model study `name`, from its command line (`[--scenes
+/// N]`, `default_scenes` without it); the record's folder made first.
+pub fn model_study(name: &str, default_scenes: usize) -> anyhow::Result<ModelStudy> {
+    let argv: Vec<String> = std::env::args().skip(1).collect();
+    let wanted: usize = match argv.as_slice() {
+        [] => default_scenes,
+        [flag, n] if flag == "--scenes" => n.parse()?,
+        _ => anyhow::bail!("usage: {name} [--scenes N]"),
+    };
+    let out = bench_out(&format!("{name}.json"))?;
+    let data = shared_data();
+    let mask = cassi_io::load_frame(data.join("masks/tsa_simu_mask256.mat"), Some("mask"))?;
+    let scenes = cave_scenes(&data)?
+        .into_iter()
+        .take(wanted.min(5))
+        .collect();
+    Ok(ModelStudy { out, mask, scenes })
+}

@@ -26,8 +26,7 @@ use std::time::Instant;
 
 use anyhow::Result;
 use cassi_bench::{
-    bench_out, median, physical_random_mismatch, predict_on_detector, psi_of, relative_residual2,
-    shared_data,
+    median, physical_random_mismatch, predict_on_detector, psi_of, relative_residual2,
 };
 use cassi_core::calib::nelder_mead;
 use cassi_core::linop::LinearOperator;
@@ -103,19 +102,11 @@ fn timing(mask: &Mask, scene: &Cube, model: DispersionModel) -> Value {
 }
 
 fn main() -> Result<()> {
-    let argv: Vec<String> = std::env::args().skip(1).collect();
-    let scenes_wanted = match argv.as_slice() {
-        [] => 3,
-        [flag, n] if flag == "--scenes" => n.parse()?,
-        _ => anyhow::bail!("usage: model_fidelity [--scenes N]"),
-    };
-    let out = bench_out("model_fidelity.json")?;
-    let data = shared_data();
-    let mask = cassi_io::load_frame(data.join("masks/tsa_simu_mask256.mat"), Some("mask"))?;
-    let scenes = cassi_bench::cave_scenes(&data)?;
+    let cassi_bench::ModelStudy { out, mask, scenes } =
+        cassi_bench::model_study("model_fidelity", 3)?;
     let mut cases = Vec::new();
     let mut first_scene = None;
-    for (index, path) in scenes.iter().take(scenes_wanted.min(5)).enumerate() {
+    for (index, path) in scenes.iter().enumerate() {
         let scene = cassi_io::load_cube(path, None, cassi_io::CubeLayout::Auto)?;
         for slot in 0..SLOTS {
             let seed = SEED_BASE + 20 * index as u64 + slot;

@@ -58,7 +58,6 @@ const SLOTS: usize = PHASES + 2;
 /// The crisp-cell model's operator for one mismatch ψ (blur included).
 #[derive(Debug, Clone)]
 pub struct CrispCellOperator {
-    mask: Mask,
     /// The scene's shift per band (the dispersed-mask model's taps).
     dispersion: Dispersion,
     det_cols: usize,
@@ -113,7 +112,6 @@ impl CrispCellOperator {
         }
         let offsets = (0..bands).map(|k| dispersion.offset(k)).collect();
         Ok(Self {
-            mask: nominal_mask.clone(),
             landing: LandingMasks::new(nominal_mask, &psi.pose(), offsets, rows, det_cols),
             dispersion,
             det_cols,
@@ -134,12 +132,13 @@ impl CrispCellOperator {
 
     /// (bands, rows, cols) of the cubes it takes.
     pub fn cube_shape(&self) -> (usize, usize, usize) {
-        (self.bands(), self.mask.rows(), self.mask.cols())
+        let mask = self.landing.nominal();
+        (self.bands(), mask.rows(), mask.cols())
     }
 
     /// (rows, detector cols) of the measurements it makes.
     pub fn measurement_shape(&self) -> (usize, usize) {
-        (self.mask.rows(), self.det_cols)
+        (self.landing.nominal().rows(), self.det_cols)
     }
 
     /// y = A x for a cube given row by row (the scene fit's coarse scene).

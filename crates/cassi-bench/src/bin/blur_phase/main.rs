@@ -36,7 +36,7 @@
 mod cell_model;
 
 use anyhow::Result;
-use cassi_bench::{bench_out, predict_on_detector, relative_residual2, scene_name, shared_data};
+use cassi_bench::{predict_on_detector, relative_residual2, scene_name};
 use cassi_core::optics::{DispersionModel, PhysicalSpec, simulate_physical};
 use cassi_core::{Cube, Mask, Mismatch, STANDARD_WAVELENGTHS_NM};
 use cassi_eval::machine::Machine;
@@ -123,22 +123,13 @@ fn fitted_sigma(
 }
 
 fn main() -> Result<()> {
-    let argv: Vec<String> = std::env::args().skip(1).collect();
-    let scenes_wanted = match argv.as_slice() {
-        [] => 2,
-        [flag, n] if flag == "--scenes" => n.parse()?,
-        _ => anyhow::bail!("usage: blur_phase [--scenes N]"),
-    };
-    let out = bench_out("blur_phase.json")?;
-    let data = shared_data();
-    let mask = cassi_io::load_frame(data.join("masks/tsa_simu_mask256.mat"), Some("mask"))?;
-    let scenes = cassi_bench::cave_scenes(&data)?;
+    let cassi_bench::ModelStudy { out, mask, scenes } = cassi_bench::model_study("blur_phase", 2)?;
     let mut cases = Vec::new();
     // a constant scene first: only the mask's code and the blur differ
     let (bands, rows, cols) = (STANDARD_WAVELENGTHS_NM.len(), mask.rows(), mask.cols());
     let flat = Cube::from_vec(bands, rows, cols, vec![1.0; bands * rows * cols])?;
     let mut inputs = vec![("constant scene".to_string(), flat)];
-    for path in scenes.iter().take(scenes_wanted.min(5)) {
+    for path in &scenes {
         let scene = cassi_io::load_cube(path, None, cassi_io::CubeLayout::Auto)?;
         inputs.push((scene_name(path), scene));
     }
