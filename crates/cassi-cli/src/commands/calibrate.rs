@@ -28,8 +28,8 @@ pub struct CalibrateArgs {
     /// default preset's default, for real instruments: continuous a1 and α,
     /// the mask sampled once where each band lands, as a camera integrates
     /// it), `crisp-cells` (the same with each side of a pixel's mask edge
-    /// blurred from where it lies: slower; see the README for when it
-    /// helps), `subpixel` (the same dispersion with the mask interpolated
+    /// blurred from where it lies: slower, and its error bars are not
+    /// calibrated; see the README for when it helps), `subpixel` (the same dispersion with the mask interpolated
     /// twice; the paper preset's default) or `rounded` (whole-pixel band
     /// offsets, the reference code's model).
     #[arg(long)]
