@@ -1,7 +1,9 @@
 //! Self-calibration on small synthetic problems: the score is minimal at the
 //! truth, and the `default` preset recovers known parameters.
 
-use cassi_core::calib::{CalibrationProblem, DefaultPreset, Fit, ProxyParams, calibrate_default};
+use cassi_core::calib::{
+    CalibrationProblem, DETAIL_PASS_STAGE, DefaultPreset, Fit, ProxyParams, calibrate_default,
+};
 use cassi_core::optics::{DispersionModel, SimulationSpec, simulate};
 use cassi_core::synth::{SceneSpec, random_binary_mask, synthetic_scene};
 use cassi_core::{Mismatch, Parameter};
@@ -189,11 +191,12 @@ fn default_preset_recovers_a_known_mask_misalignment() {
         let last = cal.stages.last().map(|s| s.name.as_str()).unwrap_or("");
         match model {
             DispersionModel::DispersedMask | DispersionModel::CrispCells => {
-                assert_eq!(cal.stages.len(), 7);
+                assert_eq!(cal.stages.len(), 8);
                 let first = cal.stages[5].name.as_str();
                 assert!(first.starts_with("scene fit ("), "{first}");
+                assert_eq!(cal.stages[6].name, DETAIL_PASS_STAGE);
                 assert!(last.starts_with("scene fit's fine pass"), "{last}");
-                assert_eq!(cal.uncertainty_fit, Some(Fit::SceneFinePass));
+                assert_eq!(cal.uncertainty_fit, Some(Fit::SceneDetailPass));
             }
             DispersionModel::Subpixel => {
                 assert_eq!(cal.stages.len(), 5);

@@ -613,10 +613,12 @@ pub fn texture_fit(
 /// there too (mean RMSE / tolerance over the 45: 2 px 1.88, 1 px 1.71,
 /// 0.7 px 1.60, 0.5 px 1.46, 0.3 px 1.47; wider ones put textured scenes'
 /// blur high). Without the texture fit before it (from the proxy stages' ψ
-/// with its own σ grid) dy, θ, α and σ were worse. Then stage 7, its fine
-/// pass ([`super::FinePass`], in the settings by default; over dx, dy, θ,
-/// a1 and α unless its `free` says otherwise), with the two passes'
-/// uncertainty.
+/// with its own σ grid) dy, θ, α and σ were worse. Then, when the settings
+/// have one, its detail pass ([`super::DetailPass`]: the first pass refitted
+/// on its scene times the scene's texture), which stands in for the first
+/// pass from there on; then its fine pass ([`super::FinePass`], in the
+/// settings by default; over dx, dy, θ, a1 and α unless its `free` says
+/// otherwise), with the two passes' uncertainty.
 fn scene_fit_stage(
     run: &mut StageRunner<'_>,
     problem: &CalibrationProblem<'_>,
@@ -637,9 +639,31 @@ fn scene_fit_stage(
         score: found.best.score,
     };
     let moves = |p: &Parameter| free.contains(p);
+    let moved_by = |pass: FinePassFree| -> Vec<Parameter> {
+        pass.parameters().iter().copied().filter(moves).collect()
+    };
+    // the detail pass, when on, stands in for the first pass from here
+    // (its fit for the uncertainty; the fine pass's scene still starts from
+    // the smooth factor, in the first pass's basis)
+    let (detailed, found, stage, stage_name) = match settings.detail_pass {
+        Some(pass) if !moved_by(pass.free).is_empty() => {
+            run.finish(stage, SCENE_FIT_STAGE, scored(&found));
+            problem.check_cancelled()?;
+            let stage = run.start();
+            let detail = pass.detail_map(problem, &found.best.psi, &preset.proxy)?;
+            let detailed = SceneFit::new(problem, settings)?.with_detail(detail);
+            let mut refit = fit_scene(&detailed, &found.best.psi, &moved_by(pass.free))?;
+            stage.count(refit.evaluations);
+            refit.jacobian = detailed.jacobian(&refit.best, &free)?;
+            stage.count(free.len());
+            (Some(detailed), refit, stage, DETAIL_PASS_STAGE)
+        }
+        _ => (None, found, stage, SCENE_FIT_STAGE),
+    };
+    let first_fit = detailed.as_ref().unwrap_or(&fit);
     match settings.fine_pass {
         Some(pass) if pass.free.parameters().iter().any(moves) => {
-            run.finish(stage, SCENE_FIT_STAGE, scored(&found));
+            run.finish(stage, stage_name, scored(&found));
             problem.check_cancelled()?;
             let stage = run.start();
             let fine_settings = SceneFitSettings {
@@ -656,20 +680,15 @@ fn scene_fit_stage(
                 RidgeAnchor::FirstPassScene => Some(scene.clone()),
             };
             let fine = fine.with_ridge(pass.ridge, anchor);
-            let moved: Vec<Parameter> = pass
-                .free
-                .parameters()
-                .iter()
-                .copied()
-                .filter(moves)
-                .collect();
+            let moved = moved_by(pass.free);
             let refined = fit_scene_from(&fine, &found.best.psi, Some(&scene), &moved)?;
             stage.count(refined.evaluations);
             let floors = match pass.free {
+                _ if detailed.is_some() => Fit::SceneDetailPass,
                 FinePassFree::Geometry | FinePassFree::All => Fit::SceneFinePass,
                 FinePassFree::PoseAndSlope => Fit::ScenePoseAndSlopePass,
             };
-            let first = (&fit, &found, free.as_slice());
+            let first = (first_fit, &found, free.as_slice());
             let u = two_pass_uncertainty(first, (&fine, &refined, &moved), start, floors);
             // its score is the penalised one on the finer scene: not
             // comparable with the first pass's
@@ -677,14 +696,17 @@ fn scene_fit_stage(
             Ok((run.finish(stage, name, scored(&refined)), u))
         }
         _ => {
-            let u = scene_fit_uncertainty(&fit, &found, &free, start);
-            Ok((run.finish(stage, SCENE_FIT_STAGE, scored(&found)), u))
+            let u = scene_fit_uncertainty(first_fit, &found, &free, start);
+            Ok((run.finish(stage, stage_name, scored(&found)), u))
         }
     }
 }
 
 /// The name of the scene fit's first pass in the stage reports.
 pub const SCENE_FIT_STAGE: &str = "scene fit (coarse scene per ψ)";
+
+/// The name of the scene fit's detail pass in the stage reports.
+pub const DETAIL_PASS_STAGE: &str = "scene fit's detail pass (coarse scene × texture)";
 
 /// The blur widths the texture stage tries before its simplex: 0 … 1.5 px.
 const BLUR_GRID_MAX_PX: f64 = 1.5;

@@ -11,6 +11,7 @@
 pub(crate) mod adam;
 mod coarse_scene;
 mod default;
+mod detail_pass;
 pub(crate) mod gradient;
 mod grid;
 pub(crate) mod init;
@@ -34,7 +35,10 @@ pub use uncertainty::{
 use serde::{Deserialize, Serialize};
 
 pub use adam::AdamSettings;
-pub use default::{DefaultPreset, SCENE_FIT_STAGE, calibrate_default, texture_fit};
+pub use default::{
+    DETAIL_PASS_STAGE, DefaultPreset, SCENE_FIT_STAGE, calibrate_default, texture_fit,
+};
+pub use detail_pass::DetailPass;
 pub use gradient::Parameter;
 pub use nelder_mead::nelder_mead;
 pub use paper::{GradientStage, PaperPreset, calibrate_paper};

@@ -51,6 +51,7 @@
 //! [--no-inverse-crime] [--model rounded|subpixel|dispersed-mask|crisp-cells] [--preset NAME]
 //! [--no-texture] [--no-scene-fit] [--no-fine-pass] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene]
 //! [--fine-pass-free pose-and-slope|geometry|all] [--scene-cell PX]
+//! [--detail-pass pose-and-slope|geometry|all] [--no-detail-pass]
 //! [--no-recon] [--no-limits] [--out PATH] [--scene-transform none|flip-cols|flip-rows|transpose] [--verbose]`
 //! (`--no-texture`: the default preset without its texture fit, as it was
 //! before issue #14 — the "before" row; `--no-scene-fit`: without its
@@ -59,7 +60,9 @@
 //! (`calib::FinePass`), as the records before it were made;
 //! `--fine-pass RIDGE`: the pass with this ridge and, with
 //! `--fine-pass-anchor` and `--fine-pass-free`, this anchor and these
-//! parameters); `--scene-transform`: every scene flipped or transposed — the
+//! parameters); `--detail-pass FREE`: the scene fit's detail pass
+//! (`calib::DetailPass`) refitting these, `--no-detail-pass` without it;
+//! `--scene-transform`: every scene flipped or transposed — the
 //! tuning scenes in three more configurations against the mask, with their
 //! own `--seed-round`, for the uncertainty floors); without flags it
 //! reproduces the README's held-out table (every scene of the held-out
@@ -75,8 +78,8 @@ use std::time::Instant;
 use anyhow::{Context, Result, anyhow, bail, ensure};
 use cassi_bench::{median, physical_random_mismatch, psi_of, scene_name, shared_data};
 use cassi_core::calib::{
-    CalibrationProblem, DefaultPreset, FinePass, PRESET_NAMES, Preset, SCENE_FIT_STAGE, calibrate,
-    model_error_floor,
+    CalibrationProblem, DefaultPreset, DetailPass, FinePass, FinePassFree, PRESET_NAMES, Preset,
+    SCENE_FIT_STAGE, SceneFitSettings, calibrate, model_error_floor,
 };
 use cassi_core::metrics::psnr;
 use cassi_core::optics::{
@@ -233,7 +236,7 @@ impl SceneTransform {
 
 const USAGE: &str = "calibrate [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] \
                      [--no-aligned] [--no-inverse-crime] [--no-wide-blur] [--model rounded|subpixel|dispersed-mask|crisp-cells] \
-                     [--preset NAME] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all] [--scene-cell PX] [--no-recon] [--no-limits] [--out PATH] \
+                     [--preset NAME] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all] [--scene-cell PX] [--detail-pass pose-and-slope|geometry|all] [--no-detail-pass] [--no-recon] [--no-limits] [--out PATH] \
                      [--scene-transform none|flip-cols|flip-rows|transpose] [--verbose]";
 
 fn parse_args(argv: &[String]) -> Result<Args> {
@@ -252,6 +255,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
     let mut fine_pass_free = None;
     let mut no_fine_pass = false;
     let mut scene_cell: Option<usize> = None;
+    let mut detail_pass: Option<Option<FinePassFree>> = None;
     let mut out = None;
     let mut transform = SceneTransform::None;
     let mut it = argv.iter();
@@ -298,6 +302,13 @@ fn parse_args(argv: &[String]) -> Result<Args> {
             "--no-texture" => texture = false,
             "--no-scene-fit" => scene_fit = false,
             "--no-fine-pass" => no_fine_pass = true,
+            "--detail-pass" => {
+                let free = value()?
+                    .parse()
+                    .map_err(|e: String| anyhow!("--detail-pass {e}"))?;
+                detail_pass = Some(Some(free));
+            }
+            "--no-detail-pass" => detail_pass = Some(None),
             "--scene-cell" => {
                 let v = value()?;
                 let px: usize = v.parse().with_context(|| format!("--scene-cell {v}"))?;
@@ -385,43 +396,35 @@ fn parse_args(argv: &[String]) -> Result<Args> {
     );
     // the scene fit as it was before its fine pass became the default
     if no_fine_pass {
-        match &mut preset {
-            Preset::Default(d) => match d.scene_fit.as_mut() {
-                Some(settings) => settings.fine_pass = None,
-                None => bail!("--no-fine-pass needs the scene fit"),
-            },
-            Preset::Paper(_) => bail!("--no-fine-pass applies to the default preset"),
-        }
+        scene_fit_settings(&mut preset, "--no-fine-pass")?.fine_pass = None;
         preset_name += " (no fine pass)";
     }
     // the scene fit's first pass on another node spacing (a model study)
     if let Some(px) = scene_cell {
-        match &mut preset {
-            Preset::Default(d) => match d.scene_fit.as_mut() {
-                Some(settings) => settings.cell_px = px,
-                None => bail!("--scene-cell needs the scene fit"),
-            },
-            Preset::Paper(_) => bail!("--scene-cell applies to the default preset"),
-        }
+        scene_fit_settings(&mut preset, "--scene-cell")?.cell_px = px;
         preset_name += &format!(" (first pass on {px}-px nodes)");
+    }
+    // the detail pass on (refitting these) or off
+    if let Some(free) = detail_pass {
+        let settings = scene_fit_settings(&mut preset, "--detail-pass")?;
+        settings.detail_pass = free.map(|free| DetailPass {
+            free,
+            ..DetailPass::default()
+        });
+        preset_name += &match free {
+            Some(free) => format!(" (detail pass refitting {})", free.key()),
+            None => " (no detail pass)".to_string(),
+        };
     }
     let fine_pass_anchor = fine_pass_anchor.unwrap_or(FinePass::default().anchor);
     let fine_pass_free = fine_pass_free.unwrap_or(FinePass::default().free);
     if let Some(ridge) = fine_pass {
-        match &mut preset {
-            Preset::Default(d) => match d.scene_fit.as_mut() {
-                Some(settings) => {
-                    settings.fine_pass = Some(FinePass {
-                        ridge,
-                        anchor: fine_pass_anchor,
-                        free: fine_pass_free,
-                        ..FinePass::default()
-                    });
-                }
-                None => bail!("--fine-pass needs the scene fit"),
-            },
-            Preset::Paper(_) => bail!("--fine-pass applies to the default preset"),
-        }
+        scene_fit_settings(&mut preset, "--fine-pass")?.fine_pass = Some(FinePass {
+            ridge,
+            anchor: fine_pass_anchor,
+            free: fine_pass_free,
+            ..FinePass::default()
+        });
         preset_name += &format!(
             " (fine pass, ridge {ridge} toward {}",
             fine_pass_anchor.key()
@@ -646,6 +649,17 @@ fn recon_psnr(
 }
 
 /// Calibrates one case (and reconstructs with `--recon`); its JSON record.
+/// The scene fit's settings in `preset`, for a `flag` that changes them.
+fn scene_fit_settings<'p>(preset: &'p mut Preset, flag: &str) -> Result<&'p mut SceneFitSettings> {
+    match preset {
+        Preset::Default(d) => match d.scene_fit.as_mut() {
+            Some(settings) => Ok(settings),
+            None => bail!("{flag} needs the scene fit"),
+        },
+        Preset::Paper(_) => bail!("{flag} applies to the default preset"),
+    }
+}
+
 fn run_case(args: &Args, case: &Case, name: &str, scene: &Cube, mask: &Mask) -> Result<Value> {
     let y = measure(case, scene, mask, Some(&noise(case.seed)), args.model)?;
     let problem = CalibrationProblem::nominal(&y, mask, scene.bands(), 2.0, args.model)?;
