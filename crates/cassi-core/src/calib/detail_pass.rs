@@ -13,7 +13,16 @@
 //! detail gives the texture back to the scene, not to ψ. The luminance is
 //! smoothed first because below about a pixel the proxy's detail is the
 //! mask's imprint at the ψ it was made with (unsmoothed, the detail map
-//! made every fit sharper: σ 0.03–0.2 px low in probes).
+//! made the fits sharper in probes: σ read low where the pass refitted it).
+//!
+//! Chosen on the tuning half, four configurations
+//! (`calibrate_physical_tuning_detail_pass{,_flip_cols,_flip_rows,_transpose}.json`
+//! against `…_fine_pass_geometry…`): all six within tolerance 77 → 86 of
+//! 180 headline cases (no configuration worse), wide blur 12 → 18 of 80;
+//! aligned RMSE dx 0.0064–0.047 → 0.0037–0.0044 px, dy 0.017–0.109 →
+//! 0.0074–0.073 px, α 0.028–0.148 → 0.0096–0.102°; random poses mixed
+//! (dx 0.063–0.153 → 0.065–0.136 px). Reported on the held-out half
+//! (`calibrate_physical_held_out.json`).
 
 use serde::{Deserialize, Serialize};
 
@@ -31,7 +40,12 @@ pub struct DetailPass {
     pub pre_smooth_px: f64,
     /// σ of the Gaussian average the detail is taken against, pixels.
     pub detail_px: f64,
-    /// Which parameters it refits (those of them the preset fits).
+    /// Which parameters it refits (those of them the preset fits). Its
+    /// floors ([`super::Fit::SceneDetailPass`]) were derived with the
+    /// geometry (the default), σ held: the dispersed-mask model's own σ
+    /// bias (about −0.06 px with the scene known) is what the smooth
+    /// scene's cancels. The crisp-cell model with `All`:
+    /// `calibrate_physical_tuning_crisp_cells_detail_pass_all.json`.
     pub free: FinePassFree,
 }
 
