@@ -289,3 +289,23 @@ fn a_raised_cancel_flag_stops_a_calibration() {
     .unwrap();
     assert_eq!(a.parameters, b.parameters);
 }
+
+/// A preset whose detail pass has a width out of range (a settings file's)
+/// is refused before any stage runs, naming the setting.
+#[test]
+fn a_bad_detail_pass_is_refused_before_the_work() {
+    let (y, mask) = setup(
+        32,
+        8,
+        Mismatch::nominal(2.0),
+        DispersionModel::DispersedMask,
+    );
+    let p = CalibrationProblem::nominal(&y, &mask, 8, 2.0, DispersionModel::DispersedMask).unwrap();
+    let mut preset = DefaultPreset::default();
+    let settings = preset.scene_fit.as_mut().unwrap();
+    settings.detail_pass.as_mut().unwrap().detail_px = -2.0;
+    let mut stages = 0;
+    let e = calibrate_default(&p, &preset, &mut |_| stages += 1).unwrap_err();
+    assert!(e.to_string().contains("detail_pass.detail_px"), "{e}");
+    assert_eq!(stages, 0);
+}

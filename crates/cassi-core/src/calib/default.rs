@@ -172,6 +172,10 @@ pub fn calibrate_default(
     on_stage: &mut dyn FnMut(&StageReport),
 ) -> Result<Calibration> {
     problem.validate()?;
+    // a settings file's bad detail pass fails here, not after the front end
+    if let Some(pass) = preset.scene_fit.and_then(|s| s.detail_pass) {
+        pass.check()?;
+    }
     let mut run = StageRunner::new(on_stage);
     let scores = Scores::new(problem, preset);
     let mut best = correlation(&mut run, &scores)?;

@@ -28,7 +28,7 @@ use serde::{Deserialize, Serialize};
 
 use super::scene_fit::FinePassFree;
 use super::score::{CalibrationProblem, ProxyParams, proxy_reconstruction};
-use crate::error::Result;
+use crate::error::{CassiError, Result};
 use crate::optics::ModelOperator;
 use crate::optics::blur::GaussianBlur;
 use crate::params::Mismatch;
@@ -74,6 +74,7 @@ impl DetailPass {
         at: &Mismatch,
         proxy: &ProxyParams,
     ) -> Result<Vec<f32>> {
+        self.check()?;
         let (rows, cols) = problem.nominal_mask().shape();
         let op = ModelOperator::new(problem.nominal_mask(), problem.bands(), at, problem.model())?;
         let cube = proxy_reconstruction(&op, problem.measurement, proxy);
@@ -84,6 +85,32 @@ impl DetailPass {
         detail_of(&luminance, rows, cols, self.pre_smooth_px, self.detail_px)
     }
 }
+
+impl DetailPass {
+    /// Its widths, named when out of range (a settings file's, say).
+    pub(crate) fn check(&self) -> Result<()> {
+        let widths = [
+            ("detail_pass.pre_smooth_px", self.pre_smooth_px, 0.0),
+            ("detail_pass.detail_px", self.detail_px, f64::MIN_POSITIVE),
+        ];
+        for (name, value, least) in widths {
+            if !(value.is_finite() && value >= least && value <= MAX_WIDTH_PX) {
+                return Err(CassiError::InvalidParameter {
+                    name,
+                    value,
+                    reason: format!(
+                        "a Gaussian width in pixels, {} to {MAX_WIDTH_PX}",
+                        if least > 0.0 { "above 0" } else { "0" }
+                    ),
+                });
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The widest smoothing the detail map takes, pixels (the blur's own limit).
+const MAX_WIDTH_PX: f64 = crate::optics::blur::MAX_SIGMA_PX;
 
 /// M_pre L / M_detail(M_pre L) of a luminance image `l` (rows × cols), M_s
 /// the Gaussian local mean of width s ([`local_mean`]), held within
@@ -136,7 +163,8 @@ mod tests {
 
     /// A flat image has no detail; a texture's detail is its ratio to its
     /// average: above 1 on the bright stripes, below on the dark ones, ≈ 1
-    /// on average, at the frame's edges too; an image of 0 has none.
+    /// on average, at the frame's edges too; an image of 0 has none; a width
+    /// out of range is named.
     #[test]
     fn the_detail_is_the_image_over_its_average() {
         let (rows, cols) = (32, 40);
@@ -162,5 +190,25 @@ mod tests {
 
         let dark = detail_of(&vec![0.0f32; rows * cols], rows, cols, 1.0, 4.0).unwrap();
         assert!(dark.iter().all(|&v| v == 1.0));
+
+        for bad in [0.0, -1.0, f64::NAN, 1e9] {
+            let pass = DetailPass {
+                detail_px: bad,
+                ..DetailPass::default()
+            };
+            let e = pass.check().unwrap_err().to_string();
+            assert!(e.contains("detail_pass.detail_px"), "{e}");
+        }
+        let pass = DetailPass {
+            pre_smooth_px: -0.5,
+            ..DetailPass::default()
+        };
+        assert!(
+            pass.check()
+                .unwrap_err()
+                .to_string()
+                .contains("pre_smooth_px")
+        );
+        assert!(DetailPass::default().check().is_ok());
     }
 }
