@@ -13,6 +13,8 @@
 //! detail pass) every band's smooth image is multiplied by d pixel by
 //! pixel: x_k = d ⊙ (U z)_k, still linear in z, the smooth factor carrying
 //! each region's spectrum and d the texture the nodes are too far apart for.
+//! With G maps (spectral groups of consecutive bands) band k takes map
+//! ⌊k·G/bands⌋: a texture of colour, not of brightness alone.
 
 use rayon::prelude::*;
 
@@ -36,9 +38,11 @@ pub(crate) struct CoarseScene {
     fractions: Vec<f32>,
     /// Per band: its two spectral nodes and their weights.
     band_taps: Vec<[(usize, f32); 2]>,
-    /// Per pixel (rows × cols): the factor every band's pixels are
-    /// multiplied by (`None`: 1).
+    /// Per map and pixel (maps × rows × cols): the factor a band's pixels
+    /// are multiplied by, band k by map ⌊k·maps/bands⌋ (`None`: 1).
     detail: Option<Vec<f32>>,
+    /// Per band: its detail map's offset in `detail`.
+    detail_offsets: Vec<usize>,
 }
 
 thread_local! {
@@ -119,45 +123,54 @@ impl CoarseScene {
             fractions,
             band_taps,
             detail: None,
+            detail_offsets: Vec::new(),
         }
     }
 
-    /// The basis with every band's pixels multiplied by `detail` (rows ×
-    /// cols, row-major).
+    /// The basis with every band's pixels multiplied by a detail map:
+    /// `detail` holds G maps (G × rows × cols, row-major, G ≥ 1 dividing
+    /// its length), band k taking map ⌊k·G/bands⌋.
     pub(crate) fn with_detail(mut self, detail: Vec<f32>) -> Self {
-        assert_eq!(
+        let plane = self.rows * self.cols;
+        let maps = detail.len() / plane.max(1);
+        assert!(
+            maps >= 1 && maps * plane == detail.len() && maps <= self.bands.max(1),
+            "CoarseScene::with_detail: {} factors for {plane} pixels and {} bands",
             detail.len(),
-            self.rows * self.cols,
-            "CoarseScene::with_detail: one factor per pixel"
+            self.bands
         );
+        self.detail_offsets = (0..self.bands)
+            .map(|k| k * maps / self.bands * plane)
+            .collect();
         self.detail = Some(detail);
         self
     }
 
-    /// Row `i` of the detail map, if any.
+    /// Row `i` of band `k`'s detail map, if any.
     #[inline]
-    fn detail_row(&self, i: usize) -> Option<&[f32]> {
-        self.detail
-            .as_deref()
-            .map(|d| &d[i * self.cols..(i + 1) * self.cols])
+    fn detail_row(&self, k: usize, i: usize) -> Option<&[f32]> {
+        self.detail.as_deref().map(|d| {
+            let at = self.detail_offsets[k] + i * self.cols;
+            &d[at..at + self.cols]
+        })
     }
 
     fn plane(&self) -> usize {
         self.node_rows * self.node_cols
     }
 
-    /// One band's coarse image (node rows × node cols) → its pixels.
-    fn up_band(&self, coarse: &[f32], out: &mut [f32], line: &mut Vec<f32>) {
+    /// Band `k`'s coarse image (node rows × node cols) → its pixels.
+    fn up_band(&self, k: usize, coarse: &[f32], out: &mut [f32], line: &mut Vec<f32>) {
         for (i, row) in out.chunks_mut(self.cols).enumerate() {
-            self.up_row(coarse, i, row, line);
+            self.up_row(k, coarse, i, row, line);
         }
     }
 
-    /// Pixel row `i` of one band's coarse image, times the detail map.
+    /// Pixel row `i` of band `k`'s coarse image, times its detail map.
     #[inline]
-    fn up_row(&self, coarse: &[f32], i: usize, row: &mut [f32], line: &mut Vec<f32>) {
+    fn up_row(&self, k: usize, coarse: &[f32], i: usize, row: &mut [f32], line: &mut Vec<f32>) {
         self.smooth_row(coarse, i, row, line);
-        if let Some(d) = self.detail_row(i) {
+        if let Some(d) = self.detail_row(k, i) {
             row.iter_mut().zip(d).for_each(|(o, &d)| *o *= d);
         }
     }
@@ -195,22 +208,36 @@ impl CoarseScene {
         }
     }
 
-    /// The adjoint of [`Self::up_band`]: a band's pixels → its coarse image
-    /// (`buf`: a row's scratch).
-    fn down_band(&self, band: &[f32], coarse: &mut [f32], line: &mut Vec<f32>, buf: &mut Vec<f32>) {
+    /// The adjoint of [`Self::up_band`]: band `k`'s pixels → its coarse
+    /// image (`buf`: a row's scratch).
+    fn down_band(
+        &self,
+        k: usize,
+        band: &[f32],
+        coarse: &mut [f32],
+        line: &mut Vec<f32>,
+        buf: &mut Vec<f32>,
+    ) {
         coarse.fill(0.0);
         for (i, row) in band.chunks(self.cols).enumerate() {
             buf.clear();
             buf.extend_from_slice(row);
-            self.add_down_row(buf, i, coarse, line);
+            self.add_down_row(k, buf, i, coarse, line);
         }
     }
 
-    /// Adds the adjoint of [`Self::up_row`] of pixel row `i` to `coarse`
-    /// (`row` is overwritten: the detail map is applied in place).
+    /// Adds the adjoint of [`Self::up_row`] of band `k`'s pixel row `i` to
+    /// `coarse` (`row` is overwritten: the detail map is applied in place).
     #[inline]
-    fn add_down_row(&self, row: &mut [f32], i: usize, coarse: &mut [f32], line: &mut Vec<f32>) {
-        if let Some(d) = self.detail_row(i) {
+    fn add_down_row(
+        &self,
+        k: usize,
+        row: &mut [f32],
+        i: usize,
+        coarse: &mut [f32],
+        line: &mut Vec<f32>,
+    ) {
+        if let Some(d) = self.detail_row(k, i) {
             row.iter_mut().zip(d).for_each(|(v, &d)| *v *= d);
         }
         let row = &*row;
@@ -299,7 +326,7 @@ impl CoarseScene {
                 coarse.fill(0.0);
                 for i in 0..self.rows {
                     row(k, i, buf);
-                    self.add_down_row(buf, i, coarse, line);
+                    self.add_down_row(k, buf, i, coarse, line);
                 }
             },
         );
@@ -333,7 +360,7 @@ impl CubeRows for CoarseRows<'_> {
             scratch.row.resize(b.cols, 0.0);
             let plane = b.plane();
             let image = &self.images[k * plane..(k + 1) * plane];
-            b.up_row(image, r, &mut scratch.row, &mut scratch.line);
+            b.up_row(k, image, r, &mut scratch.row, &mut scratch.line);
             scratch.made = Some((k, r));
         }
         &scratch.row
@@ -391,7 +418,7 @@ impl LinearOperator for CoarseScene {
                 || (vec![0.0f32; plane], Vec::new()),
                 |(coarse, line), (k, band)| {
                     self.band_image(x, k, coarse);
-                    self.up_band(coarse, band, line);
+                    self.up_band(k, coarse, band, line);
                 },
             );
     }
@@ -403,9 +430,10 @@ impl LinearOperator for CoarseScene {
             coarse
                 .par_chunks_mut(plane)
                 .zip(y.par_chunks(self.rows * self.cols))
+                .enumerate()
                 .for_each_init(
                     || (Vec::new(), Vec::new()),
-                    |(line, buf), (c, band)| self.down_band(band, c, line, buf),
+                    |(line, buf), (k, (c, band))| self.down_band(k, band, c, line, buf),
                 );
             self.nodes_from_band_images(coarse, x);
         });
@@ -430,46 +458,48 @@ mod tests {
         }
     }
 
-    /// The adjoint stays exact with a detail map, and the map multiplies
-    /// every band's smooth image pixel by pixel.
+    /// The adjoint stays exact with one detail map or several, and band
+    /// k's map (⌊k·G/bands⌋ of G) multiplies its smooth image pixel by
+    /// pixel; the row-by-row product agrees.
     #[test]
     fn a_detail_map_multiplies_every_band() {
         let (bands, rows, cols) = (6, 19, 14);
-        let detail: Vec<f32> = (0..rows * cols)
-            .map(|i| 0.5 + ((i * 29) % 13) as f32 / 13.0)
-            .collect();
-        let plain = CoarseScene::new(bands, rows, cols, 4, 3);
-        let u = plain.clone().with_detail(detail.clone());
-        let e = adjoint_mismatch(&u, 11);
-        assert!(e < 1e-5, "adjoint with a detail map: {e}");
-        let z: Vec<f32> = (0..u.domain_len())
-            .map(|i| 0.2 + ((i * 7) % 5) as f32 / 5.0)
-            .collect();
-        let (mut smooth, mut detailed) = (vec![0.0f32; u.range_len()], vec![0.0f32; u.range_len()]);
-        plain.apply(&z, &mut smooth);
-        u.apply(&z, &mut detailed);
-        for (k, (s, d)) in smooth
-            .chunks(rows * cols)
-            .zip(detailed.chunks(rows * cols))
-            .enumerate()
-        {
-            for ((&s, &d), &g) in s.iter().zip(d).zip(&detail) {
-                assert!((s * g - d).abs() < 1e-6, "band {k}: {s} × {g} ≠ {d}");
+        let plane = rows * cols;
+        for maps in [1, 3] {
+            let detail: Vec<f32> = (0..maps * plane)
+                .map(|i| 0.5 + ((i * 29) % 13) as f32 / 13.0)
+                .collect();
+            let plain = CoarseScene::new(bands, rows, cols, 4, 3);
+            let u = plain.clone().with_detail(detail.clone());
+            let e = adjoint_mismatch(&u, 11);
+            assert!(e < 1e-5, "adjoint with {maps} detail maps: {e}");
+            let z: Vec<f32> = (0..u.domain_len())
+                .map(|i| 0.2 + ((i * 7) % 5) as f32 / 5.0)
+                .collect();
+            let (mut smooth, mut detailed) =
+                (vec![0.0f32; u.range_len()], vec![0.0f32; u.range_len()]);
+            plain.apply(&z, &mut smooth);
+            u.apply(&z, &mut detailed);
+            for (k, (s, d)) in smooth.chunks(plane).zip(detailed.chunks(plane)).enumerate() {
+                // bands 0–1 take map 0, 2–3 map 1, 4–5 map 2 (of three)
+                let map = &detail[(k * maps / bands) * plane..][..plane];
+                for ((&s, &d), &g) in s.iter().zip(d).zip(map) {
+                    assert!((s * g - d).abs() < 1e-6, "band {k}: {s} × {g} ≠ {d}");
+                }
             }
-        }
-        // and the row-by-row product the scene fit uses agrees
-        let mut images = Vec::new();
-        u.band_images(&z, &mut images);
-        let rows_of = CoarseRows {
-            basis: &u,
-            images: &images,
-        };
-        let mut scratch = RowScratch::default();
-        for k in 0..bands {
-            for r in 0..rows {
-                let got = rows_of.row(k, r, &mut scratch).to_vec();
-                let want = &detailed[(k * rows + r) * cols..][..cols];
-                assert_eq!(got, want, "band {k} row {r}");
+            let mut images = Vec::new();
+            u.band_images(&z, &mut images);
+            let rows_of = CoarseRows {
+                basis: &u,
+                images: &images,
+            };
+            let mut scratch = RowScratch::default();
+            for k in 0..bands {
+                for r in 0..rows {
+                    let got = rows_of.row(k, r, &mut scratch).to_vec();
+                    let want = &detailed[(k * rows + r) * cols..][..cols];
+                    assert_eq!(got, want, "{maps} maps: band {k} row {r}");
+                }
             }
         }
     }

@@ -656,7 +656,14 @@ fn scene_fit_stage(
             let stage = run.start();
             let detail = pass.detail_map(problem, &found.best.psi, &preset.proxy)?;
             let detailed = SceneFit::new(problem, settings)?.with_detail(detail);
-            let mut refit = fit_scene(&detailed, &found.best.psi, &moved_by(pass.free))?;
+            // the first pass's coefficients start it: d is about one on
+            // average, so they already hold the scene's smooth factor
+            let mut refit = fit_scene_from(
+                &detailed,
+                &found.best.psi,
+                Some(&found.best.z),
+                &moved_by(pass.free),
+            )?;
             stage.count(refit.evaluations);
             refit.jacobian = detailed.jacobian(&refit.best, &free)?;
             stage.count(free.len());

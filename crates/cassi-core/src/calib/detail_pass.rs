@@ -14,6 +14,16 @@
 //! smoothed first because below about a pixel the proxy's detail is the
 //! mask's imprint at the ψ it was made with (unsmoothed, the detail map
 //! made the fits sharper in probes: σ read low where the pass refitted it).
+//! Its scene starts from the first pass's coefficients (d ≈ 1 on average,
+//! so they already hold the smooth factor): on the five real snapshots
+//! that took the pass from 48–139 scores to fewer (see the README's real
+//! data), on the tuning half's first configuration it changed all six
+//! within tolerance not at all (25 of 45).
+//!
+//! [`DetailPass::spectral_groups`] > 1 gives each group of consecutive
+//! bands its own map (a texture of colour): on the tuning half's first
+//! configuration 3 maps gave 26 of 45 against 25, RMSE mixed
+//! (`calibrate_physical_tuning_detail_groups3.json`): not the default.
 //!
 //! Chosen on the tuning half, four configurations
 //! (`calibrate_physical_tuning_detail_pass{,_flip_cols,_flip_rows,_transpose}.json`
@@ -47,6 +57,15 @@ pub struct DetailPass {
     /// scene's cancels. The crisp-cell model with `All`:
     /// `calibrate_physical_tuning_crisp_cells_detail_pass_all.json`.
     pub free: FinePassFree,
+    /// How many detail maps, each from the luminance of a group of
+    /// consecutive bands (1: one grey map for every band). Absent in
+    /// settings written before it: 1.
+    #[serde(default = "one_group")]
+    pub spectral_groups: usize,
+}
+
+fn one_group() -> usize {
+    1
 }
 
 impl Default for DetailPass {
@@ -55,6 +74,7 @@ impl Default for DetailPass {
             pre_smooth_px: 1.0,
             detail_px: 4.0,
             free: FinePassFree::Geometry,
+            spectral_groups: 1,
         }
     }
 }
@@ -66,8 +86,9 @@ const DARK_SHARE: f32 = 0.02;
 const DETAIL_RANGE: (f32, f32) = (0.05, 20.0);
 
 impl DetailPass {
-    /// The detail map (mask rows × cols) for `problem` from the proxy
-    /// reconstruction at `at` (the proxy of `proxy`).
+    /// The detail maps (groups × mask rows × cols) for `problem` from the
+    /// proxy reconstruction at `at` (the proxy of `proxy`): group g's from
+    /// the bands ⌊k·G/bands⌋ = g, the bands [`super::coarse_scene`] gives it.
     pub(crate) fn detail_map(
         &self,
         problem: &CalibrationProblem<'_>,
@@ -78,17 +99,40 @@ impl DetailPass {
         let (rows, cols) = problem.nominal_mask().shape();
         let op = ModelOperator::new(problem.nominal_mask(), problem.bands(), at, problem.model())?;
         let cube = proxy_reconstruction(&op, problem.measurement, proxy);
-        let mut luminance = vec![0.0f32; rows * cols];
-        for band in cube.chunks_exact(rows * cols) {
-            luminance.iter_mut().zip(band).for_each(|(l, &v)| *l += v);
+        let (bands, plane) = (problem.bands(), rows * cols);
+        let groups = self.spectral_groups;
+        if groups > bands {
+            return Err(CassiError::InvalidParameter {
+                name: "detail_pass.spectral_groups",
+                value: groups as f64,
+                reason: format!("at most the cube's {bands} bands"),
+            });
         }
-        detail_of(&luminance, rows, cols, self.pre_smooth_px, self.detail_px)
+        let mut maps = Vec::with_capacity(groups * plane);
+        for l in group_luminance(&cube, plane, groups).chunks_exact(plane) {
+            maps.extend(detail_of(
+                l,
+                rows,
+                cols,
+                self.pre_smooth_px,
+                self.detail_px,
+            )?);
+        }
+        Ok(maps)
     }
 }
 
 impl DetailPass {
-    /// Its widths, named when out of range (a settings file's, say).
+    /// Its widths and groups, named when out of range (a settings file's,
+    /// say; the groups' bound by the cube is checked with the cube).
     pub(crate) fn check(&self) -> Result<()> {
+        if self.spectral_groups == 0 {
+            return Err(CassiError::InvalidParameter {
+                name: "detail_pass.spectral_groups",
+                value: 0.0,
+                reason: "at least one detail map".into(),
+            });
+        }
         let widths = [
             ("detail_pass.pre_smooth_px", self.pre_smooth_px, 0.0),
             ("detail_pass.detail_px", self.detail_px, f64::MIN_POSITIVE),
@@ -107,6 +151,20 @@ impl DetailPass {
         }
         Ok(())
     }
+}
+
+/// The sum of a cube's bands (planes of `plane` pixels) in `groups`
+/// groups of consecutive bands, band k in group ⌊k·groups/bands⌋.
+fn group_luminance(cube: &[f32], plane: usize, groups: usize) -> Vec<f32> {
+    let bands = cube.len() / plane.max(1);
+    let mut luminance = vec![0.0f32; groups * plane];
+    for (k, band) in cube.chunks_exact(plane).enumerate() {
+        luminance[k * groups / bands * plane..][..plane]
+            .iter_mut()
+            .zip(band)
+            .for_each(|(l, &v)| *l += v);
+    }
+    luminance
 }
 
 /// The widest smoothing the detail map takes, pixels (the blur's own limit).
@@ -191,6 +249,13 @@ mod tests {
         let dark = detail_of(&vec![0.0f32; rows * cols], rows, cols, 1.0, 4.0).unwrap();
         assert!(dark.iter().all(|&v| v == 1.0));
 
+        let none = DetailPass {
+            spectral_groups: 0,
+            ..DetailPass::default()
+        };
+        let e = none.check().unwrap_err().to_string();
+        assert!(e.contains("detail_pass.spectral_groups"), "{e}");
+
         for bad in [0.0, -1.0, f64::NAN, 1e9] {
             let pass = DetailPass {
                 detail_px: bad,
@@ -210,5 +275,17 @@ mod tests {
                 .contains("pre_smooth_px")
         );
         assert!(DetailPass::default().check().is_ok());
+    }
+
+    /// Groups are consecutive bands, as the coarse scene assigns the maps:
+    /// 7 bands in 3 groups sum bands 0–2, 3–4 and 5–6.
+    #[test]
+    fn groups_sum_consecutive_bands() {
+        let plane = 2;
+        let cube: Vec<f32> = (0..7).flat_map(|k| [k as f32, 10.0 * k as f32]).collect();
+        let l = group_luminance(&cube, plane, 3);
+        // ⌊3k/7⌋: k 0,1,2 → 0; 3,4 → 1; 5,6 → 2
+        assert_eq!(l, vec![3.0, 30.0, 7.0, 70.0, 11.0, 110.0]);
+        assert_eq!(group_luminance(&cube, plane, 1), vec![21.0, 210.0]);
     }
 }

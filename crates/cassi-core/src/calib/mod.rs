@@ -29,7 +29,7 @@ mod uncertainty;
 
 pub use uncertainty::{
     A1_SHORT_TILT_DEG, Fit, SHARP_BLUR_PX, TRADE_OFF_CORRELATION, TradeOff, WIDE_BLUR_PX,
-    interval_95_floor, model_error_floor,
+    grid_phase, interval_95_floor, model_error_floor,
 };
 
 use serde::{Deserialize, Serialize};

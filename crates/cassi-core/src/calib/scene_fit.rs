@@ -621,6 +621,10 @@ impl<'a> SceneFit<'a> {
     pub(crate) fn frame_shape(&self) -> (usize, usize) {
         self.problem.measurement.shape()
     }
+
+    pub(crate) fn problem(&self) -> &CalibrationProblem<'_> {
+        self.problem
+    }
 }
 
 /// The scene fit's score at `psi` with the coarse scene solved from zero

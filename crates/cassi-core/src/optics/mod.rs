@@ -23,4 +23,6 @@ pub use physical::{
     PhysicalSpec, physical_detector_shape, quantise_adc, simulate_physical, simulate_physical_clean,
 };
 pub use simulate::{SimulationSpec, simulate, simulate_oversampled};
-pub use warp::{WarpWithDerivatives, warp_mask, warp_mask_area, warp_mask_with_derivatives};
+pub use warp::{
+    WarpWithDerivatives, landing_phase, warp_mask, warp_mask_area, warp_mask_with_derivatives,
+};

@@ -59,6 +59,11 @@ impl SourceMap {
         )
     }
 
+    /// [`Self::centred`] at a continuous position.
+    fn centred_at(&self, col: f64, row: f64) -> (f64, f64) {
+        (col - self.cx - self.dx, row - self.cy - self.dy)
+    }
+
     /// u = R(−θ) q + c.
     fn source(&self, q: (f64, f64)) -> (f64, f64) {
         (
@@ -452,6 +457,43 @@ pub fn warp_mask_with_derivatives(mask: &Mask, pose: &MaskPose) -> WarpWithDeriv
     }
 }
 
+/// How far a mask of `rows × cols` posed by `pose` and dispersed by
+/// `offsets` (each band's (col, row) offset) lands from whole pixels:
+/// 6 · mean f(1 − f) of the fractional parts f of the source coordinates
+/// the detector's pixels sample (every band, every `LANDING_PHASE_STEP`-th
+/// row and column of the mask's footprint), rows and columns apart, the
+/// larger. 0 when every mask edge lands on a pixel edge — where the
+/// bilinear sampling is exact, and the dispersed-mask model with it — and
+/// ≈ 1 when the fractions spread evenly over [0, 1) (a rotated mask, a
+/// non-integer stride); a half-pixel shift alone gives 1.5.
+pub fn landing_phase(rows: usize, cols: usize, pose: &MaskPose, offsets: &[(f64, f64)]) -> f64 {
+    let map = SourceMap::new(rows, cols, pose);
+    let spread = |u: f64| {
+        let f = u - u.floor();
+        f * (1.0 - f)
+    };
+    let (mut sum_r, mut sum_c, mut n) = (0.0f64, 0.0f64, 0usize);
+    for &(dc, dr) in offsets {
+        for row in (0..rows).step_by(LANDING_PHASE_STEP) {
+            for col in (0..cols).step_by(LANDING_PHASE_STEP) {
+                // the detector pixel over mask pixel (col, row) for this band
+                let (pc, pr) = ((col as f64 + dc).round(), (row as f64 + dr).round());
+                let (uc, ur) = map.source(map.centred_at(pc - dc, pr - dr));
+                sum_c += spread(uc);
+                sum_r += spread(ur);
+                n += 1;
+            }
+        }
+    }
+    if n == 0 {
+        return 0.0;
+    }
+    6.0 * sum_r.max(sum_c) / n as f64
+}
+
+/// The sampling of [`landing_phase`], pixels.
+const LANDING_PHASE_STEP: usize = 4;
+
 /// W(m; ψ) as a physical mask does it: each detector pixel's value is the
 /// mean transmission over its area of the mask's crisp squares moved by
 /// `pose` (square j covers [j − ½, j + ½)), integrated by `samples` ×
@@ -750,6 +792,35 @@ mod tests {
             .zip(b.as_slice())
             .map(|(x, y)| (x - y).abs())
             .fold(0.0, f32::max)
+    }
+
+    /// The landing phase: 0 with every edge on a pixel edge (whole-pixel
+    /// shifts, an integer stride); 1.5 for half a pixel along rows or
+    /// columns (f(1 − f) = ¼ everywhere); ≈ 1 for a rotated mask, a
+    /// non-integer stride or a tilted dispersion, whose fractions spread.
+    #[test]
+    fn the_landing_phase_is_nil_on_the_grid_and_about_one_off_it() {
+        let (rows, cols, bands) = (64, 64, 10);
+        let stride = |a1: f64, alpha_deg: f64| -> Vec<(f64, f64)> {
+            let a = alpha_deg.to_radians();
+            (0..bands)
+                .map(|k| (a1 * k as f64 * a.cos(), a1 * k as f64 * a.sin()))
+                .collect()
+        };
+        let pose = |dx, dy, theta_deg| MaskPose { dx, dy, theta_deg };
+        let phase = |p: MaskPose, o: Vec<(f64, f64)>| landing_phase(rows, cols, &p, &o);
+        assert!(phase(pose(0.0, 0.0, 0.0), stride(2.0, 0.0)).abs() < 1e-9);
+        assert!(phase(pose(-3.0, 2.0, 0.0), stride(2.0, 0.0)).abs() < 1e-9);
+        assert!((phase(pose(0.0, 0.5, 0.0), stride(2.0, 0.0)) - 1.5).abs() < 1e-9);
+        assert!((phase(pose(0.5, 0.0, 0.0), stride(2.0, 0.0)) - 1.5).abs() < 1e-9);
+        for (p, o) in [
+            (pose(0.0, 0.0, 0.6), stride(2.0, 0.0)),
+            (pose(0.0, 0.0, 0.0), stride(2.1, 0.0)),
+            (pose(0.0, 0.0, 0.0), stride(2.0, 0.9)),
+        ] {
+            let v = phase(p, o);
+            assert!((0.6..1.3).contains(&v), "{p:?}: {v}");
+        }
     }
 
     #[test]

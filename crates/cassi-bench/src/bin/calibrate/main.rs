@@ -51,7 +51,7 @@
 //! [--no-inverse-crime] [--model rounded|subpixel|dispersed-mask|crisp-cells] [--preset NAME]
 //! [--no-texture] [--no-scene-fit] [--no-fine-pass] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene]
 //! [--fine-pass-free pose-and-slope|geometry|all] [--scene-cell PX]
-//! [--detail-pass pose-and-slope|geometry|all] [--no-detail-pass]
+//! [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--no-detail-pass]
 //! [--no-recon] [--no-limits] [--out PATH] [--scene-transform none|flip-cols|flip-rows|transpose] [--verbose]`
 //! (`--no-texture`: the default preset without its texture fit, as it was
 //! before issue #14 — the "before" row; `--no-scene-fit`: without its
@@ -61,7 +61,8 @@
 //! `--fine-pass RIDGE`: the pass with this ridge and, with
 //! `--fine-pass-anchor` and `--fine-pass-free`, this anchor and these
 //! parameters); `--detail-pass FREE`: the scene fit's detail pass
-//! (`calib::DetailPass`) refitting these, `--no-detail-pass` without it;
+//! (`calib::DetailPass`) refitting these, `--detail-groups G` with G
+//! detail maps (spectral groups of bands), `--no-detail-pass` without it;
 //! `--scene-transform`: every scene flipped or transposed — the
 //! tuning scenes in three more configurations against the mask, with their
 //! own `--seed-round`, for the uncertainty floors); without flags it
@@ -79,7 +80,7 @@ use anyhow::{Context, Result, anyhow, bail, ensure};
 use cassi_bench::{median, physical_random_mismatch, psi_of, scene_name, shared_data};
 use cassi_core::calib::{
     CalibrationProblem, DefaultPreset, DetailPass, FinePass, FinePassFree, PRESET_NAMES, Preset,
-    SCENE_FIT_STAGE, SceneFitSettings, calibrate, model_error_floor,
+    SCENE_FIT_STAGE, SceneFitSettings, calibrate, grid_phase, model_error_floor,
 };
 use cassi_core::metrics::psnr;
 use cassi_core::optics::{
@@ -236,7 +237,7 @@ impl SceneTransform {
 
 const USAGE: &str = "calibrate [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] \
                      [--no-aligned] [--no-inverse-crime] [--no-wide-blur] [--model rounded|subpixel|dispersed-mask|crisp-cells] \
-                     [--preset NAME] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all] [--scene-cell PX] [--detail-pass pose-and-slope|geometry|all] [--no-detail-pass] [--no-recon] [--no-limits] [--out PATH] \
+                     [--preset NAME] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all] [--scene-cell PX] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--no-detail-pass] [--no-recon] [--no-limits] [--out PATH] \
                      [--scene-transform none|flip-cols|flip-rows|transpose] [--verbose]";
 
 fn parse_args(argv: &[String]) -> Result<Args> {
@@ -255,6 +256,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
     let mut fine_pass_free = None;
     let mut no_fine_pass = false;
     let mut scene_cell: Option<usize> = None;
+    let mut detail_groups: Option<usize> = None;
     let mut detail_pass: Option<Option<FinePassFree>> = None;
     let mut out = None;
     let mut transform = SceneTransform::None;
@@ -309,6 +311,12 @@ fn parse_args(argv: &[String]) -> Result<Args> {
                 detail_pass = Some(Some(free));
             }
             "--no-detail-pass" => detail_pass = Some(None),
+            "--detail-groups" => {
+                let v = value()?;
+                let g: usize = v.parse().with_context(|| format!("--detail-groups {v}"))?;
+                ensure!(g >= 1, "--detail-groups {v}: at least one detail map");
+                detail_groups = Some(g);
+            }
             "--scene-cell" => {
                 let v = value()?;
                 let px: usize = v.parse().with_context(|| format!("--scene-cell {v}"))?;
@@ -415,6 +423,14 @@ fn parse_args(argv: &[String]) -> Result<Args> {
             Some(free) => format!(" (detail pass refitting {})", free.key()),
             None => " (no detail pass)".to_string(),
         };
+    }
+    if let Some(groups) = detail_groups {
+        let settings = scene_fit_settings(&mut preset, "--detail-groups")?;
+        let Some(pass) = settings.detail_pass.as_mut() else {
+            bail!("--detail-groups: the detail pass is off (--no-detail-pass)");
+        };
+        pass.spectral_groups = groups;
+        preset_name += &format!(" ({groups} detail maps)");
     }
     let fine_pass_anchor = fine_pass_anchor.unwrap_or(FinePass::default().anchor);
     let fine_pass_free = fine_pass_free.unwrap_or(FinePass::default().free);
@@ -710,6 +726,9 @@ fn run_case(args: &Args, case: &Case, name: &str, scene: &Cube, mask: &Mask) -> 
         "uncertainty_floor": per_parameter(|p| {
             json!(cal.uncertainty_fit.map(|fit| model_error_floor(args.model, fit, p, est.blur_sigma_px)))
         }),
+        // how far the estimate's mask lands from whole pixels (0: on them),
+        // which weighs the fits' disagreement in the default's errors
+        "grid_phase": grid_phase(mask.rows(), mask.cols(), scene.bands(), &est),
         "interval_95": per_parameter(|p| json!(cal.interval_95.get(p))),
         // the pairs the calibration said trade off (error correlation ≥ 0.8)
         "trade_offs": cal.trade_offs,
