@@ -1,6 +1,8 @@
 //! The scene fit's detail pass: the first pass refitted on a coarse scene
 //! that carries the scene's own texture. Its basis is the first pass's with
-//! every band multiplied by one detail map d ([`super::coarse_scene`]):
+//! every band multiplied by a detail map d ([`super::coarse_scene`]; one
+//! for all bands by default, one per group of bands with
+//! [`DetailPass::spectral_groups`]):
 //! x_k = d ⊙ (U z)_k. d is the luminance of the proxy reconstruction at the
 //! first pass's ψ, smoothed by [`DetailPass::pre_smooth_px`] and divided by
 //! its own Gaussian average over [`DetailPass::detail_px`]: ≈ 1 on average,
@@ -16,9 +18,9 @@
 //! made the fits sharper in probes: σ read low where the pass refitted it).
 //! Its scene starts from the first pass's coefficients (d ≈ 1 on average,
 //! so they already hold the smooth factor): on the five real snapshots
-//! that took the pass from 48–139 scores to fewer (see the README's real
-//! data), on the tuning half's first configuration it changed all six
-//! within tolerance not at all (25 of 45).
+//! that took the pass from 48–139 scores (3.2–11.9 s) to 36–67 (2.7–5.6
+//! s); on the tuning half's four configurations all six within tolerance
+//! went 86 → 87 of 180, the wide blur 18 → 16 of 80.
 //!
 //! [`DetailPass::spectral_groups`] > 1 gives each group of consecutive
 //! bands its own map (a texture of colour): on the tuning half's first
@@ -27,7 +29,8 @@
 //!
 //! Chosen on the tuning half, four configurations
 //! (`calibrate_physical_tuning_detail_pass{,_flip_cols,_flip_rows,_transpose}.json`
-//! against `…_fine_pass_geometry…`): all six within tolerance 77 → 86 of
+//! as commit 8daad63 made them, its scene solved from zero, against
+//! `…_fine_pass_geometry…`): all six within tolerance 77 → 86 of
 //! 180 headline cases (no configuration worse), wide blur 12 → 18 of 80;
 //! aligned RMSE dx 0.0064–0.047 → 0.0037–0.0044 px, dy 0.017–0.109 →
 //! 0.0074–0.073 px, α 0.028–0.148 → 0.0096–0.102°; random poses mixed

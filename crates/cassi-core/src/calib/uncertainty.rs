@@ -335,29 +335,31 @@ const SCENE_FINE_PASS: Floors = Floors {
 };
 
 /// The scene fit with its detail pass ([`super::DetailPass`]) and fine
-/// pass, both refitting dx, dy, θ, a1 and α (σ the first pass's), from the
-/// four tuning configurations run with the detail pass
-/// (`calibrate_physical_tuning_detail_pass.json`, `…_flip_cols.json`,
-/// `…_flip_rows.json`, `…_transpose.json`; 180 sharp and 80 wide cases;
-/// made with [`SCENE_FINE_PASS`]'s floors, which the derivation does not
-/// read), derived by `bench/uncertainty_floors.py … --by-scene`
-/// (leave-one-out factor 1.00–1.56). dx's and a1's sharp floors are nil,
-/// as the fine pass's alone; α's falls 0.019 → 0.0045° and the 95 % floors
-/// of dx, dy and α 0.096 → 0.053 px, 0.117 → 0.062 px and 0.109 → 0.088°:
-/// the aligned slides the detail pass removes held them up.
+/// pass, both refitting dx, dy, θ, a1 and α (σ the first pass's), the
+/// fits' disagreement weighted by the grid phase, from the four tuning
+/// configurations run so (`calibrate_physical_tuning_detail_pass.json`,
+/// `…_flip_cols.json`, `…_flip_rows.json`, `…_transpose.json`; 180 sharp
+/// and 80 wide cases), derived by `bench/uncertainty_floors.py …
+/// --by-scene` (leave-one-out factor 1.00–1.04). dx's and a1's sharp
+/// floors are nil, as the fine pass's alone: its sandwich and the
+/// disagreement cover 82 % and 85 % of the sharp cases. Against the same
+/// pass with the disagreement unweighted (its records of stop 30, floors
+/// sharp α 0.0045°, θ 0.0046°), α's and θ's sharp floors rose to 0.013°
+/// and 0.0056°: on the aligned cases the weighted term no longer carries
+/// them.
 const SCENE_DETAIL_PASS: Floors = Floors {
     // dx, dy, θ, a1, α, blur
-    sharp: [1.57e-6, 0.0187, 0.00457, 1e-6, 0.00454, 0.0419],
-    wide: [0.0909, 0.115, 0.0386, 1e-6, 0.169, 0.102],
-    sharp_95: [0.0527, 0.0615, 0.0224, 0.00332, 0.0877, 0.0853],
-    wide_95: [0.835, 0.356, 0.065, 0.128, 0.353, 0.139],
+    sharp: [1e-6, 0.0185, 0.00558, 1e-6, 0.0128, 0.0428],
+    wide: [0.101, 0.124, 0.0348, 1e-6, 0.195, 0.102],
+    sharp_95: [0.0601, 0.0599, 0.0235, 0.00316, 0.102, 0.0917],
+    wide_95: [0.843, 0.269, 0.095, 0.125, 0.362, 0.139],
     correlation: [
-        [1.00, 0.02, -0.29, -0.37, 0.03, -0.06],
-        [0.02, 1.00, 0.35, 0.10, -0.94, 0.01],
-        [-0.29, 0.35, 1.00, 0.07, -0.40, 0.07],
-        [-0.37, 0.10, 0.07, 1.00, -0.13, -0.16],
-        [0.03, -0.94, -0.40, -0.13, 1.00, -0.04],
-        [-0.06, 0.01, 0.07, -0.16, -0.04, 1.00],
+        [1.00, 0.19, -0.05, -0.44, -0.18, 0.01],
+        [0.19, 1.00, 0.38, 0.01, -0.94, 0.01],
+        [-0.05, 0.38, 1.00, -0.03, -0.42, 0.07],
+        [-0.44, 0.01, -0.03, 1.00, -0.04, -0.19],
+        [-0.18, -0.94, -0.42, -0.04, 1.00, -0.04],
+        [0.01, 0.01, 0.07, -0.19, -0.04, 1.00],
     ],
     disagreement_by_phase: true,
 };
@@ -615,8 +617,10 @@ pub(crate) fn scene_fit_uncertainty(
 /// it removes a bias the two fits share (aligned tuning cases: dx 0.25 px
 /// in both, then 0.01); measured against the texture fit it made aligned
 /// dx's stated error 0.15 px for errors of 0.05 (tuning half, median;
-/// held out 0.17 px for 0.007). Trade-offs are read without the term
-/// ([`stated`]). `fit`'s floors at the fine pass's answer.
+/// held out 0.17 px for 0.007). The term is weighted by
+/// [`disagreement_weight`] (the grid phase, for the detail pass's floors).
+/// Trade-offs are read without it ([`stated`]). `fit`'s floors at the fine
+/// pass's answer.
 pub(crate) fn two_pass_uncertainty(
     first: (&SceneFit<'_>, &SceneFitResult, &[Parameter]),
     fine: (&SceneFit<'_>, &SceneFitResult, &[Parameter]),
