@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use cassi_core::optics::{NoiseModel, PhysicalSpec, simulate_physical};
+use cassi_core::optics::{Halo, NoiseModel, PhysicalSpec, simulate_physical};
 use cassi_core::synth::{SceneSpec, random_binary_mask, synthetic_scene};
 use cassi_core::{Instrument, Mismatch};
 use common::{assert_fails, cassi, ok, s};
@@ -75,6 +75,7 @@ fn oversampled_simulation_has_the_fixed_detector_and_a_full_sidecar() {
             blur_slope_px_per_nm: 0.001,
             detector: Some((32, 40)),
             adc_bits: Some(12),
+            halo: None,
         }
     );
     assert_eq!(sidecar["measurement"]["shape"], serde_json::json!([32, 40]));
@@ -209,6 +210,9 @@ fn physical_flags_are_checked_and_name_themselves() {
         (vec!["--oversample", "0"], "--oversample"),
         (vec!["--oversample", "2", "--blur", "-1"], "--blur"),
         (vec!["--oversample", "2", "--adc-bits", "40"], "--adc-bits"),
+        (vec!["--oversample", "2", "--halo", "1.2,2"], "--halo"),
+        (vec!["--oversample", "2", "--halo", "0.2"], "SHARE,SIGMA"),
+        (vec!["--halo", "0.2,2"], "--oversample"),
         (vec!["--blur", "0.5"], "--oversample"),
         (vec!["--oversample", "4", "--model", "rounded"], "--model"),
     ] {
@@ -235,4 +239,41 @@ fn physical_flags_are_checked_and_name_themselves() {
         o,
     ]);
     assert_fails(&a, &["blur_slope", "band 0"], &out);
+}
+
+/// `--halo SHARE,SIGMA` goes into the sidecar's physical spec and into the
+/// snapshot: the library's numbers with that halo, not the blur alone's.
+#[test]
+fn a_halo_is_simulated_and_recorded() {
+    let dir = scratch("halo");
+    let (with, without) = (dir.join("halo.npy"), dir.join("plain.npy"));
+    let common = ["--oversample", "4", "--blur", "0.4", "--no-noise"];
+    let mut a = args(&common);
+    a.extend(["--halo", "0.3,2", "-o", s(&with)]);
+    ok(&cassi(&a));
+    let mut a = args(&common);
+    a.extend(["-o", s(&without)]);
+    ok(&cassi(&a));
+    let sidecar: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("halo.json")).unwrap()).unwrap();
+    let spec: PhysicalSpec = serde_json::from_value(sidecar["physical"].clone()).unwrap();
+    assert_eq!(
+        spec.halo,
+        Some(Halo {
+            share: 0.3,
+            sigma_px: 2.0
+        })
+    );
+    let (y, plain) = (
+        cassi_io::load_frame(&with, None).unwrap(),
+        cassi_io::load_frame(&without, None).unwrap(),
+    );
+    assert_eq!(y.shape(), plain.shape());
+    assert!(y.as_slice() != plain.as_slice());
+    // light is moved, not made: the totals agree away from the frame's edge
+    let (t, p): (f64, f64) = (
+        y.as_slice().iter().map(|&v| v as f64).sum(),
+        plain.as_slice().iter().map(|&v| v as f64).sum(),
+    );
+    assert!((t - p).abs() < 0.05 * p, "{t} vs {p}");
 }

@@ -6,8 +6,8 @@ use anyhow::{Context, bail};
 use cassi_core::Instrument;
 use cassi_core::limits::check_elements;
 use cassi_core::optics::{
-    DispersionModel, MaskCode, PhysicalSpec, SimulationSpec, mask_code, physical_detector_shape,
-    validate_mismatch_for_mask,
+    DispersionModel, Halo, MaskCode, PhysicalSpec, SimulationSpec, mask_code,
+    physical_detector_shape, validate_mismatch_for_mask,
 };
 use cassi_eval::jobs::simulation::{SimulationInputs, declare_outputs, simulate_and_record};
 use cassi_eval::records::sidecar_path;
@@ -73,6 +73,11 @@ pub struct PhysicalArgs {
     #[arg(long, value_name = "B", requires = "oversample", value_parser = parse_adc_bits,
           allow_hyphen_values = true)]
     pub adc_bits: Option<u32>,
+    /// A wide skirt under the blur: SHARE of every point's light spread by a
+    /// Gaussian of SIGMA detector pixels, the rest by --blur (a lens's
+    /// scatter; no calibration model has one).
+    #[arg(long, value_name = "SHARE,SIGMA", requires = "oversample", value_parser = parse_halo)]
+    pub halo: Option<Halo>,
 }
 
 impl PhysicalArgs {
@@ -87,6 +92,7 @@ impl PhysicalArgs {
             blur_slope_px_per_nm: self.blur_slope.unwrap_or(0.0),
             detector: self.detector,
             adc_bits: self.adc_bits,
+            halo: self.halo,
         };
         spec.validate().context("physical instrument")?;
         Ok(Some(spec))
@@ -142,6 +148,28 @@ pub fn parse_detector(text: &str) -> Result<(usize, usize), String> {
             "--detector: expected ROWSxCOLS (two whole numbers ≥ 1, e.g. 256x310), got '{text}'"
         )),
     }
+}
+
+/// `--halo SHARE,SIGMA`: a share in [0, 1) and a σ in (0, 100] px.
+fn parse_halo(text: &str) -> Result<Halo, String> {
+    let bad = || {
+        format!(
+            "'{text}': expected SHARE,SIGMA — the halo's share of the light, 0 … <1, and its σ in \
+             detector pixels, >0 … {} (e.g. 0.3,2)",
+            cassi_core::optics::physical::MAX_BLUR_SIGMA_PX
+        )
+    };
+    let (a, b) = text.split_once(',').ok_or_else(bad)?;
+    let halo = Halo {
+        share: a.trim().parse().map_err(|_| bad())?,
+        sigma_px: b.trim().parse().map_err(|_| bad())?,
+    };
+    let spec = PhysicalSpec {
+        halo: Some(halo),
+        ..PhysicalSpec::default()
+    };
+    spec.validate().map_err(|_| bad())?;
+    Ok(halo)
 }
 
 /// `--adc-bits`: 1 … 24.

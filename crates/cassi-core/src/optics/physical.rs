@@ -18,7 +18,9 @@
 //!   ⌈4·S·σ_k⌉ fine pixels and normalised, applied separably to the dispersed
 //!   band image; light blurred or dispersed off the detector is lost (zero
 //!   outside, never reflected); σ_k = σ₀ + σ₁·(λ_k − λ_c), λ_c the middle of the
-//!   band wavelengths' range;
+//!   band wavelengths' range; with a [`Halo`] the point-spread function is
+//!   (1 − w)·G(σ_k) + w·G(σ_h), a sharp core on a wide skirt (each term
+//!   separable, the two summed);
 //! - the detector: rows 0 … H−1 and cols 0 … W + ⌈max_k d_k⌉ − 1 (the subpixel
 //!   model's size) unless a fixed size (rows, cols) is given, whose origin is
 //!   the same detector pixel (0, 0): light beyond it is lost;
@@ -65,6 +67,19 @@ pub struct PhysicalSpec {
     /// photon peak); `None`: no ADC.
     #[serde(default)]
     pub adc_bits: Option<u32>,
+    /// A second, wider Gaussian under the blur (`None`: the blur alone).
+    #[serde(default)]
+    pub halo: Option<Halo>,
+}
+
+/// A point-spread function's skirt: a share `share` of every point's light
+/// spread by a Gaussian of `sigma_px` detector pixels (any wavelength), the
+/// rest by the blur. A lens's scatter or a defocused glow looks so: sharp
+/// at the pixel scale, blurred at the scale of the scene's texture.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Halo {
+    pub share: f64,
+    pub sigma_px: f64,
 }
 
 impl Default for PhysicalSpec {
@@ -76,6 +91,7 @@ impl Default for PhysicalSpec {
             blur_slope_px_per_nm: 0.0,
             detector: None,
             adc_bits: None,
+            halo: None,
         }
     }
 }
@@ -119,6 +135,24 @@ impl PhysicalSpec {
                 format!("{rows}×{cols}"),
                 "at least 1×1",
             ));
+        }
+        if let Some(h) = self.halo {
+            if !(h.share.is_finite() && (0.0..1.0).contains(&h.share)) {
+                return Err(CassiError::InvalidParameter {
+                    name: "halo.share",
+                    value: h.share,
+                    reason: "the halo's share of the light must be in [0, 1)".into(),
+                });
+            }
+            if !(h.sigma_px.is_finite() && h.sigma_px > 0.0 && h.sigma_px <= MAX_BLUR_SIGMA_PX) {
+                return Err(CassiError::InvalidParameter {
+                    name: "halo.sigma_px",
+                    value: h.sigma_px,
+                    reason: format!(
+                        "the halo's σ must be in (0, {MAX_BLUR_SIGMA_PX}] detector pixels"
+                    ),
+                });
+            }
         }
         if let Some(b) = self.adc_bits
             && !(1..=MAX_ADC_BITS).contains(&b)
@@ -277,7 +311,13 @@ pub fn simulate_physical_clean(
         &hint,
     )?;
     let kernels: Vec<BinKernel> = sigmas.iter().map(|&sg| BinKernel::new(sg, s)).collect();
-    let margin = kernels.iter().map(|k| k.radius).max().unwrap_or(0);
+    let halo = spec.halo.map(|h| (h.share, BinKernel::new(h.sigma_px, s)));
+    let margin = kernels
+        .iter()
+        .chain(halo.as_ref().map(|h| &h.1))
+        .map(|k| k.radius)
+        .max()
+        .unwrap_or(0);
     let frame_rows = det_rows.saturating_mul(s).saturating_add(2 * margin);
     let frame_cols = det_cols.saturating_mul(s).saturating_add(2 * margin);
     check_elements(
@@ -308,15 +348,26 @@ pub fn simulate_physical_clean(
         .into_par_iter()
         .map_init(Buffers::default, |buf, k| {
             let (dc, dr) = dispersion.offset(k);
-            geometry.band(
-                scene.band(k),
-                &fine_mask,
-                &row_interp,
-                &col_interp,
-                (dc * s as f64, dr * s as f64),
-                &kernels[k],
-                buf,
-            )
+            let mut shot = |kernel: &BinKernel| {
+                geometry.band(
+                    scene.band(k),
+                    &fine_mask,
+                    &row_interp,
+                    &col_interp,
+                    (dc * s as f64, dr * s as f64),
+                    kernel,
+                    buf,
+                )
+            };
+            let mut core = shot(&kernels[k]);
+            if let Some((share, skirt)) = &halo {
+                let skirt = shot(skirt);
+                let w = *share as f32;
+                for (c, &h) in core.as_mut_slice().iter_mut().zip(skirt.as_slice()) {
+                    *c = (1.0 - w) * *c + w * h;
+                }
+            }
+            core
         })
         .collect();
     // summed in band order: the same result for every thread count
@@ -838,6 +889,89 @@ mod tests {
             "{}",
             total(&edge)
         );
+    }
+
+    /// A halo is the mix of two shots: (1 − w) of the blur's and w of a
+    /// wider Gaussian's, light conserved, the centre dimmer and the skirt
+    /// brighter; a share of 0 is the blur alone, bit for bit; out-of-range
+    /// halos are named.
+    #[test]
+    fn a_halo_mixes_a_wide_skirt_under_the_blur() {
+        let (rows, cols) = (25, 25);
+        let scene = Cube::from_vec(1, rows, cols, vec![1.0; rows * cols]).unwrap();
+        let shot = |halo: Option<Halo>, sigma: f64| {
+            simulate_physical(
+                &scene,
+                &one_pixel(rows, cols, 12, 12),
+                &[550.0],
+                &Mismatch::nominal(2.0),
+                &PhysicalSpec {
+                    halo,
+                    ..spec(4, sigma)
+                },
+                None,
+            )
+            .unwrap()
+        };
+        let (core, wide) = (shot(None, 0.5), shot(None, 2.0));
+        let halo = Some(Halo {
+            share: 0.3,
+            sigma_px: 2.0,
+        });
+        let mixed = shot(halo, 0.5);
+        assert!((total(&mixed) - 1.0).abs() < 1e-5, "{}", total(&mixed));
+        for (r, c) in [(12, 12), (12, 13), (14, 12), (12, 17), (18, 18)] {
+            let want = 0.7 * core.get(r, c) + 0.3 * wide.get(r, c);
+            assert!((mixed.get(r, c) - want).abs() < 1e-6, "({r}, {c})");
+        }
+        assert!(
+            mixed.get(12, 12) < core.get(12, 12) && mixed.get(12, 17) > 10.0 * core.get(12, 17)
+        );
+        let none = shot(
+            Some(Halo {
+                share: 0.0,
+                sigma_px: 2.0,
+            }),
+            0.5,
+        );
+        assert_eq!(none.as_slice(), core.as_slice());
+        for (halo, name) in [
+            (
+                Halo {
+                    share: 1.0,
+                    sigma_px: 2.0,
+                },
+                "halo.share",
+            ),
+            (
+                Halo {
+                    share: -0.1,
+                    sigma_px: 2.0,
+                },
+                "halo.share",
+            ),
+            (
+                Halo {
+                    share: 0.2,
+                    sigma_px: 0.0,
+                },
+                "halo.sigma_px",
+            ),
+            (
+                Halo {
+                    share: 0.2,
+                    sigma_px: f64::NAN,
+                },
+                "halo.sigma_px",
+            ),
+        ] {
+            let spec = PhysicalSpec {
+                halo: Some(halo),
+                ..spec(4, 0.5)
+            };
+            let e = spec.validate().unwrap_err().to_string();
+            assert!(e.contains(name), "{e}");
+        }
     }
 
     /// A point source in band k only, all mask pixels open: the light's

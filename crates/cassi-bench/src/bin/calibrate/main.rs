@@ -52,7 +52,7 @@
 //! [--no-texture] [--no-scene-fit] [--no-fine-pass] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene]
 //! [--fine-pass-free pose-and-slope|geometry|all] [--scene-cell PX]
 //! [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--no-detail-pass]
-//! [--no-recon] [--no-limits] [--out PATH] [--scene-transform none|flip-cols|flip-rows|transpose] [--verbose]`
+//! [--no-recon] [--no-limits] [--out PATH] [--scene-transform none|flip-cols|flip-rows|transpose] [--halo SHARE,SIGMA_PX] [--verbose]`
 //! (`--no-texture`: the default preset without its texture fit, as it was
 //! before issue #14 — the "before" row; `--no-scene-fit`: without its
 //! scene fit, ending in the texture fit as the records `*_texture.json`
@@ -84,7 +84,7 @@ use cassi_core::calib::{
 };
 use cassi_core::metrics::psnr;
 use cassi_core::optics::{
-    DispersionModel, NoiseModel, PhysicalSpec, SimulationSpec, simulate, simulate_physical,
+    DispersionModel, Halo, NoiseModel, PhysicalSpec, SimulationSpec, simulate, simulate_physical,
 };
 use cassi_core::recon::{Method, Model};
 use cassi_core::solvers::Silent;
@@ -176,6 +176,9 @@ struct Args {
     /// `--scene-transform`: every scene flipped or transposed before the
     /// simulation (more scene–mask configurations from the tuning scenes).
     transform: SceneTransform,
+    /// `--halo SHARE,SIGMA`: the simulated instrument's point-spread
+    /// function with a wide skirt (a model study: no model fitted has one).
+    halo: Option<Halo>,
 }
 
 /// A rigid re-orientation of the scene cubes (the mask stays): the same
@@ -238,7 +241,7 @@ impl SceneTransform {
 const USAGE: &str = "calibrate [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] \
                      [--no-aligned] [--no-inverse-crime] [--no-wide-blur] [--model rounded|subpixel|dispersed-mask|crisp-cells] \
                      [--preset NAME] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all] [--scene-cell PX] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--no-detail-pass] [--no-recon] [--no-limits] [--out PATH] \
-                     [--scene-transform none|flip-cols|flip-rows|transpose] [--verbose]";
+                     [--scene-transform none|flip-cols|flip-rows|transpose] [--halo SHARE,SIGMA_PX] [--verbose]";
 
 fn parse_args(argv: &[String]) -> Result<Args> {
     let mut half_name = "held-out".to_string();
@@ -260,6 +263,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
     let mut detail_pass: Option<Option<FinePassFree>> = None;
     let mut out = None;
     let mut transform = SceneTransform::None;
+    let mut halo = None;
     let mut it = argv.iter();
     while let Some(flag) = it.next() {
         let mut value = || {
@@ -316,6 +320,25 @@ fn parse_args(argv: &[String]) -> Result<Args> {
                 let g: usize = v.parse().with_context(|| format!("--detail-groups {v}"))?;
                 ensure!(g >= 1, "--detail-groups {v}: at least one detail map");
                 detail_groups = Some(g);
+            }
+            "--halo" => {
+                let v = value()?;
+                let parts: Vec<f64> = v
+                    .split(',')
+                    .map(|x| x.trim().parse::<f64>())
+                    .collect::<std::result::Result<_, _>>()
+                    .with_context(|| format!("--halo {v}: SHARE,SIGMA_PX"))?;
+                let [share, sigma_px] = parts[..] else {
+                    bail!("--halo {v}: two numbers, SHARE,SIGMA_PX");
+                };
+                let h = Halo { share, sigma_px };
+                PhysicalSpec {
+                    halo: Some(h),
+                    ..PhysicalSpec::default()
+                }
+                .validate()
+                .with_context(|| format!("--halo {v}"))?;
+                halo = Some(h);
             }
             "--scene-cell" => {
                 let v = value()?;
@@ -477,6 +500,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
         out,
         verbose,
         transform,
+        halo,
     })
 }
 
@@ -609,14 +633,16 @@ fn measure(
     scene: &Cube,
     mask: &Mask,
     noise: Option<&NoiseModel>,
-    model: DispersionModel,
+    args: &Args,
 ) -> Result<Measurement> {
+    let model = args.model;
     Ok(match case.kind {
         Kind::Random | Kind::AlignedBlur | Kind::WideBlur => {
             let spec = PhysicalSpec {
                 oversample: OVERSAMPLE,
                 blur_sigma_px: case.truth.blur_sigma_px,
                 detector: Some(DETECTOR),
+                halo: args.halo,
                 ..PhysicalSpec::default()
             };
             simulate_physical(
@@ -677,7 +703,7 @@ fn scene_fit_settings<'p>(preset: &'p mut Preset, flag: &str) -> Result<&'p mut 
 }
 
 fn run_case(args: &Args, case: &Case, name: &str, scene: &Cube, mask: &Mask) -> Result<Value> {
-    let y = measure(case, scene, mask, Some(&noise(case.seed)), args.model)?;
+    let y = measure(case, scene, mask, Some(&noise(case.seed)), args)?;
     let problem = CalibrationProblem::nominal(&y, mask, scene.bands(), 2.0, args.model)?;
     let verbose = args.verbose;
     let cal = calibrate(&problem, &args.preset, &mut |st| {
@@ -760,7 +786,7 @@ fn run_case(args: &Args, case: &Case, name: &str, scene: &Cube, mask: &Mask) -> 
         record["rho"] = json!(rho);
     }
     if args.limits {
-        let clean = measure(case, scene, mask, None, args.model)?;
+        let clean = measure(case, scene, mask, None, args)?;
         let detector = limits::DetectorNoise {
             photon_peak: PHOTON_PEAK,
             read_noise_e: READ_NOISE,
@@ -1106,7 +1132,8 @@ fn main() -> Result<()> {
                                          the seed draws ψ (Rng::new(seed)) and the noise") },
         "instrument": { "simulator": "simulate_physical", "oversample": OVERSAMPLE,
                         "detector": DETECTOR, "photon_peak": PHOTON_PEAK, "read_noise_e": READ_NOISE,
-                        "mask": "masks/tsa_simu_mask256.mat", "wavelengths_nm": STANDARD_WAVELENGTHS_NM },
+                        "mask": "masks/tsa_simu_mask256.mat", "wavelengths_nm": STANDARD_WAVELENGTHS_NM,
+                        "halo": args.halo.map(|h| json!({ "share": h.share, "sigma_px": h.sigma_px })) },
         "kinds": {
             "random": "dx, dy U(±2.5) px, θ U(±0.8)°, a1 U(1.93, 2.07), α U(±1)°, σ U(0, 0.8) px",
             "aligned_blur": { "mismatch": "nominal (stride 2)", "blur_sigma_px": ALIGNED_SIGMAS },
