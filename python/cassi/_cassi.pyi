@@ -139,6 +139,7 @@ def simulate_physical(
     blur_slope_px_per_nm: float = 0.0,
     detector: Optional[Tuple[int, int]] = None,
     adc_bits: Optional[int] = None,
+    halo: Optional[Tuple[float, float]] = None,
     wavelengths_nm: Optional[Sequence[float]] = None,
     noise: bool = True,
     photon_peak: Optional[float] = 1e5,
@@ -146,7 +147,8 @@ def simulate_physical(
     seed: int = 0,
     **params: float,
 ) -> F32Array:
-    """A snapshot through the physical (oversampled, blurred) instrument."""
+    """A snapshot through the physical (oversampled, blurred) instrument;
+    `halo` = (share, sigma_px): that share of the light in a wider skirt."""
 
 def calibrate(
     y: ArrayLike,

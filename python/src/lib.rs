@@ -22,7 +22,7 @@ use pyo3::types::{PyDict, PyList};
 use cassi_core::limits::check_elements;
 use cassi_core::linop::LinearOperator;
 use cassi_core::optics::{
-    ModelOperator, NoiseModel, PhysicalSpec, SimulationSpec, validate_mismatch_for_mask,
+    Halo, ModelOperator, NoiseModel, PhysicalSpec, SimulationSpec, validate_mismatch_for_mask,
 };
 use cassi_core::recon::registry::METHODS;
 use cassi_core::recon::{Method, MethodId, Model};
@@ -277,13 +277,14 @@ fn simulate<'py>(
 /// mismatch, the scene interpolated, continuous dispersion, Gaussian blur
 /// σ(λ) = blur_sigma_px + blur_slope_px_per_nm·(λ − λ_c), detector pixels
 /// as means of their fine pixels, an optional fixed `detector` (rows, cols)
-/// and ADC of `adc_bits` bits after the noise. No operator of the library
-/// reproduces it exactly (no inverse crime).
+/// and ADC of `adc_bits` bits after the noise; `halo` = (share, sigma_px)
+/// puts that share of the light in a wider Gaussian skirt under the blur.
+/// No operator of the library reproduces it exactly (no inverse crime).
 ///
 /// `blur_sigma_px` defaults to the mismatch's blur; `wavelengths_nm` to the
 /// standard instrument's band centres for the scene's band count.
 #[pyfunction]
-#[pyo3(signature = (scene, mask, mismatch=None, *, stride=2.0, oversample=4, blur_sigma_px=None, blur_slope_px_per_nm=0.0, detector=None, adc_bits=None, wavelengths_nm=None, noise=true, photon_peak=Some(1e5), read_noise=0.01, seed=0, **params))]
+#[pyo3(signature = (scene, mask, mismatch=None, *, stride=2.0, oversample=4, blur_sigma_px=None, blur_slope_px_per_nm=0.0, detector=None, adc_bits=None, halo=None, wavelengths_nm=None, noise=true, photon_peak=Some(1e5), read_noise=0.01, seed=0, **params))]
 #[allow(clippy::too_many_arguments)]
 fn simulate_physical<'py>(
     py: Python<'py>,
@@ -296,6 +297,7 @@ fn simulate_physical<'py>(
     blur_slope_px_per_nm: f64,
     detector: Option<(usize, usize)>,
     adc_bits: Option<u32>,
+    halo: Option<(f64, f64)>,
     wavelengths_nm: Option<Vec<f64>>,
     noise: bool,
     photon_peak: Option<f64>,
@@ -313,6 +315,7 @@ fn simulate_physical<'py>(
         blur_slope_px_per_nm,
         detector,
         adc_bits,
+        halo: halo.map(|(share, sigma_px)| Halo { share, sigma_px }),
     };
     let noise = noise_model(py, noise, photon_peak, read_noise, seed)?;
     let scene = arrays::cube(scene, "scene")?;

@@ -54,6 +54,19 @@ def test_physical_simulation_matches_the_cli(cli, tmp_path, inputs):
     ours = cassi.simulate_physical(scene, mask, "paper", oversample=2, blur_sigma_px=0.5,
                                    blur_slope_px_per_nm=0.002, adc_bits=12, noise=False)
     np.testing.assert_array_equal(ours, theirs)
+    # with a halo under the blur: the same on both sides, and not the blur alone
+    run(cli, "simulate", "--scene", "scene.npy", "--mask", "mask.npy", "--paper-mismatch",
+        "--oversample", 2, "--blur", 0.5, "--halo", "0.3,2", "--no-noise", "-o", "halo.npy", "-q",
+        cwd=tmp_path)
+    theirs = cassi.load(tmp_path / "halo.npy", kind="frame")
+    ours = cassi.simulate_physical(scene, mask, "paper", oversample=2, blur_sigma_px=0.5,
+                                   halo=(0.3, 2.0), noise=False)
+    np.testing.assert_array_equal(ours, theirs)
+    plain = cassi.simulate_physical(scene, mask, "paper", oversample=2, blur_sigma_px=0.5,
+                                    noise=False)
+    assert not np.array_equal(ours, plain)
+    with pytest.raises(ValueError, match="halo.share"):
+        cassi.simulate_physical(scene, mask, "paper", oversample=2, halo=(1.5, 2.0))
     # and it is not the discrete operator's measurement
     discrete = cassi.simulate(scene, mask, "paper", model="subpixel", noise=False)
     assert discrete.shape == ours.shape and not np.allclose(discrete, ours, atol=1e-3)
