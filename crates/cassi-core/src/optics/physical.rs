@@ -67,8 +67,9 @@ pub struct PhysicalSpec {
     /// photon peak); `None`: no ADC.
     #[serde(default)]
     pub adc_bits: Option<u32>,
-    /// A second, wider Gaussian under the blur (`None`: the blur alone).
-    #[serde(default)]
+    /// A second, wider Gaussian under the blur (`None`: the blur alone; not
+    /// written then, so sidecars without one read and write as before).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub halo: Option<Halo>,
 }
 
