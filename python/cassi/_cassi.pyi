@@ -140,6 +140,7 @@ def simulate_physical(
     detector: Optional[Tuple[int, int]] = None,
     adc_bits: Optional[int] = None,
     halo: Optional[Tuple[float, float]] = None,
+    dispersion_a2: float = 0.0,
     wavelengths_nm: Optional[Sequence[float]] = None,
     noise: bool = True,
     photon_peak: Optional[float] = 1e5,
@@ -148,7 +149,8 @@ def simulate_physical(
     **params: float,
 ) -> F32Array:
     """A snapshot through the physical (oversampled, blurred) instrument;
-    `halo` = (share, sigma_px): that share of the light in a wider skirt."""
+    `halo` = (share, sigma_px): that share of the light in a wider skirt;
+    `dispersion_a2`: band k lands a1·k + a2·k² px along the dispersion."""
 
 def calibrate(
     y: ArrayLike,

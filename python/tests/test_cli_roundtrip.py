@@ -67,6 +67,14 @@ def test_physical_simulation_matches_the_cli(cli, tmp_path, inputs):
     assert not np.array_equal(ours, plain)
     with pytest.raises(ValueError, match="halo.share"):
         cassi.simulate_physical(scene, mask, "paper", oversample=2, halo=(1.5, 2.0))
+    # a curved dispersion: the same on both sides
+    run(cli, "simulate", "--scene", "scene.npy", "--mask", "mask.npy", "--paper-mismatch",
+        "--oversample", 2, "--blur", 0.5, "--dispersion-a2", 0.004, "--no-noise", "-o", "bent.npy",
+        "-q", cwd=tmp_path)
+    theirs = cassi.load(tmp_path / "bent.npy", kind="frame")
+    ours = cassi.simulate_physical(scene, mask, "paper", oversample=2, blur_sigma_px=0.5,
+                                   dispersion_a2=0.004, noise=False)
+    np.testing.assert_array_equal(ours, theirs)
     # and it is not the discrete operator's measurement
     discrete = cassi.simulate(scene, mask, "paper", model="subpixel", noise=False)
     assert discrete.shape == ours.shape and not np.allclose(discrete, ours, atol=1e-3)

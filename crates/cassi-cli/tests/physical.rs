@@ -76,6 +76,7 @@ fn oversampled_simulation_has_the_fixed_detector_and_a_full_sidecar() {
             detector: Some((32, 40)),
             adc_bits: Some(12),
             halo: None,
+            dispersion_a2: 0.0,
         }
     );
     assert_eq!(sidecar["measurement"]["shape"], serde_json::json!([32, 40]));
@@ -213,6 +214,10 @@ fn physical_flags_are_checked_and_name_themselves() {
         (vec!["--oversample", "2", "--halo", "1.2,2"], "--halo"),
         (vec!["--oversample", "2", "--halo", "0.2"], "SHARE,SIGMA"),
         (vec!["--halo", "0.2,2"], "--oversample"),
+        (
+            vec!["--oversample", "2", "--dispersion-a2", "0.5"],
+            "--dispersion-a2",
+        ),
         (vec!["--blur", "0.5"], "--oversample"),
         (vec!["--oversample", "4", "--model", "rounded"], "--model"),
     ] {
@@ -276,4 +281,15 @@ fn a_halo_is_simulated_and_recorded() {
         plain.as_slice().iter().map(|&v| v as f64).sum(),
     );
     assert!((t - p).abs() < 0.05 * p, "{t} vs {p}");
+
+    // a curved dispersion likewise: recorded, and another snapshot
+    let curved = dir.join("curved.npy");
+    let mut a = args(&common);
+    a.extend(["--dispersion-a2", "0.01", "-o", s(&curved)]);
+    ok(&cassi(&a));
+    let sidecar: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("curved.json")).unwrap()).unwrap();
+    assert_eq!(sidecar["physical"]["dispersion_a2"], 0.01);
+    let y = cassi_io::load_frame(&curved, None).unwrap();
+    assert!(y.as_slice() != plain.as_slice());
 }

@@ -78,6 +78,12 @@ pub struct PhysicalArgs {
     /// scatter; no calibration model has one).
     #[arg(long, value_name = "SHARE,SIGMA", requires = "oversample", value_parser = parse_halo)]
     pub halo: Option<Halo>,
+    /// A prism whose dispersion is not linear in the band index: band k
+    /// lands a1·k + A2·k² px along the dispersion (no calibration model has
+    /// this term).
+    #[arg(long, value_name = "A2", requires = "oversample", allow_hyphen_values = true,
+          value_parser = parse_dispersion_a2)]
+    pub dispersion_a2: Option<f64>,
 }
 
 impl PhysicalArgs {
@@ -93,6 +99,7 @@ impl PhysicalArgs {
             detector: self.detector,
             adc_bits: self.adc_bits,
             halo: self.halo,
+            dispersion_a2: self.dispersion_a2.unwrap_or(0.0),
         };
         spec.validate().context("physical instrument")?;
         Ok(Some(spec))
@@ -170,6 +177,17 @@ fn parse_halo(text: &str) -> Result<Halo, String> {
     };
     spec.validate().map_err(|_| bad())?;
     Ok(halo)
+}
+
+/// `--dispersion-a2`: px per band², within ± the simulator's limit.
+fn parse_dispersion_a2(text: &str) -> Result<f64, String> {
+    let max = cassi_core::optics::physical::MAX_DISPERSION_A2;
+    match text.parse::<f64>() {
+        Ok(v) if v.is_finite() && v.abs() <= max => Ok(v),
+        _ => Err(format!(
+            "'{text}': expected the dispersion's curvature in px per band², −{max} … {max}"
+        )),
+    }
 }
 
 /// `--adc-bits`: 1 … 24.

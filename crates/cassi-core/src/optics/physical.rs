@@ -12,8 +12,10 @@
 //!   u = R(−θ)(v − c − (dx, dy)) + c falls in (c = ((W−1)/2, (H−1)/2)), 0 outside;
 //! - the scene is interpolated bilinearly to the fine centres (edge values held
 //!   beyond the outermost pixel centres);
-//! - band k is displaced by S·(a1·k·cos α, a1·k·sin α) fine pixels (col, row),
-//!   split bilinearly between the neighbouring fine pixels;
+//! - band k is displaced by S·(d_k·cos α, d_k·sin α) fine pixels (col, row),
+//!   d_k = a1·k (+ a2·k² with a [`PhysicalSpec::dispersion_a2`]: a prism
+//!   whose dispersion is not linear in the band index), split bilinearly
+//!   between the neighbouring fine pixels;
 //! - optical blur: a Gaussian of σ_k detector pixels (S·σ_k fine), truncated at
 //!   ⌈4·S·σ_k⌉ fine pixels and normalised, applied separably to the dispersed
 //!   band image; light blurred or dispersed off the detector is lost (zero
@@ -71,6 +73,15 @@ pub struct PhysicalSpec {
     /// written then, so sidecars without one read and write as before).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub halo: Option<Halo>,
+    /// The dispersion's curvature a2, px per band²: band k lands a1·k +
+    /// a2·k² along the dispersion (0: linear, as every model of ours
+    /// assumes; not written then).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub dispersion_a2: f64,
+}
+
+fn is_zero(v: &f64) -> bool {
+    *v == 0.0
 }
 
 /// A point-spread function's skirt: a share `share` of every point's light
@@ -93,6 +104,7 @@ impl Default for PhysicalSpec {
             detector: None,
             adc_bits: None,
             halo: None,
+            dispersion_a2: 0.0,
         }
     }
 }
@@ -136,6 +148,15 @@ impl PhysicalSpec {
                 format!("{rows}×{cols}"),
                 "at least 1×1",
             ));
+        }
+        if !(self.dispersion_a2.is_finite() && self.dispersion_a2.abs() <= MAX_DISPERSION_A2) {
+            return Err(CassiError::InvalidParameter {
+                name: "dispersion_a2",
+                value: self.dispersion_a2,
+                reason: format!(
+                    "the dispersion's curvature must be within ±{MAX_DISPERSION_A2} px per band²"
+                ),
+            });
         }
         if let Some(h) = self.halo {
             if !(h.share.is_finite() && (0.0..1.0).contains(&h.share)) {
@@ -213,10 +234,33 @@ pub fn physical_detector_shape(
     match spec.detector {
         Some(d) => Ok(d),
         None => {
-            let d = Dispersion::new(bands, mismatch.dispersion(), DispersionModel::Subpixel)?;
+            let d = physical_dispersion(bands, mismatch, spec)?;
             Ok((rows, cols + d.extra_cols()))
         }
     }
+}
+
+/// Largest |a2| accepted, px per band² (1 px of curvature over 10 bands).
+pub const MAX_DISPERSION_A2: f64 = 0.01;
+
+/// The bands' offsets on the detector: a1·k (+ a2·k²) along α.
+fn physical_dispersion(
+    bands: usize,
+    mismatch: &Mismatch,
+    spec: &PhysicalSpec,
+) -> Result<Dispersion> {
+    let linear = Dispersion::new(bands, mismatch.dispersion(), DispersionModel::Subpixel)?;
+    if spec.dispersion_a2 == 0.0 {
+        return Ok(linear);
+    }
+    let alpha = mismatch.alpha_deg.to_radians();
+    let offsets = (0..bands)
+        .map(|k| {
+            let along = mismatch.a1 * k as f64 + spec.dispersion_a2 * (k * k) as f64;
+            (along * alpha.cos(), along * alpha.sin())
+        })
+        .collect();
+    Dispersion::from_offsets(mismatch.dispersion(), offsets, DispersionModel::Subpixel)
 }
 
 /// y = the physical instrument's snapshot of `scene` (+ noise, + ADC).
@@ -303,7 +347,7 @@ pub fn simulate_physical_clean(
     scene.check_finite("scene")?;
     let s = spec.oversample;
     let sigmas = spec.blur_sigmas(wavelengths_nm)?;
-    let dispersion = Dispersion::new(bands, mismatch.dispersion(), DispersionModel::Subpixel)?;
+    let dispersion = physical_dispersion(bands, mismatch, spec)?;
     let (det_rows, det_cols) = physical_detector_shape(rows, cols, bands, mismatch, spec)?;
     let hint = format!("{rows}×{cols} at --oversample {s}");
     check_elements(
@@ -1006,6 +1050,55 @@ mod tests {
             let (rb, cb) = centroid(&yb);
             assert!((rb - er).abs() < 1e-4 && (cb - ec).abs() < 1e-4);
             assert!((total(&yb) - 1.0).abs() < 1e-5);
+        }
+    }
+
+    /// With a curvature a2 band k's point lands a1·k + a2·k² along the
+    /// dispersion (light conserved; the default detector widened to hold
+    /// it); 0 is the linear dispersion bit for bit; out of range is named.
+    #[test]
+    fn a_curved_dispersion_moves_band_k_by_a2_k_squared() {
+        let (bands, rows, cols) = (6, 21, 21);
+        let mask = Frame::from_vec(rows, cols, vec![1.0; rows * cols]).unwrap();
+        let curved = |a2: f64| PhysicalSpec {
+            dispersion_a2: a2,
+            ..spec(4, 0.0)
+        };
+        for (a1, alpha, a2, k) in [
+            (2.0, 0.0, 0.01, 5usize),
+            (2.0, 20.0, -0.008, 4),
+            (1.9, 0.0, 0.005, 3),
+        ] {
+            let mut scene = Cube::zeros(bands, rows, cols);
+            scene.set(k, 6, 8, 1.0);
+            let m = mismatch(0.0, 0.0, 0.0, a1, alpha);
+            let y = simulate_physical(&scene, &mask, &wavelengths(bands), &m, &curved(a2), None)
+                .unwrap();
+            let (along, a) = (a1 * k as f64 + a2 * (k * k) as f64, f64::to_radians(alpha));
+            let (r, c) = centroid(&y);
+            let (er, ec) = (6.0 + along * a.sin(), 8.0 + along * a.cos());
+            assert!(
+                (r - er).abs() < 1e-4 && (c - ec).abs() < 1e-4,
+                "{a1} {alpha} {a2}: ({r}, {c}) vs ({er}, {ec})"
+            );
+            assert!((total(&y) - 1.0).abs() < 1e-5);
+        }
+        let scene = smooth_scene(bands, rows, cols);
+        let m = mismatch(0.3, -0.2, 0.1, 2.0, 0.0);
+        let linear = simulate_physical(&scene, &mask, &wavelengths(bands), &m, &spec(4, 0.5), None);
+        let flat = PhysicalSpec {
+            dispersion_a2: 0.0,
+            ..spec(4, 0.5)
+        };
+        let zero = simulate_physical(&scene, &mask, &wavelengths(bands), &m, &flat, None);
+        assert_eq!(linear.unwrap().as_slice(), zero.unwrap().as_slice());
+        // the default detector holds the last band's extra 0.01·25 px
+        let wide = physical_detector_shape(rows, cols, bands, &m, &curved(0.01)).unwrap();
+        let plain = physical_detector_shape(rows, cols, bands, &m, &spec(4, 0.0)).unwrap();
+        assert_eq!(wide.1, plain.1 + 1);
+        for bad in [0.5, f64::NAN] {
+            let e = curved(bad).validate().unwrap_err().to_string();
+            assert!(e.contains("dispersion_a2"), "{e}");
         }
     }
 

@@ -52,7 +52,7 @@
 //! [--no-texture] [--no-scene-fit] [--no-fine-pass] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene]
 //! [--fine-pass-free pose-and-slope|geometry|all] [--scene-cell PX]
 //! [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--no-detail-pass]
-//! [--no-recon] [--no-limits] [--out PATH] [--scene-transform none|flip-cols|flip-rows|transpose] [--halo SHARE,SIGMA_PX] [--verbose]`
+//! [--no-recon] [--no-limits] [--out PATH] [--scene-transform none|flip-cols|flip-rows|transpose] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--verbose]`
 //! (`--no-texture`: the default preset without its texture fit, as it was
 //! before issue #14 — the "before" row; `--no-scene-fit`: without its
 //! scene fit, ending in the texture fit as the records `*_texture.json`
@@ -63,7 +63,10 @@
 //! parameters); `--detail-pass FREE`: the scene fit's detail pass
 //! (`calib::DetailPass`) refitting these, `--detail-groups G` with G
 //! detail maps (spectral groups of bands), `--no-detail-pass` without it;
-//! `--scene-transform`: every scene flipped or transposed — the
+//! `--halo SHARE,SIGMA_PX` and `--dispersion-a2 A2`: the simulated
+//! instrument with a wide skirt under its blur (`optics::Halo`) or a
+//! dispersion curved by A2·k² px (model studies: no model fitted has
+//! either); `--scene-transform`: every scene flipped or transposed — the
 //! tuning scenes in three more configurations against the mask, with their
 //! own `--seed-round`, for the uncertainty floors); without flags it
 //! reproduces the README's held-out table (every scene of the held-out
@@ -179,6 +182,9 @@ struct Args {
     /// `--halo SHARE,SIGMA`: the simulated instrument's point-spread
     /// function with a wide skirt (a model study: no model fitted has one).
     halo: Option<Halo>,
+    /// `--dispersion-a2 A2`: the simulated prism's curvature, px per band²
+    /// (a model study: every model fitted is linear in the band index).
+    dispersion_a2: f64,
 }
 
 /// A rigid re-orientation of the scene cubes (the mask stays): the same
@@ -241,7 +247,7 @@ impl SceneTransform {
 const USAGE: &str = "calibrate [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] \
                      [--no-aligned] [--no-inverse-crime] [--no-wide-blur] [--model rounded|subpixel|dispersed-mask|crisp-cells] \
                      [--preset NAME] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all] [--scene-cell PX] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--no-detail-pass] [--no-recon] [--no-limits] [--out PATH] \
-                     [--scene-transform none|flip-cols|flip-rows|transpose] [--halo SHARE,SIGMA_PX] [--verbose]";
+                     [--scene-transform none|flip-cols|flip-rows|transpose] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--verbose]";
 
 fn parse_args(argv: &[String]) -> Result<Args> {
     let mut half_name = "held-out".to_string();
@@ -264,6 +270,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
     let mut out = None;
     let mut transform = SceneTransform::None;
     let mut halo = None;
+    let mut dispersion_a2 = 0.0;
     let mut it = argv.iter();
     while let Some(flag) = it.next() {
         let mut value = || {
@@ -339,6 +346,17 @@ fn parse_args(argv: &[String]) -> Result<Args> {
                 .validate()
                 .with_context(|| format!("--halo {v}"))?;
                 halo = Some(h);
+            }
+            "--dispersion-a2" => {
+                let v = value()?;
+                let a2: f64 = v.parse().with_context(|| format!("--dispersion-a2 {v}"))?;
+                PhysicalSpec {
+                    dispersion_a2: a2,
+                    ..PhysicalSpec::default()
+                }
+                .validate()
+                .with_context(|| format!("--dispersion-a2 {v}"))?;
+                dispersion_a2 = a2;
             }
             "--scene-cell" => {
                 let v = value()?;
@@ -501,6 +519,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
         verbose,
         transform,
         halo,
+        dispersion_a2,
     })
 }
 
@@ -643,6 +662,7 @@ fn measure(
                 blur_sigma_px: case.truth.blur_sigma_px,
                 detector: Some(DETECTOR),
                 halo: args.halo,
+                dispersion_a2: args.dispersion_a2,
                 ..PhysicalSpec::default()
             };
             simulate_physical(
@@ -1133,7 +1153,8 @@ fn main() -> Result<()> {
         "instrument": { "simulator": "simulate_physical", "oversample": OVERSAMPLE,
                         "detector": DETECTOR, "photon_peak": PHOTON_PEAK, "read_noise_e": READ_NOISE,
                         "mask": "masks/tsa_simu_mask256.mat", "wavelengths_nm": STANDARD_WAVELENGTHS_NM,
-                        "halo": args.halo.map(|h| json!({ "share": h.share, "sigma_px": h.sigma_px })) },
+                        "halo": args.halo.map(|h| json!({ "share": h.share, "sigma_px": h.sigma_px })),
+                        "dispersion_a2": args.dispersion_a2 },
         "kinds": {
             "random": "dx, dy U(±2.5) px, θ U(±0.8)°, a1 U(1.93, 2.07), α U(±1)°, σ U(0, 0.8) px",
             "aligned_blur": { "mismatch": "nominal (stride 2)", "blur_sigma_px": ALIGNED_SIGMAS },
