@@ -174,7 +174,7 @@ pub fn calibrate_default(
     problem.validate()?;
     // a settings file's bad detail pass fails here, not after the front end
     if let Some(pass) = preset.scene_fit.and_then(|s| s.detail_pass) {
-        pass.check()?;
+        pass.check(problem.bands())?;
     }
     let mut run = StageRunner::new(on_stage);
     let scores = Scores::new(problem, preset);

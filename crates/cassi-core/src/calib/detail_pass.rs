@@ -98,19 +98,11 @@ impl DetailPass {
         at: &Mismatch,
         proxy: &ProxyParams,
     ) -> Result<Vec<f32>> {
-        self.check()?;
+        self.check(problem.bands())?;
         let (rows, cols) = problem.nominal_mask().shape();
         let op = ModelOperator::new(problem.nominal_mask(), problem.bands(), at, problem.model())?;
         let cube = proxy_reconstruction(&op, problem.measurement, proxy);
-        let (bands, plane) = (problem.bands(), rows * cols);
-        let groups = self.spectral_groups;
-        if groups > bands {
-            return Err(CassiError::InvalidParameter {
-                name: "detail_pass.spectral_groups",
-                value: groups as f64,
-                reason: format!("at most the cube's {bands} bands"),
-            });
-        }
+        let (groups, plane) = (self.spectral_groups, rows * cols);
         let mut maps = Vec::with_capacity(groups * plane);
         for l in group_luminance(&cube, plane, groups).chunks_exact(plane) {
             maps.extend(detail_of(
@@ -123,17 +115,16 @@ impl DetailPass {
         }
         Ok(maps)
     }
-}
 
-impl DetailPass {
-    /// Its widths and groups, named when out of range (a settings file's,
-    /// say; the groups' bound by the cube is checked with the cube).
-    pub(crate) fn check(&self) -> Result<()> {
-        if self.spectral_groups == 0 {
+    /// Its widths and groups for a cube of `bands` bands, named when out of
+    /// range (a settings file's, say).
+    pub(crate) fn check(&self, bands: usize) -> Result<()> {
+        let groups = self.spectral_groups;
+        if groups == 0 || groups > bands {
             return Err(CassiError::InvalidParameter {
                 name: "detail_pass.spectral_groups",
-                value: 0.0,
-                reason: "at least one detail map".into(),
+                value: groups as f64,
+                reason: format!("one detail map per group of bands: 1 to the cube's {bands}"),
             });
         }
         let widths = [
@@ -252,19 +243,26 @@ mod tests {
         let dark = detail_of(&vec![0.0f32; rows * cols], rows, cols, 1.0, 4.0).unwrap();
         assert!(dark.iter().all(|&v| v == 1.0));
 
-        let none = DetailPass {
-            spectral_groups: 0,
+        for groups in [0, 29] {
+            let pass = DetailPass {
+                spectral_groups: groups,
+                ..DetailPass::default()
+            };
+            let e = pass.check(28).unwrap_err().to_string();
+            assert!(e.contains("detail_pass.spectral_groups"), "{e}");
+        }
+        let colour = DetailPass {
+            spectral_groups: 28,
             ..DetailPass::default()
         };
-        let e = none.check().unwrap_err().to_string();
-        assert!(e.contains("detail_pass.spectral_groups"), "{e}");
+        assert!(colour.check(28).is_ok());
 
         for bad in [0.0, -1.0, f64::NAN, 1e9] {
             let pass = DetailPass {
                 detail_px: bad,
                 ..DetailPass::default()
             };
-            let e = pass.check().unwrap_err().to_string();
+            let e = pass.check(28).unwrap_err().to_string();
             assert!(e.contains("detail_pass.detail_px"), "{e}");
         }
         let pass = DetailPass {
@@ -272,12 +270,12 @@ mod tests {
             ..DetailPass::default()
         };
         assert!(
-            pass.check()
+            pass.check(28)
                 .unwrap_err()
                 .to_string()
                 .contains("pre_smooth_px")
         );
-        assert!(DetailPass::default().check().is_ok());
+        assert!(DetailPass::default().check(28).is_ok());
     }
 
     /// Groups are consecutive bands, as the coarse scene assigns the maps:

@@ -249,10 +249,10 @@ fn physical_dispersion(
     mismatch: &Mismatch,
     spec: &PhysicalSpec,
 ) -> Result<Dispersion> {
-    let linear = Dispersion::new(bands, mismatch.dispersion(), DispersionModel::Subpixel)?;
     if spec.dispersion_a2 == 0.0 {
-        return Ok(linear);
+        return Dispersion::new(bands, mismatch.dispersion(), DispersionModel::Subpixel);
     }
+    mismatch.dispersion().validate()?;
     let alpha = mismatch.alpha_deg.to_radians();
     let offsets = (0..bands)
         .map(|k| {
@@ -393,20 +393,18 @@ pub fn simulate_physical_clean(
         .into_par_iter()
         .map_init(Buffers::default, |buf, k| {
             let (dc, dr) = dispersion.offset(k);
-            let mut shot = |kernel: &BinKernel| {
-                geometry.band(
-                    scene.band(k),
-                    &fine_mask,
-                    &row_interp,
-                    &col_interp,
-                    (dc * s as f64, dr * s as f64),
-                    kernel,
-                    buf,
-                )
-            };
-            let mut core = shot(&kernels[k]);
+            geometry.dispersed_frame(
+                scene.band(k),
+                &fine_mask,
+                &row_interp,
+                &col_interp,
+                (dc * s as f64, dr * s as f64),
+                buf,
+            );
+            let mut core = geometry.blurred_bin(&kernels[k], buf);
             if let Some((share, skirt)) = &halo {
-                let skirt = shot(skirt);
+                // the same dispersed frame under the skirt's kernel
+                let skirt = geometry.blurred_bin(skirt, buf);
                 let w = *share as f32;
                 for (c, &h) in core.as_mut_slice().iter_mut().zip(skirt.as_slice()) {
                     *c = (1.0 - w) * *c + w * h;
@@ -548,18 +546,17 @@ struct Geometry {
 }
 
 impl Geometry {
-    /// One band's contribution to the detector.
-    #[allow(clippy::too_many_arguments)]
-    fn band(
+    /// One band masked and dispersed on the padded fine frame (`buf.frame`),
+    /// before the blur and the binning ([`Self::blurred_bin`]).
+    fn dispersed_frame(
         &self,
         band: &[f32],
         fine_mask: &Frame,
         row_interp: &Interp,
         col_interp: &Interp,
         offset_fine: (f64, f64),
-        kernel: &BinKernel,
         buf: &mut Buffers,
-    ) -> Frame {
+    ) {
         let s = self.s;
         let (fcols, frows) = (self.cols * s, self.rows * s);
         let m = self.margin as i64;
@@ -626,6 +623,11 @@ impl Geometry {
                 }
             }
         }
+    }
+
+    /// `buf.frame` blurred by `kernel` and binned to the detector.
+    fn blurred_bin(&self, kernel: &BinKernel, buf: &mut Buffers) -> Frame {
+        let s = self.s;
         // blur + bin along columns: frame rows → (frame_rows × det_cols)
         let (dr, dc) = (self.det_rows, self.det_cols);
         let off = self.margin - kernel.radius;

@@ -53,10 +53,7 @@ impl SourceMap {
 
     /// (q_col, q_row) = p − c − d, the centred, un-shifted position.
     fn centred(&self, col: usize, row: usize) -> (f64, f64) {
-        (
-            col as f64 - self.cx - self.dx,
-            row as f64 - self.cy - self.dy,
-        )
+        self.centred_at(col as f64, row as f64)
     }
 
     /// [`Self::centred`] at a continuous position.
