@@ -29,6 +29,17 @@ use serde::{Deserialize, Serialize};
 
 use crate::method::StudyMethod;
 
+/// What a scene's work reports as it goes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SceneProgress<'a> {
+    /// One of the scene's counted steps begins
+    /// ([`Study::steps_per_scene`] in all).
+    Step(&'a str),
+    /// A self-calibration stage ended (not counted): a point where a front
+    /// end may stop the work, which a calibration cannot otherwise offer.
+    CalibrationStage(&'a str),
+}
+
 /// What a study fixes for every scene.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Study {
@@ -170,13 +181,13 @@ pub fn prepare(
     mask: &Mask,
     study: &Study,
     noise_seed: u64,
-    progress: &mut dyn FnMut(&str),
+    progress: &mut dyn FnMut(SceneProgress<'_>),
 ) -> anyhow::Result<Prepared> {
     let noise = NoiseModel {
         seed: noise_seed,
         ..study.noise
     };
-    progress("simulating");
+    progress(SceneProgress::Step("simulating"));
     let (ideal_clean, ideal_noisy) = ideal_measurements(scene, mask, study.stride, &noise)?;
     let spec = SimulationSpec {
         mismatch: study.mismatch,
@@ -191,7 +202,7 @@ pub fn prepare(
             cassi_core::optics::simulate_oversampled(scene, mask, &spec, 2)?
         }
     };
-    progress("self-calibrating");
+    progress(SceneProgress::Step("self-calibrating"));
     let problem = CalibrationProblem::nominal(
         &measurement,
         mask,
@@ -199,7 +210,9 @@ pub fn prepare(
         study.stride,
         study.instrument,
     )?;
-    let calibration = calibrate(&problem, &study.preset, &mut |_| {})?;
+    let calibration = calibrate(&problem, &study.preset, &mut |stage| {
+        progress(SceneProgress::CalibrationStage(&stage.name))
+    })?;
     Ok(Prepared {
         ideal_clean,
         ideal_noisy,
@@ -285,7 +298,8 @@ pub fn reconstruct_and_score(
 /// The first method's reconstruction in each scenario, for figures.
 pub type Reconstructions = Vec<(Scenario, Cube)>;
 
-/// The whole protocol on one scene. `progress` hears each step's name. With
+/// The whole protocol on one scene. `progress` hears each step and each
+/// calibration stage. With
 /// `keep`, also returns the first method's reconstructions.
 pub fn run_scene(
     name: &str,
@@ -294,7 +308,7 @@ pub fn run_scene(
     study: &Study,
     noise_seed: u64,
     keep: bool,
-    progress: &mut dyn FnMut(&str),
+    progress: &mut dyn FnMut(SceneProgress<'_>),
 ) -> anyhow::Result<(SceneResult, Reconstructions)> {
     let t = Instant::now();
     let prepared = prepare(scene, mask, study, noise_seed, progress)?;
@@ -312,13 +326,17 @@ pub fn run_prepared(
     prepared: &Prepared,
     started: Instant,
     keep: bool,
-    progress: &mut dyn FnMut(&str),
+    progress: &mut dyn FnMut(SceneProgress<'_>),
 ) -> anyhow::Result<(SceneResult, Reconstructions)> {
     let mut outcomes = Vec::new();
     let mut kept = Vec::new();
     for (mi, method) in study.methods.iter().enumerate() {
         for scenario in Scenario::ALL {
-            progress(&format!("{} {}", method.name(), scenario.label()));
+            progress(SceneProgress::Step(&format!(
+                "{} {}",
+                method.name(),
+                scenario.label()
+            )));
             let (outcome, cube) = run_scenario(scene, mask, study, prepared, method, scenario)?;
             outcomes.push(outcome);
             if keep && mi == 0 {

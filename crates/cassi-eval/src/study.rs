@@ -16,7 +16,7 @@ use cassi_core::{Cube, Mask};
 use serde::{Deserialize, Serialize};
 
 use crate::digests::InputDigests;
-use crate::protocol::{Reconstructions, SceneResult, Study, run_scene};
+use crate::protocol::{Reconstructions, SceneProgress, SceneResult, Study, run_scene};
 use crate::records::{Record, SceneRecord, read_versioned, write_record};
 use crate::shard::Shard;
 
@@ -95,6 +95,9 @@ pub enum Event<'a> {
     },
     /// A step inside the current scene.
     Step { name: &'a str },
+    /// A self-calibration stage inside the current scene ended (not a
+    /// counted step: only a point where the work may stop).
+    CalibrationStage { name: &'a str },
     /// A scene's result was found from an earlier run with the same inputs.
     Skipped { name: &'a str },
     /// A resumed run found an earlier result for this scene but recomputes
@@ -261,9 +264,13 @@ pub fn run_study(
         // a step's callback cannot return: its first error is kept for
         // after the scene
         let mut stopped = None;
-        let (result, kept) = run_scene(&name, &scene, mask, study, noise_seed, keep, &mut |step| {
+        let (result, kept) = run_scene(&name, &scene, mask, study, noise_seed, keep, &mut |p| {
             if stopped.is_none() {
-                stopped = on_event(Event::Step { name: step }).err();
+                stopped = on_event(match p {
+                    SceneProgress::Step(name) => Event::Step { name },
+                    SceneProgress::CalibrationStage(name) => Event::CalibrationStage { name },
+                })
+                .err();
             }
         })
         .with_context(|| format!("scene {name}"))?;

@@ -8,7 +8,7 @@ use cassi_core::calib::Preset;
 use cassi_core::recon::Model;
 use cassi_core::{Mask, Mismatch};
 
-use crate::protocol::{Study, prepare, reconstruct_and_score};
+use crate::protocol::{SceneProgress, Study, prepare, reconstruct_and_score};
 use crate::study::{Event, RunOptions, SceneSource, run_study};
 use crate::summary::summarize;
 use crate::sweep_rows::{AblationRow, AblationVariant, SensitivityPoint};
@@ -72,13 +72,14 @@ pub fn sensitivity(
 
 /// For each preset: calibrate every scene once, then reconstruct with the
 /// nominal, search-only, full and true parameters (same measurement, same
-/// solver). Scenes are loaded one at a time.
+/// solver). Scenes are loaded one at a time; `on_step` hears a
+/// [`SceneProgress::Step`] per scene and each calibration stage.
 pub fn ablation(
     base: &Study,
     presets: &[Preset],
     scenes: &[SceneSource],
     mask: &Mask,
-    on_step: &mut dyn FnMut(&str),
+    on_step: &mut dyn FnMut(SceneProgress<'_>),
 ) -> anyhow::Result<Vec<AblationRow>> {
     let mut rows = Vec::new();
     for preset in presets {
@@ -92,9 +93,14 @@ pub fn ablation(
             vec![vec![(0.0f64, 0.0f64); AblationVariant::ALL.len()]; study.methods.len()];
         let mut calib_secs = 0.0;
         for (i, source) in scenes.iter().enumerate() {
-            on_step(&format!("{name}: {}", source.name()));
+            on_step(SceneProgress::Step(&format!("{name}: {}", source.name())));
             let scene = source.load()?;
-            let prepared = prepare(&scene, mask, &study, i as u64, &mut |_| {})?;
+            // only its calibration stages: the scene is the counted step
+            let prepared = prepare(&scene, mask, &study, i as u64, &mut |p| {
+                if let SceneProgress::CalibrationStage(_) = p {
+                    on_step(p)
+                }
+            })?;
             calib_secs += prepared.calibration.seconds;
             let search = search_only(&prepared.calibration.stages, preset)
                 .unwrap_or(prepared.calibration.parameters);

@@ -7,7 +7,7 @@ use cassi_core::optics::{DispersionModel, NoiseModel};
 use cassi_core::recon::Method;
 use cassi_core::synth::{SceneSpec, random_binary_mask, synthetic_scene};
 use cassi_core::{Cube, Mask, Mismatch, Parameter};
-use cassi_eval::protocol::{Scenario, Study, run_scene};
+use cassi_eval::protocol::{Scenario, SceneProgress, Study, run_scene};
 use cassi_eval::summary::summarize;
 
 fn case(size: usize, bands: usize) -> (Cube, Mask) {
@@ -45,9 +45,19 @@ fn scenarios_order_as_they_must_and_calibration_closes_the_gap() {
         stride: 2.0,
     };
     let mut steps = Vec::new();
-    let (r, kept) = run_scene("synthetic", &scene, &mask, &study, 7, true, &mut |s| {
-        steps.push(s.to_string())
-    })
+    let mut stages = Vec::new();
+    let (r, kept) = run_scene(
+        "synthetic",
+        &scene,
+        &mask,
+        &study,
+        7,
+        true,
+        &mut |p| match p {
+            SceneProgress::Step(s) => steps.push(s.to_string()),
+            SceneProgress::CalibrationStage(s) => stages.push(s.to_string()),
+        },
+    )
     .unwrap();
     assert_eq!(kept.len(), 5);
     assert!(kept.iter().all(|(_, c)| c.shape() == scene.shape()));
@@ -56,6 +66,17 @@ fn scenarios_order_as_they_must_and_calibration_closes_the_gap() {
         steps.iter().any(|s| s.contains("III Corrected")),
         "{steps:?}"
     );
+    // counted steps as the progress bar expects, and every calibration
+    // stage heard (a front end's stop points inside the calibration)
+    assert_eq!(steps.len() as u64, study.steps_per_scene(), "{steps:?}");
+    let recorded: Vec<&str> = r
+        .calibration
+        .stages
+        .iter()
+        .map(|s| s.name.as_str())
+        .collect();
+    assert!(!stages.is_empty());
+    assert_eq!(stages, recorded);
     let p = |s| r.outcome("gap-tv", s).unwrap().metrics.psnr;
     let (ideal, assumed, corrected, oracle) = (
         p(Scenario::IdealClean),

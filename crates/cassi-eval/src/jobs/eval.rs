@@ -15,7 +15,7 @@ use cassi_io::{CheckedSet, OutputSet, Staging};
 use super::JobObserver;
 use crate::learned::check_shape;
 use crate::method::StudyMethod;
-use crate::protocol::{SceneResult, Study};
+use crate::protocol::{SceneProgress, SceneResult, Study};
 use crate::report::{STUDY_FILES, Setup, write_all};
 use crate::shard::Shard;
 use crate::study::{
@@ -274,7 +274,7 @@ fn run_scenes(
             // (rerun with resume to go on)
             observer.stop_point();
             match e {
-                Event::SceneStart { .. } => {}
+                Event::SceneStart { .. } | Event::CalibrationStage { .. } => {}
                 Event::Step { .. } => {
                     done += 1;
                     observer.progress(done);
@@ -440,10 +440,12 @@ fn run_sweeps(plan: &EvalPlan, observer: &mut dyn JobObserver) -> anyhow::Result
             &plan.sweep_presets,
             &plan.scenes,
             &plan.mask,
-            &mut |_| {
+            &mut |p| {
                 observer.stop_point();
-                observer.progress(done);
-                done += 1;
+                if let SceneProgress::Step(_) = p {
+                    observer.progress(done);
+                    done += 1;
+                }
             },
         )?);
         observer.progress_finished();
