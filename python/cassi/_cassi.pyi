@@ -17,6 +17,8 @@ __version__: str
 #: The mismatch parameters' keys, in the library's registry order:
 #: dx, dy (px), theta_deg (°), a1 (px/band), alpha_deg (°), blur_sigma_px (px).
 PARAMETERS: List[str]
+#: The PARAMETERS the presets fit: all but the curvature a2, which they hold.
+CALIBRATED_PARAMETERS: List[str]
 PARAMETER_UNITS: Dict[str, str]
 #: Every reconstruction method of the library's registry: (name, kind).
 METHODS: List[Tuple[str, str]]
@@ -160,6 +162,7 @@ def calibrate(
     stride: float = 2.0,
     model: Optional[Model] = None,
     preset: Literal["default", "paper"] = "default",
+    dispersion_a2: float = 0.0,
     progress: Optional[Callable[[Dict[str, Any]], object]] = None,
 ) -> Calibration:
     """Self-calibration from the measurement and the nominal mask alone."""

@@ -192,6 +192,9 @@ enum Message {
 ///         blind fit reads it high; not the default) or "rounded" (the
 ///         paper's discrete model).
 ///     preset: "default" (ours) or "paper" (the paper's Algorithm 1).
+///     dispersion_a2: the dispersion's curvature the calibration holds, px
+///         per band² (band k at a1·k + a2·k²): the prism's design value;
+///         not fitted; default preset only.
 ///     progress: called with a dict {name, evaluations, seconds,
 ///         parameters, score} as each stage finishes.
 ///
@@ -208,7 +211,7 @@ enum Message {
 ///
 /// The GIL is released while the calibration runs.
 #[pyfunction]
-#[pyo3(signature = (y, mask, *, bands=28, stride=2.0, model=None, preset="default", progress=None))]
+#[pyo3(signature = (y, mask, *, bands=28, stride=2.0, model=None, preset="default", dispersion_a2=0.0, progress=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn calibrate(
     py: Python<'_>,
@@ -218,9 +221,12 @@ pub fn calibrate(
     stride: f64,
     model: Option<&str>,
     preset: &str,
+    dispersion_a2: f64,
     progress: Option<Bound<'_, PyAny>>,
 ) -> PyResult<PyCalibration> {
-    let preset = Preset::by_name(preset, stride).map_err(|e| value_error(py, e.to_string()))?;
+    let preset = Preset::by_name(preset, stride)
+        .and_then(|p| p.with_dispersion_a2(dispersion_a2))
+        .map_err(|e| value_error(py, e.to_string()))?;
     let model = match model {
         Some(name) => params::model(py, name)?,
         None => preset.default_model(),

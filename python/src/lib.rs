@@ -842,6 +842,14 @@ fn _cassi(m: &Bound<'_, PyModule>) -> PyResult<()> {
         "PARAMETERS",
         Parameter::ALL.iter().map(|p| p.key()).collect::<Vec<_>>(),
     )?;
+    // the ones the presets fit (they hold the curvature a2 where given)
+    m.add(
+        "CALIBRATED_PARAMETERS",
+        Parameter::CALIBRATED
+            .iter()
+            .map(|p| p.key())
+            .collect::<Vec<_>>(),
+    )?;
     let units = PyDict::new(py);
     for p in Parameter::ALL {
         units.set_item(p.key(), p.unit())?;

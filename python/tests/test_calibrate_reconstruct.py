@@ -60,11 +60,19 @@ def test_default_calibration_reports_trade_offs_and_blur(case):
     assert abs(e["a1"] - 2.05) < 0.02 and abs(e["alpha_deg"] - 1.5) < 0.5, e
     assert e["blur_sigma_px"] < 0.1
     se, wide = cal.standard_errors, cal.intervals_95
-    assert all(v is not None and v > 0 for v in se.values())
+    fitted = cassi.CALIBRATED_PARAMETERS
+    assert all(se[k] is not None and se[k] > 0 for k in fitted), se
+    # the curvature is held (at 0 here), not estimated
+    assert e["a2"] == 0 and se["a2"] is None and "a2" not in fitted
     # the 95 % half-width carries its own (larger) floor: wider than 2 σ's floor alone
-    assert all(wide[k] is not None and wide[k] > se[k] for k in cassi.PARAMETERS), (wide, se)
+    assert all(wide[k] is not None and wide[k] > se[k] for k in fitted), (wide, se)
     assert "95 %" in repr(cal)
     assert cassi.Calibration.from_json(cal.to_json()).intervals_95 == wide
+    # a curvature given is held and comes back in the parameters
+    bent = cassi.calibrate(y, mask, bands=8, dispersion_a2=-0.004)
+    assert bent.parameters["a2"] == -0.004
+    with pytest.raises(ValueError, match="a2"):
+        cassi.calibrate(y, mask, bands=8, dispersion_a2=0.9)
     for a, b, corr in cal.trade_offs:
         assert a in cassi.PARAMETERS and b in cassi.PARAMETERS and abs(corr) >= 0.8
 

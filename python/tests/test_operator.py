@@ -37,7 +37,7 @@ def test_shapes_follow_the_conventions():
     assert op.cube_shape == (28, 16, 20)
     assert op.measurement_shape == (16, 20 + 54)
     assert (op.bands, op.stride, op.model) == (28, 2.0, "rounded")
-    assert op.mismatch == dict(zip(cassi.PARAMETERS, [0, 0, 0, 2.0, 0, 0]))
+    assert op.mismatch == dict(zip(cassi.PARAMETERS, [0, 0, 0, 2.0, 0, 0, 0]))
     # the paper's a1 = 2.04 widens the detector by one column
     assert cassi.Operator(mask, mismatch="paper").measurement_shape == (16, 20 + 55)
 

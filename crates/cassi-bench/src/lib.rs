@@ -61,10 +61,11 @@ pub fn physical_random_mismatch(seed: u64) -> cassi_core::Mismatch {
         a1: rng.uniform_in(1.93, 2.07),
         alpha_deg: rng.uniform_in(-1.0, 1.0),
         blur_sigma_px: rng.uniform_in(0.0, 0.8),
+        a2: 0.0,
     }
 }
 
-/// ψ from its six values in `Parameter::ALL` order (σ as |σ|: a simplex
+/// ψ from its values in `Parameter::ALL` order (a2 0 when left out) (σ as |σ|: a simplex
 /// may step below zero).
 pub fn psi_of(x: &[f64]) -> cassi_core::Mismatch {
     let mut psi = cassi_core::Mismatch::nominal(2.0);

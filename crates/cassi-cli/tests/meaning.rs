@@ -456,3 +456,99 @@ fn calibration_files_are_typed_records_or_parameter_objects() {
         );
     }
 }
+
+#[test]
+fn a_curved_dispersion_travels_from_the_calibration_to_the_model() {
+    let d = dir("curved");
+    let (meas, mask) = simulated(&d);
+    let out = d.join("r.npy");
+    let reconstruct = |calibration: &Path| {
+        cassi(&[
+            "reconstruct",
+            s(&meas),
+            "--mask",
+            s(&mask),
+            "--calibration",
+            s(calibration),
+            "--iterations",
+            "2",
+            "-o",
+            s(&out),
+            "--json",
+        ])
+    };
+    let curved = d.join("curved.json");
+    std::fs::write(
+        &curved,
+        r#"{"dx": 0.25, "dy": 0, "theta_deg": 0, "a1": 2, "alpha_deg": 0, "a2": -0.008}"#,
+    )
+    .unwrap();
+    let run = reconstruct(&curved);
+    ok(&run);
+    let report: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+    assert_eq!(report["model_parameters"]["a2"].as_f64(), Some(-0.008));
+    // beyond the guard: refused, naming the file and the parameter
+    let bad = d.join("bad.json");
+    std::fs::write(
+        &bad,
+        r#"{"dx": 0, "dy": 0, "theta_deg": 0, "a1": 2, "alpha_deg": 0, "a2": 0.9}"#,
+    )
+    .unwrap();
+    let refused = d.join("refused.npy");
+    assert_fails(
+        &[
+            "reconstruct",
+            s(&meas),
+            "--mask",
+            s(&mask),
+            "--calibration",
+            s(&bad),
+            "-o",
+            s(&refused),
+        ],
+        &["bad.json", "a2"],
+        &refused,
+    );
+    // the calibration holds the curvature it is given, and writes it
+    let cal = d.join("cal.json");
+    let calibrate = |extra: &[&str]| {
+        let mut a = vec![
+            "calibrate",
+            s(&meas),
+            "--mask",
+            s(&mask),
+            "-o",
+            s(&cal),
+            "-q",
+        ];
+        a.extend(extra);
+        a.into_iter().map(String::from).collect::<Vec<_>>()
+    };
+    ok(&cassi(
+        &calibrate(&["--dispersion-a2", "-0.004"])
+            .iter()
+            .map(String::as_str)
+            .collect::<Vec<_>>(),
+    ));
+    let record: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&cal).unwrap()).unwrap();
+    assert_eq!(record["parameters"]["a2"].as_f64(), Some(-0.004));
+    std::fs::remove_file(&cal).unwrap();
+    for (extra, needles) in [
+        (
+            &["--dispersion-a2", "0.9"][..],
+            &["--dispersion-a2", "a2", "0.5"][..],
+        ),
+        (
+            &["--preset", "paper", "--dispersion-a2", "0.001"][..],
+            &["--dispersion-a2", "paper preset"][..],
+        ),
+    ] {
+        let args = calibrate(extra);
+        assert_fails(
+            &args.iter().map(String::as_str).collect::<Vec<_>>(),
+            needles,
+            &cal,
+        );
+    }
+}

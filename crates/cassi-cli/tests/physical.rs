@@ -215,7 +215,7 @@ fn physical_flags_are_checked_and_name_themselves() {
         (vec!["--oversample", "2", "--halo", "0.2"], "SHARE,SIGMA"),
         (vec!["--halo", "0.2,2"], "--oversample"),
         (
-            vec!["--oversample", "2", "--dispersion-a2", "0.5"],
+            vec!["--oversample", "2", "--dispersion-a2", "0.6"],
             "--dispersion-a2",
         ),
         (vec!["--blur", "0.5"], "--oversample"),

@@ -94,10 +94,12 @@ fn main() {
     let nominal = DispersionParams {
         a1: 2.0,
         alpha_deg: 0.0,
+        a2: 0.0,
     };
     let paper = DispersionParams {
         a1: 2.04,
         alpha_deg: 0.5,
+        a2: 0.0,
     };
     let mut rows = Vec::new();
     for (size, runs) in [(256, 200), (660, 40)] {

@@ -33,6 +33,7 @@ fn main() {
         a1: 2.03,
         alpha_deg: 0.2,
         blur_sigma_px: 0.6,
+        a2: 0.0,
     };
     let mut rows = Vec::new();
     for size in [660usize, 256] {

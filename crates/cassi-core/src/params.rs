@@ -35,14 +35,29 @@ pub struct MaskPose {
     pub theta_deg: f64,
 }
 
-/// Dispersion of the prism: band k lands at column offset `a1·k·cos α` and row
-/// offset `a1·k·sin α` detector pixels.
+/// Dispersion of the prism: band k lands `d_k = a1·k + a2·k²` detector
+/// pixels along the dispersion axis, at column offset `d_k·cos α` and row
+/// offset `d_k·sin α`.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct DispersionParams {
     /// Pixels per band along the dispersion axis.
     pub a1: f64,
     /// Angle of the dispersion axis from the +col axis toward +row, degrees.
     pub alpha_deg: f64,
+    /// Curvature, pixels per band² (0 = a straight dispersion); absent in
+    /// files written before it was modelled.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub a2: f64,
+}
+
+/// The largest |a2| accepted, px per band²: a guard against unit mistakes
+/// (0.5 moves band 10 by 50 px, beyond any prism's departure from a
+/// straight line) that leaves room for the oversampled simulators, whose
+/// fine grids count 2–4 pixels per detector pixel.
+pub const MAX_DISPERSION_A2: f64 = 0.5;
+
+pub(crate) fn is_zero(v: &f64) -> bool {
+    *v == 0.0
 }
 
 /// One component of the mismatch vector ψ: the one registry of its name in
@@ -61,11 +76,26 @@ pub enum Parameter {
     AlphaDeg,
     /// The optical blur's Gaussian σ on the detector (0 = a sharp image).
     BlurSigmaPx,
+    /// The dispersion's curvature a2 (band k at a1·k + a2·k²).
+    A2,
 }
 
 impl Parameter {
     /// Every parameter, in the order tables and files list them.
-    pub const ALL: [Parameter; 6] = [
+    pub const ALL: [Parameter; 7] = [
+        Self::Dx,
+        Self::Dy,
+        Self::ThetaDeg,
+        Self::A1,
+        Self::AlphaDeg,
+        Self::BlurSigmaPx,
+        Self::A2,
+    ];
+
+    /// The parameters the calibration presets fit: every one but the
+    /// curvature a2, which they hold at the value they are given (0 unless
+    /// a camera's design or a study says otherwise).
+    pub const CALIBRATED: [Parameter; 6] = [
         Self::Dx,
         Self::Dy,
         Self::ThetaDeg,
@@ -87,6 +117,7 @@ impl Parameter {
             Self::A1 => m.a1,
             Self::AlphaDeg => m.alpha_deg,
             Self::BlurSigmaPx => m.blur_sigma_px,
+            Self::A2 => m.a2,
         }
     }
 
@@ -98,6 +129,7 @@ impl Parameter {
             Self::A1 => m.a1 = v,
             Self::AlphaDeg => m.alpha_deg = v,
             Self::BlurSigmaPx => m.blur_sigma_px = v,
+            Self::A2 => m.a2 = v,
         }
     }
 
@@ -110,6 +142,7 @@ impl Parameter {
             Self::A1 => "a1",
             Self::AlphaDeg => "alpha_deg",
             Self::BlurSigmaPx => "blur_sigma_px",
+            Self::A2 => "a2",
         }
     }
 
@@ -122,6 +155,7 @@ impl Parameter {
             Self::A1 => "a1",
             Self::AlphaDeg => "α",
             Self::BlurSigmaPx => "blur",
+            Self::A2 => "a2",
         }
     }
 
@@ -131,6 +165,7 @@ impl Parameter {
             Self::Dx | Self::Dy | Self::BlurSigmaPx => "px",
             Self::ThetaDeg | Self::AlphaDeg => "°",
             Self::A1 => "px/band",
+            Self::A2 => "px/band²",
         }
     }
 
@@ -144,6 +179,7 @@ impl Parameter {
         match self {
             Self::Dx | Self::Dy | Self::ThetaDeg | Self::BlurSigmaPx => 3,
             Self::A1 => 4,
+            Self::A2 => 5,
             Self::AlphaDeg => 2,
         }
     }
@@ -157,7 +193,7 @@ impl Parameter {
     /// Whether files may leave the parameter out (it then takes its nominal
     /// value): files written before the parameter existed stay readable.
     pub fn optional_in_files(self) -> bool {
-        matches!(self, Self::BlurSigmaPx)
+        matches!(self, Self::BlurSigmaPx | Self::A2)
     }
 
     /// `v` at the parameter's precision, signed when it is an offset.
@@ -170,10 +206,18 @@ impl Parameter {
         }
     }
 
-    /// `dx +1.500 px  dy … α +0.50°`: a whole mismatch on one line.
+    /// Whether a line describing `m` shows the parameter: all of them but a
+    /// straight dispersion's curvature (0), which only clutters.
+    pub fn shown(self, m: &Mismatch) -> bool {
+        self != Self::A2 || m.a2 != 0.0
+    }
+
+    /// `dx +1.500 px  dy … α +0.50°`: a whole mismatch on one line (a2
+    /// only when the dispersion is curved).
     pub fn format_all(m: &Mismatch) -> String {
         Self::ALL
             .iter()
+            .filter(|p| p.shown(m))
             .map(|p| {
                 let gap = if p.unit() == "°" { "" } else { " " };
                 format!("{} {}{gap}{}", p.name(), p.format(p.get(m)), p.unit())
@@ -198,6 +242,10 @@ pub struct Mismatch {
     /// absent in files written before blur was modelled.
     #[serde(default)]
     pub blur_sigma_px: f64,
+    /// The dispersion's curvature, px per band² (0 = straight); absent in
+    /// files written before it was modelled, and not written when 0.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub a2: f64,
 }
 
 impl Mismatch {
@@ -210,6 +258,7 @@ impl Mismatch {
             a1: stride,
             alpha_deg: 0.0,
             blur_sigma_px: 0.0,
+            a2: 0.0,
         }
     }
 
@@ -222,6 +271,7 @@ impl Mismatch {
             a1: 2.04,
             alpha_deg: 0.5,
             blur_sigma_px: 0.0,
+            a2: 0.0,
         }
     }
 
@@ -237,6 +287,7 @@ impl Mismatch {
         DispersionParams {
             a1: self.a1,
             alpha_deg: self.alpha_deg,
+            a2: self.a2,
         }
     }
 
@@ -249,6 +300,7 @@ impl Mismatch {
             a1: stride + (self.a1 - stride) * factor,
             alpha_deg: self.alpha_deg * factor,
             blur_sigma_px: self.blur_sigma_px * factor,
+            a2: self.a2 * factor,
         }
     }
 
@@ -326,7 +378,19 @@ impl DispersionParams {
                 ),
             });
         }
-        angle("alpha_deg", self.alpha_deg)
+        angle("alpha_deg", self.alpha_deg)?;
+        finite("a2", self.a2)?;
+        if self.a2.abs() > MAX_DISPERSION_A2 {
+            return Err(CassiError::InvalidParameter {
+                name: "a2",
+                value: self.a2,
+                reason: format!(
+                    "the dispersion's curvature must lie within ±{MAX_DISPERSION_A2} pixels per \
+                     band²"
+                ),
+            });
+        }
+        Ok(())
     }
 }
 
@@ -337,6 +401,7 @@ mod tests {
     #[test]
     fn the_registry_names_every_field_as_the_json_does() {
         let mut m = Mismatch::paper();
+        m.a2 = 0.01;
         let json = serde_json::to_value(m).unwrap();
         let object = json.as_object().unwrap();
         assert_eq!(object.len(), Parameter::ALL.len());
@@ -350,6 +415,30 @@ mod tests {
             "dx +1.500 px  dy +1.000 px  θ +0.300°  a1 2.0400 px/band  α +0.50°  blur 0.000 px"
         );
         assert_eq!(Parameter::ThetaDeg.label(), "θ (°)");
+    }
+
+    #[test]
+    fn the_curvature_is_written_only_when_there_is_one_and_refused_out_of_range() {
+        // a straight dispersion's files read and write as before
+        let straight = serde_json::to_value(Mismatch::paper()).unwrap();
+        assert!(straight.get("a2").is_none());
+        let back: Mismatch = serde_json::from_value(straight).unwrap();
+        assert_eq!(back.a2, 0.0);
+        let curved = Mismatch {
+            a2: -0.008,
+            ..Mismatch::paper()
+        };
+        let json = serde_json::to_value(curved).unwrap();
+        assert_eq!(json["a2"].as_f64(), Some(-0.008));
+        assert_eq!(serde_json::from_value::<Mismatch>(json).unwrap(), curved);
+        assert_eq!(curved.dispersion().a2, -0.008);
+        assert!(Parameter::format_all(&curved).ends_with("a2 -0.00800 px/band²"));
+        assert!(!Parameter::format_all(&Mismatch::paper()).contains("a2"));
+        for bad in [0.6, -0.6, f64::NAN] {
+            let e = Mismatch { a2: bad, ..curved }.validate().unwrap_err();
+            assert!(e.to_string().contains("a2"), "{e}");
+        }
+        assert!(Mismatch { a2: 0.5, ..curved }.validate().is_ok());
     }
 
     #[test]

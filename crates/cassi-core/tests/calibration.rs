@@ -213,7 +213,7 @@ fn default_preset_recovers_a_known_mask_misalignment() {
             }
         };
         assert!(
-            Parameter::ALL
+            Parameter::CALIBRATED
                 .iter()
                 .filter(|p| stated(p))
                 .all(|&p| cal.uncertainty.get(p).is_some_and(|u| u > 0.0)),
@@ -222,7 +222,7 @@ fn default_preset_recovers_a_known_mask_misalignment() {
         );
         // the texture fit (subpixel) also states 95 % half-widths, wider
         // than its standard errors; the rounded model states none
-        for p in Parameter::ALL {
+        for p in Parameter::CALIBRATED {
             match (model, cal.interval_95.get(p), cal.uncertainty.get(p)) {
                 (
                     DispersionModel::Subpixel

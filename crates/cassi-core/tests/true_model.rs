@@ -24,8 +24,8 @@ fn operator(mask: &Mask, bands: usize, m: &Mismatch, model: DispersionModel) -> 
 }
 
 /// Mismatches with split taps under the subpixel model: the paper's, a
-/// non-integer a1 alone (column split only), a tilt alone (row split) and a
-/// larger mix.
+/// non-integer a1 alone (column split only), a tilt alone (row split), a
+/// larger mix and a curved dispersion (band 7 of 8 1.5 px off the line).
 fn mismatches() -> Vec<(&'static str, Mismatch)> {
     vec![
         ("paper", Mismatch::paper()),
@@ -53,6 +53,16 @@ fn mismatches() -> Vec<(&'static str, Mismatch)> {
                 theta_deg: -0.5,
                 a1: 1.85,
                 alpha_deg: -1.5,
+                ..Mismatch::nominal(2.0)
+            },
+        ),
+        (
+            "curved",
+            Mismatch {
+                dx: 0.3,
+                a1: 2.2,
+                alpha_deg: 0.8,
+                a2: -0.03,
                 ..Mismatch::nominal(2.0)
             },
         ),

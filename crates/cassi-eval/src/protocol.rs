@@ -118,7 +118,7 @@ impl ParameterErrors {
     /// One value per parameter, from `f`.
     pub fn from_fn(f: impl Fn(Parameter) -> f64) -> Self {
         let mut m = Mismatch::nominal(0.0);
-        for p in Parameter::ALL {
+        for p in Parameter::CALIBRATED {
             p.set(&mut m, f(p));
         }
         Self(m)
@@ -132,7 +132,7 @@ impl ParameterErrors {
     /// `dx +0.012 px  dy −0.004 px  θ +0.002 °  …`, one decimal more than
     /// the parameters' own precision.
     pub fn format_all(&self) -> String {
-        Parameter::ALL
+        Parameter::CALIBRATED
             .iter()
             .map(|&p| {
                 format!(

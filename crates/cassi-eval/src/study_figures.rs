@@ -134,7 +134,7 @@ pub fn write_summary_figures(
     };
     let scatter = EstimatedVsTrue {
         series_names: vec![format!("{preset} preset")],
-        panels: cassi_core::Parameter::ALL.map(panel).to_vec(),
+        panels: cassi_core::Parameter::CALIBRATED.map(panel).to_vec(),
     };
     write_estimated_vs_true(
         &scatter,

@@ -98,23 +98,23 @@ pub fn per_scene_table(results: &[SceneResult], method: &str) -> String {
 /// True and estimated parameters per scene, errors, and the RMSE.
 pub fn parameter_table(results: &[SceneResult], summary: &Summary) -> String {
     let mut s = String::from("| scene |");
-    for p in Parameter::ALL {
+    for p in Parameter::CALIBRATED {
         let _ = write!(s, " {} true / est. ({}) |", p.name(), p.unit());
     }
     s += " calibration (s) |\n|---|";
-    s += &"---|".repeat(Parameter::ALL.len());
+    s += &"---|".repeat(Parameter::CALIBRATED.len());
     s += "---:|\n";
     for r in results {
         let (t, e) = (r.truth, r.calibration.parameters);
         let _ = write!(s, "| {} |", r.scene);
-        for p in Parameter::ALL {
+        for p in Parameter::CALIBRATED {
             let _ = write!(s, " {} / {} |", p.format(p.get(&t)), p.format(p.get(&e)));
         }
         let _ = writeln!(s, " {:.1} |", r.calibration.seconds);
     }
     let q = summary.parameter_rmse;
     s += "| **RMSE** |";
-    for p in Parameter::ALL {
+    for p in Parameter::CALIBRATED {
         let _ = write!(s, " {:.d$} |", q.get(p), d = p.decimals() + 1);
     }
     let _ = writeln!(s, " median {:.1} |", summary.calibration_seconds_median);
@@ -171,14 +171,14 @@ pub fn outcomes_csv(results: &[SceneResult]) -> String {
 /// parameters' file keys: `theta_deg_true`, `theta_deg_est`, …).
 pub fn parameters_csv(results: &[SceneResult]) -> String {
     let mut s = String::from("scene");
-    for p in Parameter::ALL {
+    for p in Parameter::CALIBRATED {
         let _ = write!(s, ",{0}_true,{0}_est", p.key());
     }
     s += ",calibration_seconds\n";
     for r in results {
         let (t, e) = (r.truth, r.calibration.parameters);
         s += &r.scene;
-        for p in Parameter::ALL {
+        for p in Parameter::CALIBRATED {
             let _ = write!(s, ",{},{}", p.get(&t), p.get(&e));
         }
         let _ = writeln!(s, ",{:.3}", r.calibration.seconds);
@@ -188,7 +188,7 @@ pub fn parameters_csv(results: &[SceneResult]) -> String {
 
 /// Mean PSNR of II, III, IV, ρ and parameter RMSE at each mismatch scale.
 pub fn sensitivity_table(points: &[crate::sweep_rows::SensitivityPoint], preset: &str) -> String {
-    let names = Parameter::ALL.map(|p| p.name()).join(", ");
+    let names = Parameter::CALIBRATED.map(|p| p.name()).join(", ");
     let mut s = format!(
         "| scale | mismatch ({names}) | method | II (dB) | III (dB) | IV (dB) | ρ | RMSE dx / dy (px), θ (°) | `{preset}` calibration median (s) |\n|---:|---|---|---:|---:|---:|---:|---|---:|\n"
     );
@@ -201,7 +201,7 @@ pub fn sensitivity_table(points: &[crate::sweep_rows::SensitivityPoint], preset:
                 s,
                 "| {}× | {} | {} | {:.2} | {:.2} | {:.2} | {:.1} % | {:.3} / {:.3}, {:.3} | {:.1} |",
                 p.scale,
-                Parameter::ALL
+                Parameter::CALIBRATED
                     .iter()
                     .map(|p| p.format(p.get(&m)))
                     .collect::<Vec<_>>()

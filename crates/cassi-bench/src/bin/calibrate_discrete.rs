@@ -50,7 +50,7 @@ fn main() -> anyhow::Result<()> {
     );
     let mut rng = cassi_core::Rng::new(random.unwrap_or(0));
     let mut rows = Vec::new();
-    let mut sq = [0.0f64; Parameter::ALL.len()];
+    let mut sq = [0.0f64; Parameter::CALIBRATED.len()];
     let mut n_recovered = 0;
     for (i, path) in scenes.iter().enumerate() {
         let scene = cassi_io::load_cube(path, None, cassi_io::CubeLayout::Auto)?;
@@ -108,7 +108,7 @@ fn main() -> anyhow::Result<()> {
         let err = ParameterErrors::between(&p, &truth);
         let recovered = recovered(&truth, &p, model, scene.bands());
         n_recovered += usize::from(recovered);
-        for (s, q) in sq.iter_mut().zip(Parameter::ALL) {
+        for (s, q) in sq.iter_mut().zip(Parameter::CALIBRATED) {
             *s += err.get(q).powi(2);
         }
         eprintln!(
@@ -128,7 +128,10 @@ fn main() -> anyhow::Result<()> {
     }
     let n = rows.len() as f64;
     let rmse = ParameterErrors::from_fn(|q| {
-        let i = Parameter::ALL.iter().position(|&x| x == q).unwrap_or(0);
+        let i = Parameter::CALIBRATED
+            .iter()
+            .position(|&x| x == q)
+            .unwrap_or(0);
         (sq[i] / n).sqrt()
     });
     let secs: Vec<f64> = rows

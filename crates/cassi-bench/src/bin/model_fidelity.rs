@@ -44,7 +44,7 @@ const TIMING_REPEATS: usize = 30;
 
 fn per_parameter(f: impl Fn(Parameter) -> f64) -> Value {
     Value::Object(
-        Parameter::ALL
+        Parameter::CALIBRATED
             .iter()
             .map(|&p| (p.key().to_string(), json!(f(p))))
             .collect(),
@@ -63,7 +63,7 @@ fn scene_known_fit(
             .map_or(f64::INFINITY, |m| relative_residual2(y, &m))
     };
     let tol: Vec<f64> = FIT_STEPS.iter().map(|s| s * 1e-3).collect();
-    let mut x: Vec<f64> = Parameter::ALL.iter().map(|p| p.get(truth)).collect();
+    let mut x: Vec<f64> = Parameter::CALIBRATED.iter().map(|p| p.get(truth)).collect();
     let mut f = objective(&x);
     for _ in 0..2 {
         let (xn, fnew, _) = nelder_mead(objective, &x, &FIT_STEPS, FIT_EVALS, &tol, 1e-14);
@@ -86,6 +86,7 @@ fn timing(mask: &Mask, scene: &Cube, model: DispersionModel) -> Value {
         a1: 2.03,
         alpha_deg: 0.5,
         blur_sigma_px: 0.5,
+        a2: 0.0,
     };
     let mut build = Vec::new();
     let mut forward = Vec::new();

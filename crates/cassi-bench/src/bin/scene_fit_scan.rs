@@ -48,6 +48,7 @@ fn step(p: Parameter) -> f64 {
         Parameter::Dx | Parameter::Dy | Parameter::BlurSigmaPx => 0.05,
         Parameter::ThetaDeg => 0.01,
         Parameter::A1 => 0.002,
+        Parameter::A2 => 0.0001,
         Parameter::AlphaDeg => 0.03,
     }
 }
@@ -142,7 +143,7 @@ fn main() -> anyhow::Result<()> {
     let argv: Vec<String> = std::env::args().skip(1).collect();
     let parameter = match argv.as_slice() {
         [] => Parameter::Dx,
-        [flag, key] if flag == "--parameter" => Parameter::ALL
+        [flag, key] if flag == "--parameter" => Parameter::CALIBRATED
             .into_iter()
             .find(|p| p.key() == key)
             .ok_or_else(|| {

@@ -2,6 +2,7 @@
 
 use std::path::PathBuf;
 
+use anyhow::Context;
 use cassi_core::Parameter;
 use cassi_core::calib::{
     A1_SHORT_TILT_DEG, Calibration, CalibrationProblem, Fit, Preset, SHARP_BLUR_PX, StageReport,
@@ -34,6 +35,12 @@ pub struct CalibrateArgs {
     /// offsets, the reference code's model).
     #[arg(long)]
     pub model: Option<DispersionModel>,
+    /// The dispersion's curvature the calibration holds, px per band²
+    /// (band k lands a1·k + a2·k² along the dispersion): your prism's design
+    /// value, if its dispersion is not linear in the band index. Not
+    /// fitted. Default 0 (straight). Default preset only.
+    #[arg(long, allow_hyphen_values = true, default_value_t = 0.0)]
+    pub dispersion_a2: f64,
     /// Output calibration JSON (for `cassi reconstruct --calibration`).
     #[arg(long, short)]
     pub output: PathBuf,
@@ -53,7 +60,9 @@ pub fn run(args: &CalibrateArgs, reporter: &Reporter) -> anyhow::Result<()> {
         set.output("--write-mask", p);
     }
     let checked = set.check()?;
-    let preset = Preset::by_name(&args.preset, args.input.stride)?;
+    let preset = Preset::by_name(&args.preset, args.input.stride)?
+        .with_dispersion_a2(args.dispersion_a2)
+        .context("--dispersion-a2")?;
     let model = args.model.unwrap_or(preset.default_model());
     let (measurement, mask, bands) = args.input.load(reporter, UncodedMask::Refuse)?;
     let problem =

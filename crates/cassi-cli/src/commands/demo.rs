@@ -151,6 +151,9 @@ fn parameter_table(truth: &Mismatch, cal: &Calibration, model: DispersionModel) 
         "parameter", "true", "estimated", "error", "± σ", "|error| / σ", "95 % ±"
     );
     for p in Parameter::ALL {
+        if !p.shown(truth) && !p.shown(&cal.parameters) {
+            continue;
+        }
         let (name, t, e) = (p.label(), p.get(truth), p.get(&cal.parameters));
         if !model.identifies(p) {
             out += &format!(

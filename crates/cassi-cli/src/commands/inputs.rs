@@ -116,6 +116,10 @@ pub struct MismatchArgs {
     /// Dispersion axis angle, degrees.
     #[arg(long, allow_hyphen_values = true)]
     pub alpha: Option<f64>,
+    /// Curvature of the true dispersion, px per band² (band k lands at
+    /// a1·k + a2·k²; default 0, a straight dispersion).
+    #[arg(long, allow_hyphen_values = true)]
+    pub a2: Option<f64>,
     /// Model of the true instrument's dispersion.
     #[arg(long, default_value = "rounded")]
     pub model: DispersionModel,
@@ -157,6 +161,7 @@ impl MismatchArgs {
             Parameter::ThetaDeg => self.theta,
             Parameter::A1 => self.a1,
             Parameter::AlphaDeg => self.alpha,
+            Parameter::A2 => self.a2,
             // the blur is set by `simulate --blur` (with the physical simulator's other settings)
             Parameter::BlurSigmaPx => None,
         }

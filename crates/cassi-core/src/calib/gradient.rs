@@ -60,6 +60,7 @@ impl OperatorDerivative {
         let rates: Vec<(f64, f64)> = (0..disp.bands())
             .map(|k| match p {
                 Parameter::A1 => disp.offset_rate_a1(k),
+                Parameter::A2 => disp.offset_rate_a2(k),
                 _ => disp.offset_rate_alpha_deg(k),
             })
             .collect();
@@ -228,7 +229,7 @@ impl CalibrationProblem<'_> {
                     Parameter::Dx => Some(warp.d_dx.clone()),
                     Parameter::Dy => Some(warp.d_dy.clone()),
                     Parameter::ThetaDeg => Some(warp.d_theta_deg.clone()),
-                    Parameter::A1 | Parameter::AlphaDeg => None,
+                    Parameter::A1 | Parameter::AlphaDeg | Parameter::A2 => None,
                     Parameter::BlurSigmaPx => unreachable!("refused above"),
                 };
                 OperatorDerivative::new(&a, d_mask, p)
@@ -533,9 +534,9 @@ mod tests {
         let model = DispersionModel::Subpixel;
         let (y, mask) = setup(model);
         let problem = problem_of(&y, &mask, model);
-        let params = [Parameter::A1, Parameter::AlphaDeg];
+        let params = [Parameter::A1, Parameter::AlphaDeg, Parameter::A2];
         let (_, g) = problem.score_and_gradient(&AT, &PROXY, &params).unwrap();
-        for ((p, gp), h) in params.iter().zip(g).zip([1e-4, 1e-2]) {
+        for ((p, gp), h) in params.iter().zip(g).zip([1e-4, 1e-2, 1e-5]) {
             let at = |v: f64| {
                 let mut m = AT;
                 p.set(&mut m, p.get(&AT) + v);
@@ -577,6 +578,7 @@ mod tests {
                 let params = DispersionParams {
                     a1: 2.0,
                     alpha_deg: 0.0,
+                    a2: 0.0,
                 };
                 let disp =
                     Dispersion::from_offsets(params, offsets, DispersionModel::Subpixel).unwrap();

@@ -212,6 +212,32 @@ impl Preset {
         }
     }
 
+    /// The preset holding the dispersion's curvature at `a2` px per band²
+    /// (a camera design's value). Only the default preset models one; it
+    /// refuses a curvature outside ±[`MAX_DISPERSION_A2`](crate::params::MAX_DISPERSION_A2).
+    pub fn with_dispersion_a2(self, a2: f64) -> crate::error::Result<Self> {
+        Mismatch {
+            a2,
+            ..Mismatch::nominal(2.0)
+        }
+        .dispersion()
+        .validate()?;
+        match self {
+            Self::Default(p) => Ok(Self::Default(DefaultPreset {
+                dispersion_a2: a2,
+                ..p
+            })),
+            Self::Paper(_) if a2 != 0.0 => Err(crate::error::CassiError::InvalidParameter {
+                name: "a2",
+                value: a2,
+                reason: "the paper preset models a straight dispersion; a curvature needs the \
+                         default preset"
+                    .into(),
+            }),
+            paper => Ok(paper),
+        }
+    }
+
     /// How many of the preset's first recorded stages are its search, before
     /// any refinement (the ablation's search-only variant stops there).
     pub fn search_stages(&self) -> usize {

@@ -183,7 +183,7 @@ impl FinePassFree {
         match self {
             FinePassFree::PoseAndSlope => &[Dx, ThetaDeg, A1],
             FinePassFree::Geometry => &[Dx, Dy, ThetaDeg, A1, AlphaDeg],
-            FinePassFree::All => &Parameter::ALL,
+            FinePassFree::All => &Parameter::CALIBRATED,
         }
     }
 }
@@ -270,6 +270,7 @@ fn difference_step(p: Parameter) -> f64 {
         Parameter::Dx | Parameter::Dy | Parameter::BlurSigmaPx => 0.01,
         Parameter::ThetaDeg => 0.005,
         Parameter::A1 => 0.0005,
+        Parameter::A2 => 0.00002,
         Parameter::AlphaDeg => 0.01,
     }
 }
@@ -878,6 +879,7 @@ mod tests {
             a1: 2.03,
             alpha_deg: 0.3,
             blur_sigma_px: 0.5,
+            a2: 0.0,
         }
     }
 
@@ -1113,7 +1115,7 @@ mod tests {
                 ..truth()
             };
             let solved = fit.solve(&at, None).unwrap();
-            let free = Parameter::ALL;
+            let free = Parameter::CALIBRATED;
             let columns = fit.jacobian(&solved, &free).unwrap();
             let (_, jtr) = normal_equations(&columns, &solved.residual);
             for (i, &p) in free.iter().enumerate() {
@@ -1154,7 +1156,7 @@ mod tests {
             blur_sigma_px: 0.3,
             ..t
         };
-        let found = fit_scene(&fit, &start, &Parameter::ALL).unwrap();
+        let found = fit_scene(&fit, &start, &Parameter::CALIBRATED).unwrap();
         for (p, tol) in [
             (Parameter::Dx, 0.06),
             (Parameter::Dy, 0.06),
@@ -1170,13 +1172,13 @@ mod tests {
         }
         let at_truth = fit.solve(&t, Some(&found.best.z)).unwrap().score;
         assert!(found.best.score <= at_truth * (1.0 + 1e-4));
-        assert_eq!(found.jacobian.len(), Parameter::ALL.len());
+        assert_eq!(found.jacobian.len(), Parameter::CALIBRATED.len());
 
         // the stated errors carry the disagreement with the texture fit: a
         // texture answer 0.4 px of blur away widens σ's bar to at least
         // 0.4/√2, and one that agrees leaves the sandwich and floor alone
         use super::super::uncertainty::scene_fit_uncertainty;
-        let free = Parameter::ALL;
+        let free = Parameter::CALIBRATED;
         let agree = scene_fit_uncertainty(&fit, &found, &free, &found.best.psi);
         let other = Mismatch {
             blur_sigma_px: found.best.psi.blur_sigma_px + 0.4,

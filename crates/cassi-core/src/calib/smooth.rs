@@ -383,6 +383,7 @@ mod tests {
                 let params = DispersionParams {
                     a1: 2.3,
                     alpha_deg: 9.0,
+                    a2: 0.0,
                 };
                 let d = Dispersion::new(5, params, model).unwrap();
                 let mask: Vec<f32> = (0..rows * cols).map(|_| rng.uniform() as f32).collect();

@@ -39,7 +39,7 @@ pub(crate) fn curvature_uncertainty(
                     Parameter::Dx | Parameter::Dy | Parameter::ThetaDeg => Some(0.05),
                     Parameter::A1 => subpixel.then_some(0.005),
                     Parameter::AlphaDeg => subpixel.then_some(0.2),
-                    Parameter::BlurSigmaPx => None,
+                    Parameter::BlurSigmaPx | Parameter::A2 => None,
                 };
                 let sigma = step.and_then(|h| axis(h, &|m, d| p.set(m, p.get(m) + d)));
                 (p, sigma)
@@ -95,7 +95,7 @@ pub fn model_error_floor(
     blur_sigma_px: f64,
 ) -> f64 {
     let f = Floors::of(model, fit);
-    ramped(f.sharp[p.index()], f.wide[p.index()], blur_sigma_px)
+    ramped(measured(&f.sharp, p), measured(&f.wide, p), blur_sigma_px)
 }
 
 /// How far the mask of `rows × cols` (the nominal mask's shape) lands from
@@ -125,7 +125,17 @@ pub fn interval_95_floor(
     blur_sigma_px: f64,
 ) -> f64 {
     let f = Floors::of(model, fit);
-    ramped(f.sharp_95[p.index()], f.wide_95[p.index()], blur_sigma_px)
+    ramped(
+        measured(&f.sharp_95, p),
+        measured(&f.wide_95, p),
+        blur_sigma_px,
+    )
+}
+
+/// A floor table's entry for `p`: 0 for a parameter no preset fits (the
+/// curvature a2, held where it is given), whose floor was never measured.
+fn measured(table: &[f64; Parameter::CALIBRATED.len()], p: Parameter) -> f64 {
+    table.get(p.index()).copied().unwrap_or(0.0)
 }
 
 /// `sharp` up to a fitted blur of [`SHARP_BLUR_PX`], `wide` from
@@ -152,18 +162,21 @@ pub const A1_SHORT_TILT_DEG: f64 = 0.3;
 pub const SHARP_BLUR_PX: f64 = 0.8;
 pub const WIDE_BLUR_PX: f64 = 1.0;
 
-/// One model's floors (per parameter, in [`Parameter::ALL`] order) and the
+/// The parameters with measured floors.
+const N: usize = Parameter::CALIBRATED.len();
+
+/// One model's floors (per parameter, in [`Parameter::CALIBRATED`] order) and the
 /// correlation of its errors, all from its own tuning run.
 struct Floors {
     /// Standard-error floors set on blur 0–0.8 px (x̃ smoothed at
     /// [`SCENE_SMOOTH_PX`](super::texture::SCENE_SMOOTH_PX) = 3 px).
-    sharp: [f64; 6],
+    sharp: [f64; N],
     /// Standard-error floors set on blur 1.0–1.5 px with the ramp applied.
-    wide: [f64; 6],
+    wide: [f64; N],
     /// The 95 % floors on blur 0–0.8 px.
-    sharp_95: [f64; 6],
+    sharp_95: [f64; N],
     /// The 95 % floors on blur 1.0–1.5 px.
-    wide_95: [f64; 6],
+    wide_95: [f64; N],
     /// Correlation of two parameters' errors on the tuning half (all 65
     /// cases: random, aligned and wide-blur; Σ eₐ·e_b / √(Σ eₐ² Σ e_b²)),
     /// printed by `bench/uncertainty_floors.py`. The floors are mostly bias
@@ -171,7 +184,7 @@ struct Floors {
     /// (the band centre's height, dy + ~0.5 px/° · α, is pinned to ~0.03
     /// px), dx with a1, θ with α. The block sandwich alone flagged dy–α in
     /// 2 of 20 fresh held-out cases whose dy and α errors correlated at −0.98.
-    correlation: [[f64; 6]; 6],
+    correlation: [[f64; N]; N],
     /// Whether the fits' disagreement enters weighted by the [`grid_phase`]
     /// (the floors were derived so): on the pixel grid the earlier fits'
     /// slide along dx — the bilinear sampling's cusp at whole-pixel poses,
@@ -396,7 +409,15 @@ const SCENE_POSE_AND_SLOPE_PASS: Floors = Floors {
 };
 
 fn error_correlation(model: DispersionModel, fit: Fit, a: Parameter, b: Parameter) -> f64 {
-    Floors::of(model, fit).correlation[a.index()][b.index()]
+    if a == b {
+        return 1.0;
+    }
+    // none measured for a parameter no preset fits
+    let r = &Floors::of(model, fit).correlation;
+    r.get(a.index())
+        .and_then(|row| row.get(b.index()))
+        .copied()
+        .unwrap_or(0.0)
 }
 
 /// Finite-difference steps of the sandwich, per parameter.
@@ -405,6 +426,7 @@ fn sandwich_step(p: Parameter) -> f64 {
         Parameter::Dx | Parameter::Dy | Parameter::BlurSigmaPx => 0.02,
         Parameter::ThetaDeg => 0.01,
         Parameter::A1 => 0.001,
+        Parameter::A2 => 0.00005,
         Parameter::AlphaDeg => 0.05,
     }
 }
@@ -940,12 +962,12 @@ mod tests {
         type Floor = fn(DispersionModel, Fit, Parameter, f64) -> f64;
         for (model, fit) in FITS {
             let f = Floors::of(model, fit);
-            let sets: [(Floor, &[f64; 6], &[f64; 6]); 2] = [
+            let sets: [(Floor, &[f64; N], &[f64; N]); 2] = [
                 (model_error_floor, &f.sharp, &f.wide),
                 (interval_95_floor, &f.sharp_95, &f.wide_95),
             ];
             for (floor, sharp, wide) in sets {
-                for (i, p) in Parameter::ALL.into_iter().enumerate() {
+                for (i, p) in Parameter::CALIBRATED.into_iter().enumerate() {
                     assert_eq!(p.index(), i);
                     let (sharp, wide) = (sharp[i], wide[i]);
                     assert_eq!(floor(model, fit, p, 0.0), sharp);
@@ -957,7 +979,7 @@ mod tests {
                 }
             }
             // a 95 % interval is wider than two standard errors' floors would say
-            for p in Parameter::ALL {
+            for p in Parameter::CALIBRATED {
                 for blur in [0.0, 0.9, 1.5] {
                     assert!(
                         interval_95_floor(model, fit, p, blur)
@@ -1019,7 +1041,7 @@ mod tests {
     /// correlation decides.
     #[test]
     fn trade_offs_combine_the_sandwich_and_the_floors() {
-        let free = Parameter::ALL;
+        let free = Parameter::CALIBRATED;
         let n = free.len();
         let model = DispersionModel::Subpixel;
         let floor: Vec<f64> = free
@@ -1060,7 +1082,7 @@ mod tests {
     /// ridge of the data.
     #[test]
     fn the_disagreement_widens_the_errors_and_names_no_trade_off() {
-        let free = Parameter::ALL;
+        let free = Parameter::CALIBRATED;
         let n = free.len();
         let (model, fit) = (DispersionModel::DispersedMask, Fit::SceneFinePass);
         let mut sandwich = vec![0.0; n * n];

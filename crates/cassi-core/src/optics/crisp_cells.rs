@@ -516,6 +516,7 @@ mod tests {
             a1,
             alpha_deg: alpha,
             blur_sigma_px: sigma,
+            a2: 0.0,
         }
     }
 

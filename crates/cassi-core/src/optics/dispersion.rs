@@ -1,7 +1,8 @@
 //! The prism: where each band lands on the detector.
 //!
-//! Band k is displaced by `d_k = a1·k·cos α` columns (toward larger column
-//! index) and `a1·k·sin α` rows. Two models of the true instrument:
+//! Band k is displaced by `d_k = a1·k + a2·k²` pixels along the dispersion
+//! axis: `d_k·cos α` columns (toward larger column index) and `d_k·sin α`
+//! rows. Two models of the true instrument:
 //! - `Rounded`: both offsets rounded to integers, round-half-to-even (the
 //!   paper's simulation); a1 and α act only through the rounding pattern.
 //! - `Subpixel`: each band's light is split bilinearly between the
@@ -143,7 +144,7 @@ impl Dispersion {
         let alpha = params.alpha_deg.to_radians();
         let offsets: Vec<(f64, f64)> = (0..bands)
             .map(|k| {
-                let along = params.a1 * k as f64;
+                let along = params.a1 * k as f64 + params.a2 * (k * k) as f64;
                 (along * alpha.cos(), along * alpha.sin())
             })
             .collect();
@@ -196,6 +197,7 @@ impl Dispersion {
             DispersionParams {
                 a1: stride,
                 alpha_deg: 0.0,
+                a2: 0.0,
             },
             model,
         )
@@ -229,10 +231,18 @@ impl Dispersion {
         (k as f64 * alpha.cos(), k as f64 * alpha.sin())
     }
 
+    /// d(col, row offset of band k)/d a2.
+    pub fn offset_rate_a2(&self, k: usize) -> (f64, f64) {
+        let alpha = self.params.alpha_deg.to_radians();
+        let kk = (k * k) as f64;
+        (kk * alpha.cos(), kk * alpha.sin())
+    }
+
     /// d(col, row offset of band k)/d α, per degree.
     pub fn offset_rate_alpha_deg(&self, k: usize) -> (f64, f64) {
         let alpha = self.params.alpha_deg.to_radians();
-        let s = self.params.a1 * k as f64 * std::f64::consts::PI / 180.0;
+        let along = self.params.a1 * k as f64 + self.params.a2 * (k * k) as f64;
+        let s = along * std::f64::consts::PI / 180.0;
         (-s * alpha.sin(), s * alpha.cos())
     }
 
@@ -338,6 +348,7 @@ mod tests {
             DispersionParams {
                 a1: 2.04,
                 alpha_deg: 0.5,
+                a2: 0.0,
             },
             DispersionModel::Rounded,
         )
@@ -353,6 +364,7 @@ mod tests {
             DispersionParams {
                 a1: 1.9,
                 alpha_deg: 0.0,
+                a2: 0.0,
             },
             DispersionModel::Rounded,
         )
@@ -370,6 +382,7 @@ mod tests {
             DispersionParams {
                 a1: 1.25,
                 alpha_deg: 0.0,
+                a2: 0.0,
             },
             DispersionModel::Rounded,
         )
@@ -380,6 +393,7 @@ mod tests {
             DispersionParams {
                 a1: 1.75,
                 alpha_deg: 0.0,
+                a2: 0.0,
             },
             DispersionModel::Rounded,
         )
@@ -394,6 +408,7 @@ mod tests {
             DispersionParams {
                 a1: 1.25,
                 alpha_deg: 0.0,
+                a2: 0.0,
             },
             DispersionModel::Subpixel,
         )
@@ -421,6 +436,7 @@ mod tests {
             DispersionParams {
                 a1: 2.0,
                 alpha_deg: 10.0,
+                a2: 0.0,
             },
             DispersionModel::Subpixel,
         )
@@ -431,13 +447,60 @@ mod tests {
     }
 
     #[test]
+    fn a_curved_dispersion_puts_band_k_at_a1_k_plus_a2_k_squared_along_alpha() {
+        let params = DispersionParams {
+            a1: 2.1,
+            alpha_deg: 1.5,
+            a2: -0.012,
+        };
+        let d = Dispersion::new(28, params, DispersionModel::DispersedMask).unwrap();
+        let (s, c) = 1.5f64.to_radians().sin_cos();
+        for k in [0, 1, 13, 27] {
+            let along = 2.1 * k as f64 - 0.012 * (k * k) as f64;
+            let (dc, dr) = d.offset(k);
+            assert!((dc - along * c).abs() < 1e-12 && (dr - along * s).abs() < 1e-12);
+            // the rates are the offsets' derivatives
+            let h = 1e-6;
+            let at = |a2: f64| {
+                let p = DispersionParams { a2, ..params };
+                Dispersion::new(28, p, DispersionModel::DispersedMask)
+                    .unwrap()
+                    .offset(k)
+            };
+            let ((pc, pr), (mc, mr)) = (at(-0.012 + h), at(-0.012 - h));
+            let (rc, rr) = d.offset_rate_a2(k);
+            assert!((rc - (pc - mc) / (2.0 * h)).abs() < 1e-6, "band {k}");
+            assert!((rr - (pr - mr) / (2.0 * h)).abs() < 1e-6, "band {k}");
+            let at_alpha = |alpha_deg: f64| {
+                let p = DispersionParams {
+                    alpha_deg,
+                    ..params
+                };
+                Dispersion::new(28, p, DispersionModel::DispersedMask)
+                    .unwrap()
+                    .offset(k)
+            };
+            let ((pc, pr), (mc, mr)) = (at_alpha(1.5 + 1e-4), at_alpha(1.5 - 1e-4));
+            let (rc, rr) = d.offset_rate_alpha_deg(k);
+            assert!((rc - (pc - mc) / 2e-4).abs() < 1e-6, "α, band {k}");
+            assert!((rr - (pr - mr) / 2e-4).abs() < 1e-6, "α, band {k}");
+        }
+        // a negative curvature narrows the detector: band 27 at 47.9 columns
+        // instead of 56.7 (the taps reach ⌈·⌉)
+        assert_eq!(d.extra_cols(), 48);
+        let straight = Dispersion::new(28, DispersionParams { a2: 0.0, ..params }, d.model());
+        assert_eq!(straight.unwrap().extra_cols(), 57);
+    }
+
+    #[test]
     fn bad_parameters_are_rejected() {
         assert!(
             Dispersion::new(
                 0,
                 DispersionParams {
                     a1: 2.0,
-                    alpha_deg: 0.0
+                    alpha_deg: 0.0,
+                    a2: 0.0,
                 },
                 DispersionModel::Rounded
             )
@@ -448,7 +511,8 @@ mod tests {
                 28,
                 DispersionParams {
                     a1: -2.0,
-                    alpha_deg: 0.0
+                    alpha_deg: 0.0,
+                    a2: 0.0,
                 },
                 DispersionModel::Rounded
             )
@@ -459,7 +523,8 @@ mod tests {
                 28,
                 DispersionParams {
                     a1: 1e9,
-                    alpha_deg: 0.0
+                    alpha_deg: 0.0,
+                    a2: 0.0,
                 },
                 DispersionModel::Rounded
             )

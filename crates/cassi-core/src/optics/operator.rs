@@ -579,6 +579,7 @@ mod tests {
                     DispersionParams {
                         a1,
                         alpha_deg: alpha,
+                        a2: 0.0,
                     },
                     model,
                 )
@@ -746,6 +747,7 @@ mod tests {
             DispersionParams {
                 a1: 2f64.sqrt(),
                 alpha_deg: 45.0,
+                a2: 0.0,
             },
             DispersionModel::Rounded,
         )
@@ -767,6 +769,7 @@ mod tests {
                 DispersionParams {
                     a1: 1.3,
                     alpha_deg: 7.0,
+                    a2: 0.0,
                 },
                 model,
             )

@@ -13,8 +13,9 @@
 //! - the scene is interpolated bilinearly to the fine centres (edge values held
 //!   beyond the outermost pixel centres);
 //! - band k is displaced by S·(d_k·cos α, d_k·sin α) fine pixels (col, row),
-//!   d_k = a1·k (+ a2·k² with a [`PhysicalSpec::dispersion_a2`]: a prism
-//!   whose dispersion is not linear in the band index), split bilinearly
+//!   d_k = a1·k + a2·k² (a2: ψ's curvature plus any
+//!   [`PhysicalSpec::dispersion_a2`]; a prism whose dispersion is not linear
+//!   in the band index), split bilinearly
 //!   between the neighbouring fine pixels;
 //! - optical blur: a Gaussian of σ_k detector pixels (S·σ_k fine), truncated at
 //!   ⌈4·S·σ_k⌉ fine pixels and normalised, applied separably to the dispersed
@@ -73,9 +74,10 @@ pub struct PhysicalSpec {
     /// written then, so sidecars without one read and write as before).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub halo: Option<Halo>,
-    /// The dispersion's curvature a2, px per band²: band k lands a1·k +
-    /// a2·k² along the dispersion (0: linear, as every model of ours
-    /// assumes; not written then).
+    /// A curvature of the dispersion beyond ψ's own a2, px per band²
+    /// (added to it): a model study's instrument whose truth ψ, the one
+    /// calibrations are scored against, stays straight. 0: none (not
+    /// written then).
     #[serde(default, skip_serializing_if = "is_zero")]
     pub dispersion_a2: f64,
 }
@@ -240,8 +242,8 @@ pub fn physical_detector_shape(
     }
 }
 
-/// Largest |a2| accepted, px per band² (1 px of curvature over 10 bands).
-pub const MAX_DISPERSION_A2: f64 = 0.01;
+/// Largest |a2| accepted, px per band² (ψ's own limit).
+pub use crate::params::MAX_DISPERSION_A2;
 
 /// The bands' offsets on the detector: a1·k (+ a2·k²) along α.
 fn physical_dispersion(
@@ -249,18 +251,11 @@ fn physical_dispersion(
     mismatch: &Mismatch,
     spec: &PhysicalSpec,
 ) -> Result<Dispersion> {
-    if spec.dispersion_a2 == 0.0 {
-        return Dispersion::new(bands, mismatch.dispersion(), DispersionModel::Subpixel);
-    }
-    mismatch.dispersion().validate()?;
-    let alpha = mismatch.alpha_deg.to_radians();
-    let offsets = (0..bands)
-        .map(|k| {
-            let along = mismatch.a1 * k as f64 + spec.dispersion_a2 * (k * k) as f64;
-            (along * alpha.cos(), along * alpha.sin())
-        })
-        .collect();
-    Dispersion::from_offsets(mismatch.dispersion(), offsets, DispersionModel::Subpixel)
+    // the spec's curvature is the instrument's beyond ψ's own (a model
+    // study's error the calibration is not told about)
+    let mut params = mismatch.dispersion();
+    params.a2 += spec.dispersion_a2;
+    Dispersion::new(bands, params, DispersionModel::Subpixel)
 }
 
 /// y = the physical instrument's snapshot of `scene` (+ noise, + ADC).
@@ -1098,7 +1093,7 @@ mod tests {
         let wide = physical_detector_shape(rows, cols, bands, &m, &curved(0.01)).unwrap();
         let plain = physical_detector_shape(rows, cols, bands, &m, &spec(4, 0.0)).unwrap();
         assert_eq!(wide.1, plain.1 + 1);
-        for bad in [0.5, f64::NAN] {
+        for bad in [0.6, f64::NAN] {
             let e = curved(bad).validate().unwrap_err().to_string();
             assert!(e.contains("dispersion_a2"), "{e}");
         }

@@ -84,6 +84,7 @@ pub fn simulate_oversampled(
         dx: m.dx * f as f64,
         dy: m.dy * f as f64,
         a1: m.a1 * f as f64,
+        a2: m.a2 * f as f64,
         ..m
     };
     // the fine grid's block mask is crisp cells already: the crisp-cell

@@ -57,6 +57,7 @@ fn phases(bands: usize) -> Vec<(&'static str, Mismatch)> {
         a1,
         alpha_deg,
         blur_sigma_px: 0.0,
+        a2: 0.0,
     };
     let spread = 2.0 + 1.0 / bands as f64;
     vec![

@@ -41,7 +41,7 @@ use serde_json::{Value, json};
 
 use super::{per_parameter, tolerance};
 
-/// Nelder–Mead's initial steps per parameter (Parameter::ALL order).
+/// Nelder–Mead's initial steps per parameter (Parameter::CALIBRATED order).
 const ORACLE_STEPS: [f64; 6] = [0.1, 0.1, 0.05, 0.005, 0.1, 0.1];
 const ORACLE_MAX_EVALS: usize = 400;
 const ORACLE_F_TOL: f64 = 1e-10;
@@ -49,7 +49,7 @@ const ORACLE_F_TOL: f64 = 1e-10;
 /// leg, until a leg improves f by less than ORACLE_RESTART_GAIN (relative).
 const ORACLE_MAX_RESTARTS: usize = 2;
 const ORACLE_RESTART_GAIN: f64 = 1e-6;
-/// Central-difference steps of the Jacobian (Parameter::ALL order).
+/// Central-difference steps of the Jacobian (Parameter::CALIBRATED order).
 const CRB_STEPS: [f64; 6] = [0.01, 0.01, 0.01, 0.0005, 0.01, 0.01];
 
 /// The detector's noise, as the simulator applies it (noise.rs).
@@ -83,7 +83,7 @@ impl SceneKnown<'_> {
 }
 
 fn vector_of(psi: &Mismatch) -> Vec<f64> {
-    Parameter::ALL.iter().map(|p| p.get(psi)).collect()
+    Parameter::CALIBRATED.iter().map(|p| p.get(psi)).collect()
 }
 
 fn dot(a: &[f64], b: &[f64]) -> f64 {
@@ -143,7 +143,7 @@ fn oracle_fit(model: &SceneKnown, y: &[f64], start: &Mismatch, truth: &Mismatch)
         "estimate": per_parameter(|p| json!(p.get(&est))),
         "error": per_parameter(|p| json!(err(p))),
         "within_tolerance": per_parameter(|p| json!(err(p).abs() <= tolerance(p))),
-        "all_within_tolerance": Parameter::ALL.iter().all(|&p| err(p).abs() <= tolerance(p)),
+        "all_within_tolerance": Parameter::CALIBRATED.iter().all(|&p| err(p).abs() <= tolerance(p)),
         "objective": f,
         "objective_at_truth": objective(model, y, truth),
         "objective_at_start": objective(model, y, start),
@@ -208,7 +208,7 @@ fn crb(model: &SceneKnown, clean: &[f64], truth: &Mismatch, noise: DetectorNoise
     };
     let (_, s) = scaled_residual(clean, &m0);
     let mut columns: Vec<Vec<f64>> = Vec::new();
-    for (&p, &h) in Parameter::ALL.iter().zip(&CRB_STEPS) {
+    for (&p, &h) in Parameter::CALIBRATED.iter().zip(&CRB_STEPS) {
         let Some(d) = derivative(model, truth, p, h) else {
             return json!(null);
         };
@@ -238,7 +238,10 @@ fn crb(model: &SceneKnown, clean: &[f64], truth: &Mismatch, noise: DetectorNoise
         return json!(null);
     };
     per_parameter(|p| {
-        let i = Parameter::ALL.iter().position(|&q| q == p).unwrap_or(0);
+        let i = Parameter::CALIBRATED
+            .iter()
+            .position(|&q| q == p)
+            .unwrap_or(0);
         let v = inv[i][i];
         json!((v > 0.0).then(|| v.sqrt()))
     })
@@ -303,7 +306,7 @@ pub fn error_budget(
             json!({
                 "estimate": per_parameter(|p| json!(p.get(&est))),
                 "error": per_parameter(|p| json!(err(p))),
-                "all_within_tolerance": Parameter::ALL.iter().all(|&p| err(p).abs() <= tolerance(p)),
+                "all_within_tolerance": Parameter::CALIBRATED.iter().all(|&p| err(p).abs() <= tolerance(p)),
                 "seconds": t.elapsed().as_secs_f64(),
             }),
         );
@@ -367,7 +370,7 @@ pub fn describe(limits: &Value) -> String {
             .map_or("–".into(), |v| format!("{v:+.4}"))
     };
     let line = |label: &str, group: &Value| {
-        let cells: Vec<String> = Parameter::ALL
+        let cells: Vec<String> = Parameter::CALIBRATED
             .iter()
             .map(|&p| format!("{} {}", p.name(), cell(group, p)))
             .collect();
@@ -475,7 +478,7 @@ pub fn summarise(rows: &[&Value]) -> Option<Value> {
 pub fn print(limits: &Value) {
     let p = &limits["parameters"];
     let num = |v: &Value| v.as_f64().map_or("–".into(), |x| format!("{x:.4}"));
-    let cells: Vec<String> = Parameter::ALL
+    let cells: Vec<String> = Parameter::CALIBRATED
         .iter()
         .map(|q| {
             let c = &p[q.key()];
@@ -488,7 +491,7 @@ pub fn print(limits: &Value) {
             )
         })
         .collect();
-    let budget: Vec<String> = Parameter::ALL
+    let budget: Vec<String> = Parameter::CALIBRATED
         .iter()
         .map(|q| {
             let c = &p[q.key()];
