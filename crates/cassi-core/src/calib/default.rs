@@ -346,7 +346,7 @@ fn correlation(run: &mut StageRunner<'_>, scores: &Scores<'_>) -> Result<Mismatc
         problem.measurement,
         problem.nominal_mask(),
         problem.bands(),
-        preset.stride,
+        &preset.nominal(),
         preset.window_shift_range,
     )?;
     let start = Mismatch {
@@ -380,7 +380,7 @@ fn pose_from_starts(
         problem.measurement,
         problem.nominal_mask(),
         problem.bands(),
-        preset.stride,
+        &preset.nominal(),
         preset.shift_range,
     )?;
     let points: Vec<Vec<f64>> = [(best.dx, best.dy), (gdx, gdy)]

@@ -42,19 +42,16 @@ struct Textures {
     cols: usize,
 }
 
+/// The measurement's and the `nominal` instrument's (its stride and any
+/// curvature the calibration holds) high-passed images.
 fn textures(
     measurement: &Measurement,
     nominal_mask: &Mask,
     bands: usize,
-    stride: f64,
+    nominal: &Mismatch,
 ) -> Result<Textures> {
     let (h, w) = nominal_mask.shape();
-    let op = CassiOperator::with_mismatch(
-        nominal_mask,
-        bands,
-        &Mismatch::nominal(stride),
-        DispersionModel::Rounded,
-    )?;
+    let op = CassiOperator::with_mismatch(nominal_mask, bands, nominal, DispersionModel::Rounded)?;
     let white = op.forward(&Cube::from_vec(bands, h, w, vec![1.0; bands * h * w])?)?;
     let cols = white.cols().min(measurement.cols());
     let crop = |f: &Frame| -> Frame {
@@ -135,10 +132,10 @@ pub fn correlation_shift(
     measurement: &Measurement,
     nominal_mask: &Mask,
     bands: usize,
-    stride: f64,
+    nominal: &Mismatch,
     range: usize,
 ) -> Result<(f64, f64)> {
-    let t = textures(measurement, nominal_mask, bands, stride)?;
+    let t = textures(measurement, nominal_mask, bands, nominal)?;
     Ok(peak(&t, (0, t.rows), (0, t.cols), range))
 }
 
@@ -157,10 +154,10 @@ pub fn correlation_pose(
     measurement: &Measurement,
     nominal_mask: &Mask,
     bands: usize,
-    stride: f64,
+    nominal: &Mismatch,
     range: usize,
 ) -> Result<(f64, f64, f64)> {
-    let t = textures(measurement, nominal_mask, bands, stride)?;
+    let t = textures(measurement, nominal_mask, bands, nominal)?;
     let (h, w) = nominal_mask.shape();
     let (cy, cx) = ((h as f64 - 1.0) / 2.0, (w as f64 - 1.0) / 2.0);
     // windows over the mask's columns (plus the dispersion spread)
