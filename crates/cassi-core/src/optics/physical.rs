@@ -1053,6 +1053,30 @@ mod tests {
     /// With a curvature a2 band k's point lands a1·k + a2·k² along the
     /// dispersion (light conserved; the default detector widened to hold
     /// it); 0 is the linear dispersion bit for bit; out of range is named.
+    /// ψ's curvature and the spec's are one curvature (their sum): the
+    /// spec's only keeps a model study's out of the truth ψ.
+    #[test]
+    fn the_curvature_in_psi_and_the_spec_s_add() {
+        let (bands, rows, cols) = (6, 16, 16);
+        let scene = smooth_scene(bands, rows, cols);
+        let mask = crate::synth::random_binary_mask(rows, cols, 0.5, 3).unwrap();
+        let run = |psi_a2: f64, spec_a2: f64| {
+            let m = Mismatch {
+                a2: psi_a2,
+                ..mismatch(0.3, -0.2, 0.1, 2.0, 0.4)
+            };
+            let s = PhysicalSpec {
+                dispersion_a2: spec_a2,
+                ..spec(3, 0.5)
+            };
+            simulate_physical(&scene, &mask, &wavelengths(bands), &m, &s, None).unwrap()
+        };
+        let in_psi = run(-0.02, 0.0);
+        assert_eq!(in_psi.as_slice(), run(0.0, -0.02).as_slice());
+        assert_eq!(in_psi.as_slice(), run(-0.01, -0.01).as_slice());
+        assert_ne!(in_psi.as_slice(), run(0.0, 0.0).as_slice());
+    }
+
     #[test]
     fn a_curved_dispersion_moves_band_k_by_a2_k_squared() {
         let (bands, rows, cols) = (6, 21, 21);
