@@ -676,10 +676,13 @@ fn scene_fit_stage(
             let detailed = SceneFit::new(problem, settings)?.with_detail(detail);
             // the first pass's coefficients start it: d is about one on
             // average, so they already hold the scene's smooth factor
+            let cold = pass
+                .cold_above_blur_px
+                .is_some_and(|px| found.best.psi.blur_sigma_px.abs() > px);
             let mut refit = fit_scene_from(
                 &detailed,
                 &found.best.psi,
-                Some(&found.best.z),
+                (!cold).then_some(found.best.z.as_slice()),
                 &moved_by(pass.free),
             )?;
             stage.count(refit.evaluations);

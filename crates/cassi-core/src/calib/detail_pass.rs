@@ -65,6 +65,11 @@ pub struct DetailPass {
     /// settings written before it: 1.
     #[serde(default = "one_group")]
     pub spectral_groups: usize,
+    /// Above this first-pass blur σ (px) the pass solves its scene from
+    /// zero instead of from the first pass's coefficients; `None`: always
+    /// from them (absent in settings written before it).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cold_above_blur_px: Option<f64>,
 }
 
 fn one_group() -> usize {
@@ -78,6 +83,7 @@ impl Default for DetailPass {
             detail_px: 4.0,
             free: FinePassFree::Geometry,
             spectral_groups: 1,
+            cold_above_blur_px: None,
         }
     }
 }
@@ -288,5 +294,21 @@ mod tests {
         // ⌊3k/7⌋: k 0,1,2 → 0; 3,4 → 1; 5,6 → 2
         assert_eq!(l, vec![3.0, 30.0, 7.0, 70.0, 11.0, 110.0]);
         assert_eq!(group_luminance(&cube, plane, 1), vec![21.0, 210.0]);
+    }
+
+    /// Settings written before the cold start above a blur existed read as
+    /// always warm, and a threshold round-trips.
+    #[test]
+    fn the_cold_start_threshold_is_optional_in_settings() {
+        let plain = serde_json::to_value(DetailPass::default()).unwrap();
+        assert!(plain.get("cold_above_blur_px").is_none());
+        let back: DetailPass = serde_json::from_value(plain).unwrap();
+        assert_eq!(back.cold_above_blur_px, None);
+        let cold = DetailPass {
+            cold_above_blur_px: Some(0.85),
+            ..DetailPass::default()
+        };
+        let json = serde_json::to_string(&cold).unwrap();
+        assert_eq!(serde_json::from_str::<DetailPass>(&json).unwrap(), cold);
     }
 }
