@@ -527,6 +527,7 @@ fn joint_refinement(run: &mut StageRunner<'_>, scores: &Scores<'_>, best: Mismat
     let (a1_lo, a1_hi) = rounding_intervals(
         problem.bands(),
         best.alpha_deg,
+        best.a2,
         best.a1 - preset.a1_span,
         best.a1 + preset.a1_span,
     )

@@ -1,6 +1,7 @@
 //! The dispersion stage of the `default` preset for the `rounded` model,
 //! where a1 and α act only through the rounding pattern of the band offsets
-//! (round(a1·k·cos α) columns, round(a1·k·sin α) rows).
+//! (round(d_k·cos α) columns, round(d_k·sin α) rows, d_k = a1·k + a2·k² with
+//! the curvature a2 the calibration holds, 0 unless given).
 //!
 //! Stage 2 fitted (dx, dy) at the nominal pattern (2k, 0); with a drifted
 //! a1 or α it aligned the mask with *some* group of bands. A candidate
@@ -17,12 +18,13 @@ use std::collections::HashSet;
 
 use crate::params::Mismatch;
 
-/// Every band's rounded (col, row) offset.
-fn pattern(a1: f64, alpha_deg: f64, bands: usize) -> Vec<(i64, i64)> {
+/// Every band's rounded (col, row) offset, with the curvature `a2` the
+/// calibration holds.
+fn pattern(a1: f64, alpha_deg: f64, a2: f64, bands: usize) -> Vec<(i64, i64)> {
     let (s, c) = alpha_deg.to_radians().sin_cos();
     (0..bands)
         .map(|k| {
-            let along = a1 * k as f64;
+            let along = a1 * k as f64 + a2 * (k * k) as f64;
             (
                 (along * c).round_ties_even() as i64,
                 (along * s).round_ties_even() as i64,
@@ -32,11 +34,12 @@ fn pattern(a1: f64, alpha_deg: f64, bands: usize) -> Vec<(i64, i64)> {
 }
 
 /// The breakpoints where some band's rounded column offset changes: a1
-/// values with a1·k·cos α = j + ½. Between two consecutive ones the rounded
-/// model is the same operator.
+/// values with (a1·k + a2·k²)·cos α = j + ½. Between two consecutive ones
+/// the rounded model is the same operator.
 pub(crate) fn rounding_intervals(
     bands: usize,
     alpha_deg: f64,
+    a2: f64,
     lo: f64,
     hi: f64,
 ) -> Vec<(f64, f64)> {
@@ -44,12 +47,14 @@ pub(crate) fn rounding_intervals(
     let mut cuts = vec![lo, hi];
     for k in 1..bands {
         let kc = k as f64 * c;
+        // the curvature's share of band k's column offset
+        let bend = a2 * (k * k) as f64 * c;
         let (jlo, jhi) = (
-            (lo * kc - 0.5).floor() as i64,
-            (hi * kc - 0.5).ceil() as i64,
+            (lo * kc + bend - 0.5).floor() as i64,
+            (hi * kc + bend - 0.5).ceil() as i64,
         );
         for j in jlo..=jhi {
-            let a = (j as f64 + 0.5) / kc;
+            let a = (j as f64 + 0.5 - bend) / kc;
             if a > lo && a < hi {
                 cuts.push(a);
             }
@@ -74,13 +79,13 @@ pub(crate) fn rounded_dispersion(
     // hypotheses for the pattern of (a1, α), shifts relative to `base`
     let mut try_pattern =
         |a1: f64, alpha_deg: f64, base: &Mismatch, scored: &mut Vec<(f64, Mismatch)>| {
-            let p = pattern(a1, alpha_deg, bands);
+            let p = pattern(a1, alpha_deg, base.a2, bands);
             if !tried.insert(p.clone()) {
                 return;
             }
             let mut deltas: Vec<(i64, i64)> = p
                 .iter()
-                .zip(&pattern(base.a1, base.alpha_deg, bands))
+                .zip(&pattern(base.a1, base.alpha_deg, base.a2, bands))
                 .map(|(a, b)| (a.0 - b.0, a.1 - b.1))
                 .collect();
             deltas.sort_unstable();
@@ -113,7 +118,7 @@ pub(crate) fn rounded_dispersion(
             .map_or(*from, |c| c.1)
     };
     // a1 at the current α: coarse grid, then every interval near the best
-    let intervals = rounding_intervals(bands, from.alpha_deg, lo, hi);
+    let intervals = rounding_intervals(bands, from.alpha_deg, from.a2, lo, hi);
     let mid = |i: usize| 0.5 * (intervals[i].0 + intervals[i].1);
     let steps = ((hi - lo) / grid_step).round().max(1.0) as usize;
     for j in 0..=steps {
@@ -145,7 +150,7 @@ mod tests {
 
     #[test]
     fn rounding_intervals_cover_the_range_and_break_where_offsets_change() {
-        let iv = rounding_intervals(28, 0.0, 1.9, 2.1);
+        let iv = rounding_intervals(28, 0.0, 0.0, 1.9, 2.1);
         assert_eq!(iv.first().unwrap().0, 1.9);
         assert_eq!(iv.last().unwrap().1, 2.1);
         // a1 = 2.04 lies in the interval [26.5/13, 24.5/12] = [2.03846, 2.04167]
@@ -154,6 +159,24 @@ mod tests {
             (hit.0 - 26.5 / 13.0).abs() < 1e-12 && (hit.1 - 24.5 / 12.0).abs() < 1e-12,
             "{hit:?}"
         );
+    }
+
+    /// With a curvature held, the intervals are still exactly where the
+    /// rounded pattern changes: one pattern across each, another across
+    /// the next.
+    #[test]
+    fn a_curved_dispersion_s_intervals_break_where_its_pattern_changes() {
+        let (a2, alpha) = (-0.008, 0.3);
+        let iv = rounding_intervals(28, alpha, a2, 1.95, 2.25);
+        assert!(iv.len() > 20, "{}", iv.len());
+        for w in iv.windows(2) {
+            let ((a, b), (_, d)) = (w[0], w[1]);
+            let inside = |t: f64| pattern(a + t * (b - a), alpha, a2, 28);
+            assert_eq!(inside(0.01), inside(0.99), "[{a}, {b}]");
+            assert_ne!(inside(0.5), pattern(0.5 * (b + d), alpha, a2, 28), "at {b}");
+        }
+        // the straight dispersion's intervals are not these
+        assert_ne!(iv, rounding_intervals(28, alpha, 0.0, 1.95, 2.25));
     }
 
     #[test]
