@@ -52,7 +52,7 @@
 //! [--no-texture] [--no-scene-fit] [--no-fine-pass] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene]
 //! [--fine-pass-free pose-and-slope|geometry|all] [--scene-cell PX]
 //! [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--no-detail-pass]
-//! [--no-recon] [--no-limits] [--out PATH] [--scene-transform none|flip-cols|flip-rows|transpose] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--model-a2 A2] [--detail-cold-above PX] [--verbose]`
+//! [--no-recon] [--no-limits] [--out PATH] [--scene-transform none|flip-cols|flip-rows|transpose] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--model-a2 A2] [--detail-cold-above PX|none] [--verbose]`
 //! (`--no-texture`: the default preset without its texture fit, as it was
 //! before issue #14 — the "before" row; `--no-scene-fit`: without its
 //! scene fit, ending in the texture fit as the records `*_texture.json`
@@ -62,8 +62,9 @@
 //! `--fine-pass-anchor` and `--fine-pass-free`, this anchor and these
 //! parameters); `--detail-pass FREE`: the scene fit's detail pass
 //! (`calib::DetailPass`) refitting these, `--detail-groups G` with G
-//! detail maps (spectral groups of bands), `--detail-cold-above PX` its
-//! scene solved from zero where the first pass's σ exceeds PX px,
+//! detail maps (spectral groups of bands), `--detail-cold-above PX|none` its
+//! scene solved from zero where the first pass's σ exceeds PX px (the
+//! default 0.85), or never (as the records before it were made),
 //! `--no-detail-pass` without it;
 //! `--halo SHARE,SIGMA_PX` and `--dispersion-a2 A2`: the simulated
 //! instrument with a wide skirt under its blur (`optics::Halo`) or a
@@ -278,7 +279,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
     let mut halo = None;
     let mut dispersion_a2 = 0.0;
     let mut model_a2: Option<f64> = None;
-    let mut detail_cold_above: Option<f64> = None;
+    let mut detail_cold_above: Option<Option<f64>> = None;
     let mut it = argv.iter();
     while let Some(flag) = it.next() {
         let mut value = || {
@@ -332,11 +333,18 @@ fn parse_args(argv: &[String]) -> Result<Args> {
             "--no-detail-pass" => detail_pass = Some(None),
             "--detail-cold-above" => {
                 let v = value()?;
-                let px: f64 = v
-                    .parse()
-                    .with_context(|| format!("--detail-cold-above {v}"))?;
-                ensure!(px >= 0.0, "--detail-cold-above {v}: a blur σ ≥ 0 px");
-                detail_cold_above = Some(px);
+                detail_cold_above = Some(if v == "none" {
+                    None
+                } else {
+                    let px: f64 = v
+                        .parse()
+                        .with_context(|| format!("--detail-cold-above {v}"))?;
+                    ensure!(
+                        px >= 0.0,
+                        "--detail-cold-above {v}: a blur σ ≥ 0 px, or none"
+                    );
+                    Some(px)
+                });
             }
             "--detail-groups" => {
                 let v = value()?;
@@ -485,13 +493,16 @@ fn parse_args(argv: &[String]) -> Result<Args> {
             None => " (no detail pass)".to_string(),
         };
     }
-    if let Some(px) = detail_cold_above {
+    if let Some(threshold) = detail_cold_above {
         let settings = scene_fit_settings(&mut preset, "--detail-cold-above")?;
         let Some(pass) = settings.detail_pass.as_mut() else {
             bail!("--detail-cold-above: the detail pass is off (--no-detail-pass)");
         };
-        pass.cold_above_blur_px = Some(px);
-        preset_name += &format!(" (detail pass from zero above σ {px} px)");
+        pass.cold_above_blur_px = threshold;
+        preset_name += &match threshold {
+            Some(px) => format!(" (detail pass from zero above σ {px} px)"),
+            None => " (detail pass always warm-started)".to_string(),
+        };
     }
     if let Some(groups) = detail_groups {
         let settings = scene_fit_settings(&mut preset, "--detail-groups")?;
