@@ -375,28 +375,36 @@ fn eval_resume_recomputes_a_scene_whose_mask_changed() {
 /// it before records had a header), a simulation sidecar or a bare
 /// parameter object; another kind of record or a newer version is refused,
 /// naming the file.
+/// The model parameters `cassi reconstruct --calibration FILE` reports
+/// having used (two GAP-TV iterations).
+fn model_parameters(meas: &Path, mask: &Path, calibration: &Path, out: &Path) -> serde_json::Value {
+    let run = cassi(&[
+        "reconstruct",
+        s(meas),
+        "--mask",
+        s(mask),
+        "--calibration",
+        s(calibration),
+        "--iterations",
+        "2",
+        "-o",
+        s(out),
+        "--json",
+    ]);
+    ok(&run);
+    let report: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+    report["model_parameters"].clone()
+}
+
 #[test]
 fn calibration_files_are_typed_records_or_parameter_objects() {
     let d = dir("records");
     let (meas, mask) = simulated(&d);
     let out = d.join("r.npy");
     let reconstruct = |calibration: &Path| {
-        let run = cassi(&[
-            "reconstruct",
-            s(&meas),
-            "--mask",
-            s(&mask),
-            "--calibration",
-            s(calibration),
-            "--iterations",
-            "2",
-            "-o",
-            s(&out),
-            "--json",
-        ]);
-        ok(&run);
-        let report: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
-        report["model_parameters"]["dx"].as_f64().unwrap()
+        model_parameters(&meas, &mask, calibration, &out)["dx"]
+            .as_f64()
+            .unwrap()
     };
     let v0 = Path::new(env!("CARGO_MANIFEST_DIR")).join("../cassi-eval/tests/fixtures/v0");
     assert_eq!(
@@ -462,31 +470,14 @@ fn a_curved_dispersion_travels_from_the_calibration_to_the_model() {
     let d = dir("curved");
     let (meas, mask) = simulated(&d);
     let out = d.join("r.npy");
-    let reconstruct = |calibration: &Path| {
-        cassi(&[
-            "reconstruct",
-            s(&meas),
-            "--mask",
-            s(&mask),
-            "--calibration",
-            s(calibration),
-            "--iterations",
-            "2",
-            "-o",
-            s(&out),
-            "--json",
-        ])
-    };
     let curved = d.join("curved.json");
     std::fs::write(
         &curved,
         r#"{"dx": 0.25, "dy": 0, "theta_deg": 0, "a1": 2, "alpha_deg": 0, "a2": -0.008}"#,
     )
     .unwrap();
-    let run = reconstruct(&curved);
-    ok(&run);
-    let report: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
-    assert_eq!(report["model_parameters"]["a2"].as_f64(), Some(-0.008));
+    let used = model_parameters(&meas, &mask, &curved, &out);
+    assert_eq!(used["a2"].as_f64(), Some(-0.008));
     // beyond the guard: refused, naming the file and the parameter
     let bad = d.join("bad.json");
     std::fs::write(
