@@ -23,5 +23,7 @@ for a2 in "${values[@]}"; do
       --dispersion-a2 "$a2" -o "$out/$name.a2_$a2.calib.json"
   done
 done
-python3 bench/real_data_a2_table.py "$out" > "$out/README.md"
+# written whole or not at all
+python3 bench/real_data_a2_table.py "$out" > "$out/README.md.tmp"
+mv "$out/README.md.tmp" "$out/README.md"
 echo "wrote $out/README.md"

@@ -56,6 +56,21 @@ pub struct DispersionParams {
 /// fine grids count 2–4 pixels per detector pixel.
 pub const MAX_DISPERSION_A2: f64 = 0.5;
 
+/// A dispersion curvature a2 (px per band²) within ±[`MAX_DISPERSION_A2`].
+pub fn validate_curvature(a2: f64) -> Result<()> {
+    finite("a2", a2)?;
+    if a2.abs() > MAX_DISPERSION_A2 {
+        return Err(CassiError::InvalidParameter {
+            name: "a2",
+            value: a2,
+            reason: format!(
+                "the dispersion's curvature must lie within ±{MAX_DISPERSION_A2} pixels per band²"
+            ),
+        });
+    }
+    Ok(())
+}
+
 pub(crate) fn is_zero(v: &f64) -> bool {
     *v == 0.0
 }
@@ -379,18 +394,7 @@ impl DispersionParams {
             });
         }
         angle("alpha_deg", self.alpha_deg)?;
-        finite("a2", self.a2)?;
-        if self.a2.abs() > MAX_DISPERSION_A2 {
-            return Err(CassiError::InvalidParameter {
-                name: "a2",
-                value: self.a2,
-                reason: format!(
-                    "the dispersion's curvature must lie within ±{MAX_DISPERSION_A2} pixels per \
-                     band²"
-                ),
-            });
-        }
-        Ok(())
+        validate_curvature(self.a2)
     }
 }
 

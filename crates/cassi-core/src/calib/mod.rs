@@ -216,12 +216,7 @@ impl Preset {
     /// (a camera design's value). Only the default preset models one; it
     /// refuses a curvature outside ±[`MAX_DISPERSION_A2`](crate::params::MAX_DISPERSION_A2).
     pub fn with_dispersion_a2(self, a2: f64) -> crate::error::Result<Self> {
-        Mismatch {
-            a2,
-            ..Mismatch::nominal(2.0)
-        }
-        .dispersion()
-        .validate()?;
+        crate::params::validate_curvature(a2)?;
         match self {
             Self::Default(p) => Ok(Self::Default(DefaultPreset {
                 dispersion_a2: a2,

@@ -134,7 +134,7 @@ pub fn interval_95_floor(
 
 /// A floor table's entry for `p`: 0 for a parameter no preset fits (the
 /// curvature a2, held where it is given), whose floor was never measured.
-fn measured(table: &[f64; Parameter::CALIBRATED.len()], p: Parameter) -> f64 {
+fn measured(table: &[f64; FLOORED], p: Parameter) -> f64 {
     table.get(p.index()).copied().unwrap_or(0.0)
 }
 
@@ -162,21 +162,21 @@ pub const A1_SHORT_TILT_DEG: f64 = 0.3;
 pub const SHARP_BLUR_PX: f64 = 0.8;
 pub const WIDE_BLUR_PX: f64 = 1.0;
 
-/// The parameters with measured floors.
-const N: usize = Parameter::CALIBRATED.len();
+/// How many parameters have measured floors (the calibrated ones).
+const FLOORED: usize = Parameter::CALIBRATED.len();
 
 /// One model's floors (per parameter, in [`Parameter::CALIBRATED`] order) and the
 /// correlation of its errors, all from its own tuning run.
 struct Floors {
     /// Standard-error floors set on blur 0–0.8 px (x̃ smoothed at
     /// [`SCENE_SMOOTH_PX`](super::texture::SCENE_SMOOTH_PX) = 3 px).
-    sharp: [f64; N],
+    sharp: [f64; FLOORED],
     /// Standard-error floors set on blur 1.0–1.5 px with the ramp applied.
-    wide: [f64; N],
+    wide: [f64; FLOORED],
     /// The 95 % floors on blur 0–0.8 px.
-    sharp_95: [f64; N],
+    sharp_95: [f64; FLOORED],
     /// The 95 % floors on blur 1.0–1.5 px.
-    wide_95: [f64; N],
+    wide_95: [f64; FLOORED],
     /// Correlation of two parameters' errors on the tuning half (all 65
     /// cases: random, aligned and wide-blur; Σ eₐ·e_b / √(Σ eₐ² Σ e_b²)),
     /// printed by `bench/uncertainty_floors.py`. The floors are mostly bias
@@ -184,7 +184,7 @@ struct Floors {
     /// (the band centre's height, dy + ~0.5 px/° · α, is pinned to ~0.03
     /// px), dx with a1, θ with α. The block sandwich alone flagged dy–α in
     /// 2 of 20 fresh held-out cases whose dy and α errors correlated at −0.98.
-    correlation: [[f64; N]; N],
+    correlation: [[f64; FLOORED]; FLOORED],
     /// Whether the fits' disagreement enters weighted by the [`grid_phase`]
     /// (the floors were derived so): on the pixel grid the earlier fits'
     /// slide along dx — the bilinear sampling's cusp at whole-pixel poses,
@@ -962,7 +962,7 @@ mod tests {
         type Floor = fn(DispersionModel, Fit, Parameter, f64) -> f64;
         for (model, fit) in FITS {
             let f = Floors::of(model, fit);
-            let sets: [(Floor, &[f64; N], &[f64; N]); 2] = [
+            let sets: [(Floor, &[f64; FLOORED], &[f64; FLOORED]); 2] = [
                 (model_error_floor, &f.sharp, &f.wide),
                 (interval_95_floor, &f.sharp_95, &f.wide_95),
             ];
