@@ -381,6 +381,13 @@ impl MaskPose {
 }
 
 impl DispersionParams {
+    /// How far band `band` (0 = the reference band; fractional for a band
+    /// centre) lands along the dispersion axis, px: a1·k + a2·k², the one
+    /// place the dispersion's shape is written.
+    pub fn along(&self, band: f64) -> f64 {
+        self.a1 * band + self.a2 * (band * band)
+    }
+
     pub fn validate(&self) -> Result<()> {
         finite("a1", self.a1)?;
         if !(MIN_SLOPE < self.a1 && self.a1 < MAX_SLOPE) {

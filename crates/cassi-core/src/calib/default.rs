@@ -677,9 +677,7 @@ fn scene_fit_stage(
             let detailed = SceneFit::new(problem, settings)?.with_detail(detail);
             // the first pass's coefficients start it: d is about one on
             // average, so they already hold the scene's smooth factor
-            let cold = pass
-                .cold_above_blur_px
-                .is_some_and(|px| found.best.psi.blur_sigma_px.abs() > px);
+            let cold = pass.starts_cold(found.best.psi.blur_sigma_px);
             let mut refit = fit_scene_from(
                 &detailed,
                 &found.best.psi,

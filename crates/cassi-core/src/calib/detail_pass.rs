@@ -155,7 +155,25 @@ impl DetailPass {
                 });
             }
         }
+        if let Some(px) = self.cold_above_blur_px {
+            if !(px.is_finite() && px >= 0.0) {
+                return Err(CassiError::InvalidParameter {
+                    name: "detail_pass.cold_above_blur_px",
+                    value: px,
+                    reason: "a blur σ in pixels, 0 or more (absent: always from the first pass's \
+                             scene)"
+                        .into(),
+                });
+            }
+        }
         Ok(())
+    }
+
+    /// Whether the pass solves its scene from zero after a first pass that
+    /// fitted the blur σ `first_pass_blur_px` (strictly above the threshold).
+    pub(crate) fn starts_cold(&self, first_pass_blur_px: f64) -> bool {
+        self.cold_above_blur_px
+            .is_some_and(|px| first_pass_blur_px.abs() > px)
     }
 }
 
@@ -318,5 +336,31 @@ mod tests {
         assert_eq!(cold.cold_above_blur_px, Some(0.85));
         let json = serde_json::to_string(&cold).unwrap();
         assert_eq!(serde_json::from_str::<DetailPass>(&json).unwrap(), cold);
+    }
+
+    /// The default starts cold only above 0.85 px (the tuning half's wide
+    /// cases), never without a threshold, and a threshold that is not a
+    /// width is refused by name.
+    #[test]
+    fn the_pass_starts_cold_only_above_its_threshold() {
+        let pass = DetailPass::default();
+        assert!(!pass.starts_cold(0.5) && !pass.starts_cold(0.85));
+        assert!(pass.starts_cold(0.858) && pass.starts_cold(1.2));
+        let warm = DetailPass {
+            cold_above_blur_px: None,
+            ..pass
+        };
+        assert!(!warm.starts_cold(5.0));
+        assert!(warm.check(28).is_ok() && pass.check(28).is_ok());
+        for bad in [-0.1, f64::NAN, f64::INFINITY] {
+            let e = DetailPass {
+                cold_above_blur_px: Some(bad),
+                ..pass
+            }
+            .check(28)
+            .unwrap_err()
+            .to_string();
+            assert!(e.contains("detail_pass.cold_above_blur_px"), "{e}");
+        }
     }
 }

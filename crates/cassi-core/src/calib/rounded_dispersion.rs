@@ -16,15 +16,16 @@
 
 use std::collections::HashSet;
 
-use crate::params::Mismatch;
+use crate::params::{DispersionParams, Mismatch};
 
 /// Every band's rounded (col, row) offset, with the curvature `a2` the
 /// calibration holds.
 fn pattern(a1: f64, alpha_deg: f64, a2: f64, bands: usize) -> Vec<(i64, i64)> {
     let (s, c) = alpha_deg.to_radians().sin_cos();
+    let shape = DispersionParams { a1, alpha_deg, a2 };
     (0..bands)
         .map(|k| {
-            let along = a1 * k as f64 + a2 * (k * k) as f64;
+            let along = shape.along(k as f64);
             (
                 (along * c).round_ties_even() as i64,
                 (along * s).round_ties_even() as i64,

@@ -24,8 +24,7 @@ pub(crate) fn subpixel_tilt(
     alpha_range_deg: f64,
 ) -> Vec<(f64, Mismatch)> {
     let mid = 0.5 * bands.saturating_sub(1) as f64;
-    let row_mid =
-        |m: &Mismatch| m.dy + (m.a1 * mid + m.a2 * mid * mid) * m.alpha_deg.to_radians().sin();
+    let row_mid = |m: &Mismatch| m.dy + m.dispersion().along(mid) * m.alpha_deg.to_radians().sin();
     let n = (alpha_range_deg / 0.25).round() as i64;
     let mut scored = vec![(search(from), *from)];
     for i in -n..=n {

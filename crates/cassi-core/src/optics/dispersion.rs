@@ -144,7 +144,7 @@ impl Dispersion {
         let alpha = params.alpha_deg.to_radians();
         let offsets: Vec<(f64, f64)> = (0..bands)
             .map(|k| {
-                let along = params.a1 * k as f64 + params.a2 * (k * k) as f64;
+                let along = params.along(k as f64);
                 (along * alpha.cos(), along * alpha.sin())
             })
             .collect();
@@ -241,7 +241,7 @@ impl Dispersion {
     /// d(col, row offset of band k)/d α, per degree.
     pub fn offset_rate_alpha_deg(&self, k: usize) -> (f64, f64) {
         let alpha = self.params.alpha_deg.to_radians();
-        let along = self.params.a1 * k as f64 + self.params.a2 * (k * k) as f64;
+        let along = self.params.along(k as f64);
         let s = along * std::f64::consts::PI / 180.0;
         (-s * alpha.sin(), s * alpha.cos())
     }
