@@ -155,16 +155,16 @@ impl DetailPass {
                 });
             }
         }
-        if let Some(px) = self.cold_above_blur_px {
-            if !(px.is_finite() && px >= 0.0) {
-                return Err(CassiError::InvalidParameter {
-                    name: "detail_pass.cold_above_blur_px",
-                    value: px,
-                    reason: "a blur σ in pixels, 0 or more (absent: always from the first pass's \
-                             scene)"
-                        .into(),
-                });
-            }
+        if let Some(px) = self.cold_above_blur_px
+            && !(px.is_finite() && px >= 0.0)
+        {
+            return Err(CassiError::InvalidParameter {
+                name: "detail_pass.cold_above_blur_px",
+                value: px,
+                reason: "a blur σ in pixels, 0 or more (absent: always from the first pass's \
+                         scene)"
+                    .into(),
+            });
         }
         Ok(())
     }
