@@ -510,6 +510,10 @@ fn a_curved_dispersion_travels_from_the_calibration_to_the_model() {
     let record: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&cal).unwrap()).unwrap();
     assert_eq!(record["parameters"]["a2"].as_f64(), Some(-0.004));
+    // a curved dispersion also runs the fits from the nominal a1
+    let stages = record["stages"].as_array().expect("stages");
+    let restart = cassi_core::calib::NOMINAL_A1_RESTART_STAGE;
+    assert!(stages.iter().any(|st| st["name"] == restart), "{stages:?}");
     std::fs::remove_file(&cal).unwrap();
     for (extra, needles) in [
         (

@@ -36,7 +36,8 @@ use serde::{Deserialize, Serialize};
 
 pub use adam::AdamSettings;
 pub use default::{
-    DETAIL_PASS_STAGE, DefaultPreset, SCENE_FIT_STAGE, calibrate_default, texture_fit,
+    DETAIL_PASS_STAGE, DefaultPreset, NOMINAL_A1_RESTART_STAGE, SCENE_FIT_STAGE, calibrate_default,
+    texture_fit,
 };
 pub use detail_pass::DetailPass;
 pub use gradient::Parameter;
