@@ -744,8 +744,9 @@ fn scene_fit_stage(
 /// dispersion without a blur, exact for a straight dispersion at a1 = the
 /// stride and for no a1 once it is curved; on the tuning half's aligned
 /// cases with a2 = −0.008 held (the instrument's) they scored the truth
-/// 10–40 % worse than a wrong family (a1 2.06–2.11 with the mask 0.5 or
-/// 1.5 px off), whence the fits that followed never left it
+/// worse than a wrong family (a1 2.06–2.11 with the mask 0.5 or 1.5 px
+/// off; probe builds, not recorded), whence the fits that followed never
+/// left it
 /// (`…_dispersion_a2_-0.008_model_a2_-0.008.json` against
 /// `…_model_a2_-0.008_restart.json`). Straight dispersions skip it: their
 /// front end is exact at the stride.
