@@ -747,6 +747,37 @@ fn with_disagreement(
     FitSpread { sandwich, total }
 }
 
+/// `stated` (the errors of `chosen`) with the disagreement of two starts'
+/// answers, `chosen` and `other`, added as [`with_disagreement`] adds the
+/// fits' (d dᵀ/2 on the covariance, d = chosen − other, weight 1): each
+/// standard error becomes hypot(s, |d|/√2) and each 95 % half-width
+/// hypot(h, √2 |d|) — exactly what the term does to the diagonal under
+/// the floors, since the floors enter in quadrature. Two starts that end
+/// in different optima leave the truth near either; the objective's choice
+/// between them is not an error bar. Trade-offs (read without any
+/// disagreement) are kept.
+pub(crate) fn with_restart_disagreement(
+    stated: UncertaintyEstimate,
+    chosen: &Mismatch,
+    other: &Mismatch,
+) -> UncertaintyEstimate {
+    let widen = |u: Uncertainty, k: f64| {
+        Uncertainty(
+            u.0.into_iter()
+                .map(|(p, s)| {
+                    let d = (p.get(chosen) - p.get(other)).abs();
+                    (p, s.map(|s| s.hypot(k * d)))
+                })
+                .collect(),
+        )
+    };
+    UncertaintyEstimate {
+        standard: widen(stated.standard, std::f64::consts::FRAC_1_SQRT_2),
+        interval_95: widen(stated.interval_95, std::f64::consts::SQRT_2),
+        ..stated
+    }
+}
+
 /// The weight of the fits' disagreement in `fit`'s stated errors at `at`
 /// on `problem`'s instrument: its [`grid_phase`] where `fit`'s floors were
 /// derived so (`Floors::disagreement_by_phase`), 1 elsewhere.
@@ -1174,5 +1205,60 @@ mod tests {
             }
         }
         assert!(invert_positive_definite(&[1.0, 2.0, 2.0, 1.0], 2).is_none());
+    }
+    /// Two starts' disagreement widens each stated error exactly as the
+    /// term d dᵀ/2 on the covariance would under the floors; equal answers
+    /// leave the errors as they were, a parameter without an error stays so.
+    #[test]
+    fn the_restart_disagreement_is_the_covariance_term_under_the_floors() {
+        use Parameter::{A1, BlurSigmaPx, Dx, ThetaDeg};
+        let (model, fit) = (DispersionModel::DispersedMask, Fit::SceneDetailPass);
+        let free = [Dx, ThetaDeg, A1, BlurSigmaPx];
+        let chosen = Mismatch {
+            dx: 0.3,
+            theta_deg: 0.1,
+            a1: 2.01,
+            blur_sigma_px: 0.6,
+            ..Mismatch::nominal(2.0)
+        };
+        let other = Mismatch {
+            dx: -0.2,
+            theta_deg: 0.1,
+            a1: 2.03,
+            ..chosen
+        };
+        let sandwich: Vec<f64> = (0..16)
+            .map(|ij| match (ij / 4, ij % 4) {
+                (i, j) if i == j => [4e-4, 1e-4, 2e-6, 9e-4][i],
+                (0, 2) | (2, 0) => 1e-5,
+                _ => 0.0,
+            })
+            .collect();
+        let plain = FitSpread {
+            sandwich: sandwich.clone(),
+            total: sandwich.clone(),
+        };
+        let base = stated(model, fit, &free, &chosen, &plain, 0);
+        let widened = with_restart_disagreement(base, &chosen, &other);
+        let with_term = with_disagreement(sandwich, &free, (&chosen, &other), 1.0);
+        let want = stated(model, fit, &free, &chosen, &with_term, 0);
+        for &p in &free {
+            for (got, want) in [
+                (&widened.standard, &want.standard),
+                (&widened.interval_95, &want.interval_95),
+            ] {
+                let (g, w) = (got.get(p).unwrap(), want.get(p).unwrap());
+                assert!((g - w).abs() <= 1e-12 * w, "{p:?}: {g} vs {w}");
+            }
+        }
+        // dx's answers 0.5 px apart: its 95 % half-width at least √2·0.5
+        assert!(widened.interval_95.get(Dx).unwrap() >= 0.5 * std::f64::consts::SQRT_2);
+        let base = stated(model, fit, &free, &chosen, &plain, 0);
+        let same = with_restart_disagreement(base, &chosen, &chosen);
+        let base = stated(model, fit, &free, &chosen, &plain, 0);
+        assert_eq!(same.standard, base.standard);
+        assert_eq!(same.interval_95, base.interval_95);
+        let none = with_restart_disagreement(unstated(fit, &free), &chosen, &other);
+        assert!(free.iter().all(|&p| none.standard.get(p).is_none()));
     }
 }
