@@ -1,7 +1,8 @@
 //! Where the scene fit's aligned-instrument bias comes from: its score
 //! along one parameter (dx unless `--parameter KEY`; every other parameter
 //! at the truth, the coarse scene solved to convergence at each point) on the tuning half's aligned-with-blur
-//! instruments at σ 0.5 px (the calibration benchmark's seeds), each
+//! instruments at σ 0.5 px (`--sigma 0.3|0.7` for the benchmark's other
+//! aligned slots; the calibration benchmark's seeds), each
 //! measured three ways:
 //!
 //! - `physical`: the benchmark's instrument (4× oversampled simulator,
@@ -18,9 +19,9 @@
 //! not by the model. Only tuning-half scenes (a diagnosis, not a figure).
 //!
 //! Run: `cargo run --release -p cassi-bench --bin scene_fit_scan [-- --parameter
-//! dx|dy|theta_deg|a1|alpha_deg|blur_sigma_px]`. Writes
+//! dx|dy|theta_deg|a1|alpha_deg|blur_sigma_px] [--sigma 0.3|0.5|0.7]`. Writes
 //! `bench/results/scene_fit_scan.json` for dx, `scene_fit_scan_<key>.json`
-//! otherwise (or $CASSI_BENCH_OUT).
+//! otherwise, `…_sigma<σ>.json` at another σ (or $CASSI_BENCH_OUT).
 
 use std::time::Instant;
 
@@ -33,11 +34,11 @@ use cassi_core::{Cube, Mask, Measurement, Mismatch, Parameter, STANDARD_WAVELENG
 use cassi_eval::machine::Machine;
 
 /// The calibration benchmark's: tuning seeds 14 000 + 20·scene + slot,
-/// aligned σ 0.5 px in slot 18; its detector and noise.
+/// its aligned blurs (σ px, slot) and its detector and noise.
 const TUNING_SCENES: usize = 5;
 const SEED_BASE: u64 = 14_000;
-const SLOT: u64 = 18;
-const SIGMA_PX: f64 = 0.5;
+const ALIGNED_SLOTS: [(f64, u64); 3] = [(0.3, 17), (0.5, 18), (0.7, 19)];
+const DEFAULT_SIGMA_PX: f64 = 0.5;
 const DETECTOR: (usize, usize) = (256, 310);
 const STEPS: i32 = 10;
 
@@ -141,24 +142,55 @@ fn measure(
 fn main() -> anyhow::Result<()> {
     let t0 = Instant::now();
     let argv: Vec<String> = std::env::args().skip(1).collect();
-    let parameter = match argv.as_slice() {
-        [] => Parameter::Dx,
-        [flag, key] if flag == "--parameter" => Parameter::CALIBRATED
-            .into_iter()
-            .find(|p| p.key() == key)
-            .ok_or_else(|| {
-                anyhow::anyhow!(
-                    "--parameter {key}: expected dx, dy, theta_deg, a1, alpha_deg or blur_sigma_px"
-                )
-            })?,
-        _ => anyhow::bail!("usage: scene_fit_scan [--parameter KEY]"),
-    };
+    const USAGE: &str = "usage: scene_fit_scan [--parameter KEY] [--sigma 0.3|0.5|0.7]";
+    let (mut parameter, mut sigma_px) = (Parameter::Dx, DEFAULT_SIGMA_PX);
+    let mut args = argv.iter();
+    while let Some(flag) = args.next() {
+        let value = args
+            .next()
+            .ok_or_else(|| anyhow::anyhow!("{flag}: a value expected; {USAGE}"))?;
+        match flag.as_str() {
+            "--parameter" => {
+                parameter = Parameter::CALIBRATED
+                    .into_iter()
+                    .find(|p| p.key() == value)
+                    .ok_or_else(|| {
+                        anyhow::anyhow!(
+                            "--parameter {value}: expected dx, dy, theta_deg, a1, alpha_deg or blur_sigma_px"
+                        )
+                    })?
+            }
+            "--sigma" => {
+                sigma_px = ALIGNED_SLOTS
+                    .iter()
+                    .map(|&(sigma, _)| sigma)
+                    .find(|&sigma| value.parse::<f64>().ok() == Some(sigma))
+                    .ok_or_else(|| {
+                        anyhow::anyhow!(
+                            "--sigma {value}: the benchmark's aligned blurs are 0.3, 0.5 and 0.7 px"
+                        )
+                    })?
+            }
+            _ => anyhow::bail!("{flag}: unknown; {USAGE}"),
+        }
+    }
+    let slot = ALIGNED_SLOTS
+        .iter()
+        .find(|&&(sigma, _)| sigma == sigma_px)
+        .map(|&(_, slot)| slot)
+        .expect("sigma_px is one of ALIGNED_SLOTS");
     let path = std::env::var("CASSI_BENCH_OUT").unwrap_or_else(|_| {
-        let name = match parameter {
-            Parameter::Dx => "scene_fit_scan.json".to_string(),
-            p => format!("scene_fit_scan_{}.json", p.key()),
+        let mut name = match parameter {
+            Parameter::Dx => "scene_fit_scan".to_string(),
+            p => format!("scene_fit_scan_{}", p.key()),
         };
-        format!("{}/../../bench/results/{name}", env!("CARGO_MANIFEST_DIR"))
+        if sigma_px != DEFAULT_SIGMA_PX {
+            name += &format!("_sigma{sigma_px}");
+        }
+        format!(
+            "{}/../../bench/results/{name}.json",
+            env!("CARGO_MANIFEST_DIR")
+        )
     });
     // the record's folder before the work, not after it
     if let Some(dir) = std::path::Path::new(&path).parent() {
@@ -173,18 +205,26 @@ fn main() -> anyhow::Result<()> {
     settings.cold_solve.iterations = 300;
     settings.cold_solve.tolerance = 1e-8;
     let truth = Mismatch {
-        blur_sigma_px: SIGMA_PX,
+        blur_sigma_px: sigma_px,
         ..Mismatch::nominal(2.0)
     };
     let at_truth = parameter.get(&truth);
+    // a blur below zero is no instrument: σ's scan starts at 0 when ±10
+    // steps would cross it
     let values: Vec<f64> = (-STEPS..=STEPS)
         .map(|i| at_truth + i as f64 * step(parameter))
+        .filter(|&v| parameter != Parameter::BlurSigmaPx || v >= -1e-12)
+        .map(|v| v.max(0.0))
         .collect();
+    let centre_at = values
+        .iter()
+        .position(|&v| (v - at_truth).abs() < 1e-9)
+        .expect("the truth is on the scan");
     let mut rows = Vec::new();
     for (index, path) in scenes.iter().take(TUNING_SCENES).enumerate() {
         let name = cassi_bench::scene_name(path);
         let scene = cassi_io::load_cube(path, None, cassi_io::CubeLayout::Auto)?;
-        let seed = SEED_BASE + 20 * index as u64 + SLOT;
+        let seed = SEED_BASE + 20 * index as u64 + slot;
         for kind in Measured::ALL {
             let y = measure(kind, &scene, &settings, &mask, &truth, seed)?;
             let problem = CalibrationProblem::nominal(
@@ -202,10 +242,10 @@ fn main() -> anyhow::Result<()> {
                     scene_fit_score(&problem, &settings, &psi)
                 })
                 .collect::<Result<Vec<f64>, _>>()?;
-            let centre = scores[STEPS as usize];
+            let centre = scores[centre_at];
             let lowest = minimum(&values, &scores);
             let truth_is_a_local_maximum =
-                centre > scores[STEPS as usize - 1] && centre > scores[STEPS as usize + 1];
+                centre_at > 0 && centre > scores[centre_at - 1] && centre > scores[centre_at + 1];
             eprintln!(
                 "{name:28} {:22} minimum at {} {lowest:+.4}; truth a local maximum: {truth_is_a_local_maximum}",
                 kind.key(),
@@ -226,7 +266,7 @@ fn main() -> anyhow::Result<()> {
         "parameter": parameter.key(),
         "instrument": { "truth": truth, "oversample": 4, "detector": DETECTOR, "photon_peak": 2e4,
                         "read_noise_e": 3.0, "mask": "masks/tsa_simu_mask256.mat",
-                        "seeds": "the calibration benchmark's tuning aligned-blur σ 0.5 px slot: 14 000 + 20·scene + 18" },
+                        "seeds": format!("the calibration benchmark's tuning aligned-blur σ {sigma_px} px slot: 14 000 + 20·scene + {slot}") },
         "settings": settings,
         "machine": Machine::this(),
         "seconds": t0.elapsed().as_secs_f64(),
