@@ -101,7 +101,9 @@ class Calibration:
         """(key_a, key_b, correlation) of parameters pinned only in combination."""
     @property
     def stages(self) -> List[Dict[str, Any]]:
-        """Each stage: {name, evaluations, seconds, parameters, score}."""
+        """Each stage: {name, evaluations, seconds, parameters, score, passed_over}; passed_over
+        is {parameters, score} of the answer a choosing stage did not keep (a held curvature's
+        restart from the nominal a1), else None."""
     @property
     def score(self) -> float: ...
     @property

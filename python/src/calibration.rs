@@ -31,6 +31,17 @@ fn stage_dict<'py>(py: Python<'py>, s: &StageReport) -> PyResult<Bound<'py, PyDi
     d.set_item("seconds", s.seconds)?;
     d.set_item("parameters", params::to_dict(py, &s.parameters)?)?;
     d.set_item("score", s.score)?;
+    // a choosing stage's other answer (the held curvature's restart), else None
+    let passed_over = match &s.passed_over {
+        Some(other) => {
+            let o = PyDict::new(py);
+            o.set_item("parameters", params::to_dict(py, &other.parameters)?)?;
+            o.set_item("score", other.score)?;
+            Some(o)
+        }
+        None => None,
+    };
+    d.set_item("passed_over", passed_over)?;
     Ok(d)
 }
 
@@ -83,7 +94,9 @@ impl PyCalibration {
             .collect()
     }
 
-    /// Each stage as {name, evaluations, seconds, parameters, score}.
+    /// Each stage as {name, evaluations, seconds, parameters, score,
+    /// passed_over}: passed_over is {parameters, score} of the answer a
+    /// choosing stage did not keep (the held curvature's restart), else None.
     #[getter]
     fn stages<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
         let list = PyList::empty(py);

@@ -71,6 +71,10 @@ def test_default_calibration_reports_trade_offs_and_blur(case):
     # a curvature given is held and comes back in the parameters
     bent = cassi.calibrate(y, mask, bands=8, dispersion_a2=-0.004)
     assert bent.parameters["a2"] == -0.004
+    # it also ran the fits from the nominal a1 and names the answer it passed over
+    chose = [s for s in bent.stages if s["passed_over"] is not None]
+    assert len(chose) == 1 and chose[0]["passed_over"]["score"] >= chose[0]["score"], chose
+    assert all(s["passed_over"] is None for s in cal.stages)
     with pytest.raises(ValueError, match="a2"):
         cassi.calibrate(y, mask, bands=8, dispersion_a2=0.9)
     for a, b, corr in cal.trade_offs:

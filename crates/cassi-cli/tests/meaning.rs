@@ -513,7 +513,31 @@ fn a_curved_dispersion_travels_from_the_calibration_to_the_model() {
     // a curved dispersion also runs the fits from the nominal a1
     let stages = record["stages"].as_array().expect("stages");
     let restart = cassi_core::calib::NOMINAL_A1_RESTART_STAGE;
-    assert!(stages.iter().any(|st| st["name"] == restart), "{stages:?}");
+    let chose = stages
+        .iter()
+        .find(|st| st["name"] == restart)
+        .unwrap_or_else(|| panic!("{stages:?}"));
+    // ... and says which answer it passed over: the objective scored it no
+    // better, and the kept answer's errors are at least the two's distance
+    let other = &chose["passed_over"];
+    let (kept_score, other_score) = (chose["score"].as_f64(), other["score"].as_f64());
+    assert!(kept_score.unwrap() <= other_score.unwrap(), "{chose}");
+    let key = |v: &serde_json::Value, k: &str| v[k].as_f64().unwrap_or_else(|| panic!("{k}: {v}"));
+    for k in ["dx", "dy", "theta_deg", "a1", "alpha_deg", "blur_sigma_px"] {
+        let d = (key(&chose["parameters"], k) - key(&other["parameters"], k)).abs();
+        let half = key(&record["interval_95"], k);
+        assert!(
+            half >= std::f64::consts::SQRT_2 * d - 1e-12,
+            "{k}: ±{half} for {d}"
+        );
+    }
+    // only the choosing stage reports a passed-over answer
+    assert!(
+        stages
+            .iter()
+            .filter(|st| st["name"] != restart)
+            .all(|st| st.get("passed_over").is_none())
+    );
     std::fs::remove_file(&cal).unwrap();
     for (extra, needles) in [
         (

@@ -78,6 +78,14 @@ pub fn run(args: &CalibrateArgs, reporter: &Reporter) -> anyhow::Result<()> {
             s.evaluations,
             s.seconds
         ));
+        if let Some(other) = &s.passed_over {
+            reporter.say(&format!(
+                "  {:<20} {}  score {:.4e}  (passed over; the errors carry the difference)",
+                "",
+                Parameter::format_all(&other.parameters),
+                other.score
+            ));
+        }
     };
     let cal = reporter.stage("calibrating", || {
         Ok(calibrate(&problem, &preset, &mut on_stage)?)

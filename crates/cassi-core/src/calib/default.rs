@@ -783,18 +783,33 @@ fn nominal_a1_restart(
     let (kept, other) = (objective(&found.0)?, objective(&restarted.0)?);
     stage.count(2);
     let ((chosen, stated), score, passed_over) = if other < kept {
-        (restarted, other, found.0)
+        (
+            restarted,
+            other,
+            Scored {
+                parameters: found.0,
+                score: kept,
+            },
+        )
     } else {
-        (found, kept, restarted.0)
+        (
+            found,
+            kept,
+            Scored {
+                parameters: restarted.0,
+                score: other,
+            },
+        )
     };
     let scored = Scored {
         parameters: chosen,
         score,
     };
-    run.finish(stage, NOMINAL_A1_RESTART_STAGE, scored);
+    let other_answer = passed_over.parameters;
+    run.finish_choosing(stage, NOMINAL_A1_RESTART_STAGE, scored, passed_over);
     Ok((
         chosen,
-        with_restart_disagreement(stated, &chosen, &passed_over),
+        with_restart_disagreement(stated, &chosen, &other_answer),
     ))
 }
 

@@ -76,6 +76,20 @@ pub struct StageReport {
     pub parameters: Mismatch,
     /// Proxy score at `parameters` with this stage's proxy.
     pub score: f64,
+    /// A stage that chose between two answers (the held curvature's
+    /// restart from the nominal a1): the one it did not keep, with its
+    /// score on the same objective. Where the two differ the calibration
+    /// does not know which is right; its errors carry the difference.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub passed_over: Option<PassedOver>,
+}
+
+/// The answer a choosing stage did not keep ([`StageReport::passed_over`]).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct PassedOver {
+    pub parameters: Mismatch,
+    /// Its score on the objective that chose (higher than the kept one's).
+    pub score: f64,
 }
 
 /// The result of a calibration.

@@ -5,8 +5,8 @@
 
 use std::time::Instant;
 
-use super::StageReport;
 use super::objective::{Evaluations, Objective, ScoreAndGradient};
+use super::{PassedOver, StageReport};
 use crate::params::{Mismatch, Parameter};
 
 /// A ψ and its score.
@@ -112,12 +112,38 @@ impl<'a> StageRunner<'a> {
         name: impl Into<String>,
         best: Scored,
     ) -> Mismatch {
+        self.report(stage, name.into(), best, None)
+    }
+
+    /// [`Self::finish`] for a stage that chose `best` over `passed_over`.
+    pub(crate) fn finish_choosing(
+        &mut self,
+        stage: Stage,
+        name: impl Into<String>,
+        best: Scored,
+        passed_over: Scored,
+    ) -> Mismatch {
+        let passed_over = PassedOver {
+            parameters: passed_over.parameters,
+            score: passed_over.score,
+        };
+        self.report(stage, name.into(), best, Some(passed_over))
+    }
+
+    fn report(
+        &mut self,
+        stage: Stage,
+        name: String,
+        best: Scored,
+        passed_over: Option<PassedOver>,
+    ) -> Mismatch {
         let report = StageReport {
-            name: name.into(),
+            name,
             evaluations: stage.evaluations.count(),
             seconds: stage.started.elapsed().as_secs_f64(),
             parameters: best.parameters,
             score: best.score,
+            passed_over,
         };
         (self.on_stage)(&report);
         self.reports.push(report);
