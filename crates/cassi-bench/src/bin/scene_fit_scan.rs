@@ -38,7 +38,8 @@ use cassi_eval::machine::Machine;
 const TUNING_SCENES: usize = 5;
 const SEED_BASE: u64 = 14_000;
 const ALIGNED_SLOTS: [(f64, u64); 3] = [(0.3, 17), (0.5, 18), (0.7, 19)];
-const DEFAULT_SIGMA_PX: f64 = 0.5;
+/// σ 0.5 px unless `--sigma` says otherwise.
+const DEFAULT_SLOT: (f64, u64) = ALIGNED_SLOTS[1];
 const DETECTOR: (usize, usize) = (256, 310);
 const STEPS: i32 = 10;
 
@@ -143,7 +144,7 @@ fn main() -> anyhow::Result<()> {
     let t0 = Instant::now();
     let argv: Vec<String> = std::env::args().skip(1).collect();
     const USAGE: &str = "usage: scene_fit_scan [--parameter KEY] [--sigma 0.3|0.5|0.7]";
-    let (mut parameter, mut sigma_px) = (Parameter::Dx, DEFAULT_SIGMA_PX);
+    let (mut parameter, mut aligned) = (Parameter::Dx, DEFAULT_SLOT);
     let mut args = argv.iter();
     while let Some(flag) = args.next() {
         let value = args
@@ -161,10 +162,9 @@ fn main() -> anyhow::Result<()> {
                     })?
             }
             "--sigma" => {
-                sigma_px = ALIGNED_SLOTS
-                    .iter()
-                    .map(|&(sigma, _)| sigma)
-                    .find(|&sigma| value.parse::<f64>().ok() == Some(sigma))
+                aligned = ALIGNED_SLOTS
+                    .into_iter()
+                    .find(|&(sigma, _)| value.parse::<f64>().ok() == Some(sigma))
                     .ok_or_else(|| {
                         anyhow::anyhow!(
                             "--sigma {value}: the benchmark's aligned blurs are 0.3, 0.5 and 0.7 px"
@@ -174,17 +174,13 @@ fn main() -> anyhow::Result<()> {
             _ => anyhow::bail!("{flag}: unknown; {USAGE}"),
         }
     }
-    let slot = ALIGNED_SLOTS
-        .iter()
-        .find(|&&(sigma, _)| sigma == sigma_px)
-        .map(|&(_, slot)| slot)
-        .expect("sigma_px is one of ALIGNED_SLOTS");
+    let (sigma_px, slot) = aligned;
     let path = std::env::var("CASSI_BENCH_OUT").unwrap_or_else(|_| {
         let mut name = match parameter {
             Parameter::Dx => "scene_fit_scan".to_string(),
             p => format!("scene_fit_scan_{}", p.key()),
         };
-        if sigma_px != DEFAULT_SIGMA_PX {
+        if aligned != DEFAULT_SLOT {
             name += &format!("_sigma{sigma_px}");
         }
         format!(

@@ -27,7 +27,7 @@ use super::uncertainty::{
     Fit, UncertaintyEstimate, curvature_uncertainty, scene_fit_uncertainty, texture_uncertainty,
     two_pass_uncertainty, with_restart_disagreement,
 };
-use super::{Calibration, CalibrationProblem, ProxyParams, StageReport, Uncertainty};
+use super::{Calibration, CalibrationProblem, PassedOver, ProxyParams, StageReport, Uncertainty};
 use super::{grid, init, nelder_mead};
 use crate::error::Result;
 use crate::optics::DispersionModel;
@@ -782,35 +782,22 @@ fn nominal_a1_restart(
     let objective = |psi: &Mismatch| scene_fit_score(problem, &first_pass, psi);
     let (kept, other) = (objective(&found.0)?, objective(&restarted.0)?);
     stage.count(2);
-    let ((chosen, stated), score, passed_over) = if other < kept {
-        (
-            restarted,
-            other,
-            Scored {
-                parameters: found.0,
-                score: kept,
-            },
-        )
-    } else {
-        (
-            found,
-            kept,
-            Scored {
-                parameters: restarted.0,
-                score: other,
-            },
-        )
+    // the front end's answer stays on a tie
+    let (mut keep, mut pass) = ((found, kept), (restarted, other));
+    if other < kept {
+        std::mem::swap(&mut keep, &mut pass);
+    }
+    let (((chosen, stated), score), ((passed, _), passed_score)) = (keep, pass);
+    let passed_over = PassedOver {
+        parameters: passed,
+        score: passed_score,
     };
     let scored = Scored {
         parameters: chosen,
         score,
     };
-    let other_answer = passed_over.parameters;
     run.finish_choosing(stage, NOMINAL_A1_RESTART_STAGE, scored, passed_over);
-    Ok((
-        chosen,
-        with_restart_disagreement(stated, &chosen, &other_answer),
-    ))
+    Ok((chosen, with_restart_disagreement(stated, &chosen, &passed)))
 }
 
 /// The name of [`nominal_a1_restart`]'s stage in the stage reports.

@@ -121,12 +121,8 @@ impl<'a> StageRunner<'a> {
         stage: Stage,
         name: impl Into<String>,
         best: Scored,
-        passed_over: Scored,
+        passed_over: PassedOver,
     ) -> Mismatch {
-        let passed_over = PassedOver {
-            parameters: passed_over.parameters,
-            score: passed_over.score,
-        };
         self.report(stage, name.into(), best, Some(passed_over))
     }
 
