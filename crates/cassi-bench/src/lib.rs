@@ -65,11 +65,12 @@ pub fn physical_random_mismatch(seed: u64) -> cassi_core::Mismatch {
     }
 }
 
-/// ψ from its values in `Parameter::ALL` order (a2 0 when left out) (σ as |σ|: a simplex
-/// may step below zero).
-pub fn psi_of(x: &[f64]) -> cassi_core::Mismatch {
-    let mut psi = cassi_core::Mismatch::nominal(2.0);
-    for (&p, &v) in cassi_core::Parameter::ALL.iter().zip(x) {
+/// `held` with the calibrated parameters set from `x` (in
+/// `Parameter::CALIBRATED` order): what `held` has beyond them (a held
+/// curvature a2) stays. σ as |σ|: a simplex may step below zero.
+pub fn psi_of(held: &cassi_core::Mismatch, x: &[f64]) -> cassi_core::Mismatch {
+    let mut psi = *held;
+    for (&p, &v) in cassi_core::Parameter::CALIBRATED.iter().zip(x) {
         p.set(&mut psi, v);
     }
     psi.blur_sigma_px = psi.blur_sigma_px.abs();

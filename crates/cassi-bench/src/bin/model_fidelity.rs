@@ -59,7 +59,7 @@ fn scene_known_fit(
     model: DispersionModel,
 ) -> Value {
     let objective = |x: &[f64]| {
-        predict_on_detector(mask, scene, &psi_of(x), model, DETECTOR)
+        predict_on_detector(mask, scene, &psi_of(truth, x), model, DETECTOR)
             .map_or(f64::INFINITY, |m| relative_residual2(y, &m))
     };
     let tol: Vec<f64> = FIT_STEPS.iter().map(|s| s * 1e-3).collect();
@@ -71,7 +71,7 @@ fn scene_known_fit(
             (x, f) = (xn, fnew);
         }
     }
-    let est = psi_of(&x);
+    let est = psi_of(truth, &x);
     json!({
         "error": per_parameter(|p| p.get(&est) - p.get(truth)),
         "relative_residual_at_fit": f.sqrt(),

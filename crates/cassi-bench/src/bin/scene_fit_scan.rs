@@ -26,10 +26,15 @@
 use std::time::Instant;
 
 use cassi_bench::shared_data;
-use cassi_core::calib::{CalibrationProblem, SceneFitSettings, coarse_scene_of, scene_fit_score};
+use cassi_core::calib::{
+    CalibrationProblem, ResidualWeighting, SceneFitSettings, coarse_scene_of,
+    reweighted_scene_fit_scores, scene_fit_score,
+};
 use cassi_core::optics::{
     DispersionModel, ModelOperator, NoiseModel, PhysicalSpec, simulate_physical,
 };
+use cassi_core::recon::{Method, Model};
+use cassi_core::solvers::Silent;
 use cassi_core::{Cube, Mask, Measurement, Mismatch, Parameter, STANDARD_WAVELENGTHS_NM};
 use cassi_eval::machine::Machine;
 
@@ -78,13 +83,15 @@ enum Measured {
     Physical,
     PhysicalCoarseScene,
     InverseCrime,
+    ModelOnReconstruction,
 }
 
 impl Measured {
-    const ALL: [Measured; 3] = [
+    const ALL: [Measured; 4] = [
         Self::Physical,
         Self::PhysicalCoarseScene,
         Self::InverseCrime,
+        Self::ModelOnReconstruction,
     ];
 
     /// Its name in the record.
@@ -93,6 +100,7 @@ impl Measured {
             Self::Physical => "physical",
             Self::PhysicalCoarseScene => "physical_coarse_scene",
             Self::InverseCrime => "inverse_crime",
+            Self::ModelOnReconstruction => "model_on_gap_tv_scene",
         }
     }
 }
@@ -110,11 +118,26 @@ fn measure(
         read_noise: 3.0,
         seed,
     };
+    let model_of = |seen: &Cube| -> anyhow::Result<Measurement> {
+        let op = ModelOperator::new(mask, seen.bands(), truth, DispersionModel::DispersedMask)?;
+        Ok(noise.apply(&op.forward(seen)?)?)
+    };
     Ok(match kind {
-        Measured::InverseCrime => {
-            let op =
-                ModelOperator::new(mask, scene.bands(), truth, DispersionModel::DispersedMask)?;
-            noise.apply(&op.forward(scene)?)?
+        Measured::InverseCrime => model_of(scene)?,
+        Measured::ModelOnReconstruction => {
+            // what a bootstrap of the blind fit could see: the model's
+            // operator on GAP-TV's scene from the physical measurement
+            // (at the true ψ: the most the bootstrap could know)
+            let y = measure(Measured::Physical, scene, settings, mask, truth, seed)?;
+            let model = Model::new(
+                mask,
+                scene.bands(),
+                2.0,
+                *truth,
+                DispersionModel::DispersedMask,
+            )?;
+            let rec = Method::by_name("gap-tv")?.solve(&y, &model, &mut Silent)?;
+            model_of(&rec.cube.clipped_to_unit())?
         }
         Measured::Physical | Measured::PhysicalCoarseScene => {
             let spec = PhysicalSpec {
@@ -143,8 +166,9 @@ fn measure(
 fn main() -> anyhow::Result<()> {
     let t0 = Instant::now();
     let argv: Vec<String> = std::env::args().skip(1).collect();
-    const USAGE: &str = "usage: scene_fit_scan [--parameter KEY] [--sigma 0.3|0.5|0.7]";
+    const USAGE: &str = "usage: scene_fit_scan [--parameter KEY] [--sigma 0.3|0.5|0.7] [--weighted WINDOW_PX,FLOOR_QUANTILE]";
     let (mut parameter, mut aligned) = (Parameter::Dx, DEFAULT_SLOT);
+    let mut weighting: Option<ResidualWeighting> = None;
     let mut args = argv.iter();
     while let Some(flag) = args.next() {
         let value = args
@@ -171,6 +195,20 @@ fn main() -> anyhow::Result<()> {
                         )
                     })?
             }
+            "--weighted" => {
+                let parts: Vec<f64> = value
+                    .split(',')
+                    .map(|v| v.trim().parse::<f64>())
+                    .collect::<Result<_, _>>()
+                    .map_err(|e| anyhow::anyhow!("--weighted {value}: {e}; {USAGE}"))?;
+                let [window_px, floor_quantile] = parts[..] else {
+                    anyhow::bail!("--weighted {value}: two numbers expected; {USAGE}");
+                };
+                weighting = Some(ResidualWeighting {
+                    window_px,
+                    floor_quantile,
+                });
+            }
             _ => anyhow::bail!("{flag}: unknown; {USAGE}"),
         }
     }
@@ -182,6 +220,9 @@ fn main() -> anyhow::Result<()> {
         };
         if aligned != DEFAULT_SLOT {
             name += &format!("_sigma{sigma_px}");
+        }
+        if let Some(w) = weighting {
+            name += &format!("_weighted{}_{}", w.window_px, w.floor_quantile);
         }
         format!(
             "{}/../../bench/results/{name}.json",
@@ -230,14 +271,22 @@ fn main() -> anyhow::Result<()> {
                 2.0,
                 DispersionModel::DispersedMask,
             )?;
-            let scores = values
+            let psis: Vec<Mismatch> = values
                 .iter()
                 .map(|&v| {
                     let mut psi = truth;
                     parameter.set(&mut psi, v);
-                    scene_fit_score(&problem, &settings, &psi)
+                    psi
                 })
-                .collect::<Result<Vec<f64>, _>>()?;
+                .collect();
+            let scores = match &weighting {
+                // the weights from the residual at the truth, held
+                Some(w) => reweighted_scene_fit_scores(&problem, &settings, w, &truth, &psis)?,
+                None => psis
+                    .iter()
+                    .map(|psi| scene_fit_score(&problem, &settings, psi))
+                    .collect::<Result<Vec<f64>, _>>()?,
+            };
             let centre = scores[centre_at];
             let lowest = minimum(&values, &scores);
             let truth_is_a_local_maximum =
@@ -264,6 +313,7 @@ fn main() -> anyhow::Result<()> {
                         "read_noise_e": 3.0, "mask": "masks/tsa_simu_mask256.mat",
                         "seeds": format!("the calibration benchmark's tuning aligned-blur σ {sigma_px} px slot: 14 000 + 20·scene + {slot}") },
         "settings": settings,
+        "residual_weighting": weighting,
         "machine": Machine::this(),
         "seconds": t0.elapsed().as_secs_f64(),
         "rows": rows,

@@ -15,6 +15,7 @@
 
 use serde::{Deserialize, Serialize};
 
+use super::blur_bootstrap::BlurBootstrap;
 use super::rounded_dispersion::{rounded_dispersion, rounding_intervals};
 use super::scene_fit::{
     FinePassFree, RidgeAnchor, SceneFit, SceneFitResult, SceneFitSettings, fit_scene,
@@ -115,6 +116,11 @@ pub struct DefaultPreset {
     /// then).
     #[serde(default, skip_serializing_if = "crate::params::is_zero")]
     pub dispersion_a2: f64,
+    /// After the scene fit, σ corrected by its bootstrap bias
+    /// ([`BlurBootstrap`]; needs the scene fit and `fit_blur`). Off
+    /// (`None`) by default and in records made before it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub blur_bootstrap: Option<BlurBootstrap>,
 }
 
 fn yes() -> bool {
@@ -165,6 +171,7 @@ impl Default for DefaultPreset {
             alpha_step_deg: 0.5,
             scene_fit: Some(SceneFitSettings::default()),
             dispersion_a2: 0.0,
+            blur_bootstrap: None,
         }
     }
 }
@@ -228,6 +235,10 @@ pub fn calibrate_default(
                 let mut found = scene_fit_stage(&mut run, problem, preset, settings, &best)?;
                 if preset.dispersion_a2 != 0.0 {
                     found = nominal_a1_restart(&mut run, problem, preset, settings, &posed, found)?;
+                }
+                if let (Some(bootstrap), true) = (preset.blur_bootstrap, preset.fit_blur) {
+                    found.0 =
+                        blur_bootstrap_stage(&mut run, problem, settings, bootstrap, found.0)?;
                 }
                 best = found.0;
                 found.1
@@ -799,6 +810,40 @@ fn nominal_a1_restart(
     run.finish_choosing(stage, NOMINAL_A1_RESTART_STAGE, scored, passed_over);
     Ok((chosen, with_restart_disagreement(stated, &chosen, &passed)))
 }
+
+/// The blur corrected by its bootstrap bias ([`BlurBootstrap`]): σ̂ −
+/// (σ* − σ̂), at least 0; every other parameter as the scene fit left it.
+fn blur_bootstrap_stage(
+    run: &mut StageRunner<'_>,
+    problem: &CalibrationProblem<'_>,
+    settings: SceneFitSettings,
+    bootstrap: BlurBootstrap,
+    found: Mismatch,
+) -> Result<Mismatch> {
+    let stage = run.start();
+    let first_pass = SceneFitSettings {
+        detail_pass: None,
+        fine_pass: None,
+        ..settings
+    };
+    let bias = bootstrap.bias(problem, &first_pass, &found)?;
+    stage.count(bias.evaluations);
+    let corrected = Mismatch {
+        blur_sigma_px: (found.blur_sigma_px - bias.bias_px).max(0.0),
+        ..found
+    };
+    let score = scene_fit_score(problem, &first_pass, &corrected)?;
+    stage.count(1);
+    let scored = Scored {
+        parameters: corrected,
+        score,
+    };
+    Ok(run.finish(stage, BLUR_BOOTSTRAP_STAGE, scored))
+}
+
+/// The name of [`blur_bootstrap_stage`] in the stage reports.
+pub const BLUR_BOOTSTRAP_STAGE: &str =
+    "blur: σ less its bootstrap bias (GAP-TV's scene through the model at ψ)";
 
 /// The name of [`nominal_a1_restart`]'s stage in the stage reports.
 pub const NOMINAL_A1_RESTART_STAGE: &str =

@@ -9,6 +9,7 @@
 //! `Objective` (`objective.rs`): a score over a subset of ψ's parameters.
 
 pub(crate) mod adam;
+mod blur_bootstrap;
 mod coarse_scene;
 mod default;
 mod detail_pass;
@@ -18,6 +19,7 @@ pub(crate) mod init;
 pub(crate) mod nelder_mead;
 mod objective;
 mod paper;
+mod residual_weights;
 mod rounded_dispersion;
 mod scene_fit;
 pub(crate) mod score;
@@ -35,16 +37,19 @@ pub use uncertainty::{
 use serde::{Deserialize, Serialize};
 
 pub use adam::AdamSettings;
+pub use blur_bootstrap::BlurBootstrap;
 pub use default::{
-    DETAIL_PASS_STAGE, DefaultPreset, NOMINAL_A1_RESTART_STAGE, SCENE_FIT_STAGE, calibrate_default,
-    texture_fit,
+    BLUR_BOOTSTRAP_STAGE, DETAIL_PASS_STAGE, DefaultPreset, NOMINAL_A1_RESTART_STAGE,
+    SCENE_FIT_STAGE, calibrate_default, texture_fit,
 };
 pub use detail_pass::DetailPass;
 pub use gradient::Parameter;
 pub use nelder_mead::nelder_mead;
 pub use paper::{GradientStage, PaperPreset, calibrate_paper};
+pub use residual_weights::ResidualWeighting;
 pub use scene_fit::{
-    FinePass, FinePassFree, RidgeAnchor, SceneFitSettings, coarse_scene_of, scene_fit_score,
+    FinePass, FinePassFree, RidgeAnchor, SceneFitSettings, coarse_scene_of,
+    reweighted_scene_fit_scores, scene_fit_score,
 };
 pub use score::{CalibrationProblem, ProxyParams};
 pub use texture::{SCENE_SMOOTH_PX, SceneEstimate};

@@ -36,6 +36,7 @@ use serde::{Deserialize, Serialize};
 
 use super::coarse_scene::{CoarseRows, CoarseScene};
 use super::detail_pass::DetailPass;
+use super::residual_weights::ResidualWeighting;
 use super::{CalibrationProblem, reframe};
 use crate::cube::Cube;
 use crate::error::Result;
@@ -293,6 +294,8 @@ struct OperatorScratch {
     detector: Vec<f32>,
     frame: Vec<f32>,
     tmp: Vec<f32>,
+    /// The residual times √w (a weighted fit's adjoint).
+    weighted: Vec<f32>,
 }
 
 thread_local! {
@@ -314,6 +317,7 @@ impl SceneOperator<'_> {
         self.op.apply_rows(&scene, &mut s.detector);
         reframe(&s.detector, det, &mut s.frame, cols);
         self.fit.high_pass(&s.frame, out, &mut s.tmp);
+        self.fit.weigh(out);
     }
 }
 
@@ -340,6 +344,15 @@ impl LinearOperator for SceneOperator<'_> {
             let (rows, det) = self.op.measurement_shape();
             let cols = self.fit.cols();
             s.frame.resize(rows * cols, 0.0);
+            // Kᵀ = Uᵀ Aᵀ Cᵀ H √w: the weights first
+            let r = match &self.fit.root_weights {
+                Some(w) => {
+                    s.weighted.clear();
+                    s.weighted.extend(r.iter().zip(w).map(|(&r, &w)| r * w));
+                    &s.weighted[..]
+                }
+                None => r,
+            };
             self.fit.high_pass(r, &mut s.frame, &mut s.tmp);
             reframe(&s.frame, cols, &mut s.detector, det);
             let images = &mut s.images;
@@ -411,6 +424,9 @@ pub(crate) struct SceneFit<'a> {
     lambda: std::sync::OnceLock<f64>,
     /// z₀ of the ridge λ‖z − z₀‖² (`None`: zero).
     anchor: Option<Vec<f32>>,
+    /// √w of a weighted fit (`residual_weights.rs`): the residual and K
+    /// are multiplied by it after the high-pass (`None`: unweighted).
+    root_weights: Option<Vec<f32>>,
 }
 
 /// A candidate ψ with its solved coarse scene.
@@ -450,6 +466,7 @@ impl<'a> SceneFit<'a> {
             ridge: 0.0,
             lambda: std::sync::OnceLock::new(),
             anchor: None,
+            root_weights: None,
         };
         let mut data = vec![0.0; rows * cols];
         fit.high_pass(problem.measurement.as_slice(), &mut data, &mut Vec::new());
@@ -469,6 +486,34 @@ impl<'a> SceneFit<'a> {
 
     fn cols(&self) -> usize {
         self.problem.measurement.cols()
+    }
+
+    /// The fit with its residual weighted by `weighting`'s weights from
+    /// `first`'s residual (a solve of this fit, unweighted).
+    pub(crate) fn with_weights(
+        mut self,
+        weighting: &ResidualWeighting,
+        first: &Solved,
+    ) -> Result<Self> {
+        let (rows, cols) = self.problem.measurement.shape();
+        let root = weighting.root_weights(&first.residual, rows, cols)?;
+        let mut data = std::mem::take(&mut self.data);
+        if let Some(old) = &self.root_weights {
+            // undo an earlier weighting: the data are H y times it
+            data.iter_mut().zip(old).for_each(|(d, &w)| *d /= w);
+        }
+        data.iter_mut().zip(&root).for_each(|(d, &w)| *d *= w);
+        self.data_energy = data.iter().map(|&v| v as f64 * v as f64).sum();
+        self.data = data;
+        self.root_weights = Some(root);
+        Ok(self)
+    }
+
+    /// v ← √w ⊙ v (nothing when unweighted).
+    fn weigh(&self, v: &mut [f32]) {
+        if let Some(w) = &self.root_weights {
+            v.iter_mut().zip(w).for_each(|(v, &w)| *v *= w);
+        }
     }
 
     /// The fit with its scene's bands multiplied by `detail` (mask rows ×
@@ -638,6 +683,25 @@ pub fn scene_fit_score(
 ) -> Result<f64> {
     problem.validate()?;
     Ok(SceneFit::new(problem, *settings)?.solve(psi, None)?.score)
+}
+
+/// The scene fit's scores at each of `psis`, its residual weighted
+/// (`residual_weights.rs`) from the cold solve at `weights_at`, every
+/// solve cold (for scans of the weighted objective).
+pub fn reweighted_scene_fit_scores(
+    problem: &CalibrationProblem<'_>,
+    settings: &SceneFitSettings,
+    weighting: &ResidualWeighting,
+    weights_at: &Mismatch,
+    psis: &[Mismatch],
+) -> Result<Vec<f64>> {
+    problem.validate()?;
+    let fit = SceneFit::new(problem, *settings)?;
+    let first = fit.solve(weights_at, None)?;
+    let fit = fit.with_weights(weighting, &first)?;
+    psis.iter()
+        .map(|psi| Ok(fit.solve(psi, None)?.score))
+        .collect()
 }
 
 /// `scene` as the scene fit's coarse basis holds it: its values at the
@@ -899,6 +963,22 @@ mod tests {
             let e = adjoint_mismatch(&k, 3);
             assert!(e < 1e-5, "a1 {a1}: {e}");
         }
+        // weighted (√w after H, before it in the adjoint): weights that
+        // vary over the frame
+        let first = fit.solve(&Mismatch { a1: 1.9, ..truth() }, None).unwrap();
+        let fit = fit
+            .with_weights(&ResidualWeighting::default(), &first)
+            .unwrap();
+        let w = fit.root_weights.as_ref().unwrap();
+        let (lo, hi) = w
+            .iter()
+            .fold((f32::MAX, 0.0f32), |(a, b), &v| (a.min(v), b.max(v)));
+        assert!(hi > 1.5 * lo, "weights {lo}..{hi}");
+        for a1 in [1.7, 2.4] {
+            let k = fit.operator(&Mismatch { a1, ..truth() }).unwrap();
+            let e = adjoint_mismatch(&k, 3);
+            assert!(e < 1e-5, "weighted, a1 {a1}: {e}");
+        }
     }
 
     /// Settings written before the fine pass read back without one; with
@@ -1092,7 +1172,13 @@ mod tests {
         // zero and toward another scene (the ridge's rows hold no ψ: the
         // same identity)
         let ridge = FinePass::default().ridge;
-        for (cell_px, ridge, anchored) in [(8, 0.0, false), (4, ridge, false), (4, ridge, true)] {
+        let cases = [
+            (8, 0.0, false, false),
+            (8, 0.0, false, true),
+            (4, ridge, false, false),
+            (4, ridge, true, false),
+        ];
+        for (cell_px, ridge, anchored, weighted) in cases {
             let settings = SceneFitSettings {
                 cell_px,
                 cold_solve: converged,
@@ -1105,7 +1191,14 @@ mod tests {
                 let z = first.solve(&truth(), None).unwrap().z;
                 fit.coefficients_from(&first, &z)
             });
-            let fit = fit.with_ridge(ridge, anchor);
+            let mut fit = fit.with_ridge(ridge, anchor);
+            if weighted {
+                // weights from another ψ's residual, held
+                let first = fit.solve(&truth(), None).unwrap();
+                fit = fit
+                    .with_weights(&ResidualWeighting::default(), &first)
+                    .unwrap();
+            }
             // every band's landing phase away from whole pixels: the bilinear
             // mask sampling makes the score piecewise smooth, with kinks there
             let at = Mismatch {
@@ -1129,7 +1222,7 @@ mod tests {
                 let numeric = (score(h) - score(-h)) / (2.0 * h);
                 assert!(
                     (analytic - numeric).abs() <= 0.1 * numeric.abs().max(1e-3 * solved.score / h),
-                    "cell {cell_px}, ridge {ridge} (anchored {anchored}), {p:?}: held-z {analytic:.4e}, re-solved {numeric:.4e}"
+                    "cell {cell_px}, ridge {ridge} (anchored {anchored}, weighted {weighted}), {p:?}: held-z {analytic:.4e}, re-solved {numeric:.4e}"
                 );
             }
         }

@@ -115,7 +115,7 @@ fn oracle_fit(model: &SceneKnown, y: &[f64], start: &Mismatch, truth: &Mismatch)
     let x_tol: Vec<f64> = ORACLE_STEPS.iter().map(|s| s * 1e-3).collect();
     let leg = |x0: &[f64]| {
         nelder_mead(
-            |x| objective(model, y, &psi_of(x)),
+            |x| objective(model, y, &psi_of(start, x)),
             x0,
             &ORACLE_STEPS,
             ORACLE_MAX_EVALS,
@@ -137,7 +137,7 @@ fn oracle_fit(model: &SceneKnown, y: &[f64], start: &Mismatch, truth: &Mismatch)
             break;
         }
     }
-    let est = psi_of(&x);
+    let est = psi_of(start, &x);
     let err = |p: Parameter| p.get(&est) - p.get(truth);
     json!({
         "estimate": per_parameter(|p| json!(p.get(&est))),

@@ -44,7 +44,10 @@
 //! With `--limits` ([`limits`]) each case also gets the limits the blind
 //! calibration is measured against: the same six parameters fitted with the
 //! true scene known (the oracle-scene fit), and the Cramér–Rao bound of the
-//! scene-known model at the true ψ and the simulator's noise level.
+//! scene-known model at the true ψ and the simulator's noise level. The
+//! true ψ of the oracle (IV) and of the limits carries the simulated
+//! curvature (`--dispersion-a2`): the instrument's, not the straight ψ the
+//! case drew.
 //!
 //! Run: `cargo run --release -p cassi-bench --bin calibrate --
 //! [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] [--no-aligned]
@@ -52,7 +55,7 @@
 //! [--no-texture] [--no-scene-fit] [--no-fine-pass] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene]
 //! [--fine-pass-free pose-and-slope|geometry|all] [--scene-cell PX]
 //! [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--no-detail-pass]
-//! [--no-recon] [--no-limits] [--out PATH] [--scene-transform none|flip-cols|flip-rows|transpose] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--model-a2 A2] [--detail-cold-above PX|none] [--verbose]`
+//! [--no-recon] [--no-limits] [--out PATH] [--scene-transform none|flip-cols|flip-rows|transpose] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--model-a2 A2] [--detail-cold-above PX|none] [--blur-bootstrap crisp-cells|dispersed-mask] [--verbose]`
 //! (`--no-texture`: the default preset without its texture fit, as it was
 //! before issue #14 — the "before" row; `--no-scene-fit`: without its
 //! scene fit, ending in the texture fit as the records `*_texture.json`
@@ -87,8 +90,9 @@ use std::time::Instant;
 use anyhow::{Context, Result, anyhow, bail, ensure};
 use cassi_bench::{median, physical_random_mismatch, psi_of, scene_name, shared_data};
 use cassi_core::calib::{
-    CalibrationProblem, DefaultPreset, DetailPass, FinePass, FinePassFree, PRESET_NAMES, Preset,
-    SCENE_FIT_STAGE, SceneFitSettings, calibrate, grid_phase, model_error_floor,
+    BlurBootstrap, CalibrationProblem, DefaultPreset, DetailPass, FinePass, FinePassFree,
+    PRESET_NAMES, Preset, SCENE_FIT_STAGE, SceneFitSettings, calibrate, grid_phase,
+    model_error_floor,
 };
 use cassi_core::metrics::psnr;
 use cassi_core::optics::{
@@ -280,6 +284,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
     let mut dispersion_a2 = 0.0;
     let mut model_a2: Option<f64> = None;
     let mut detail_cold_above: Option<Option<f64>> = None;
+    let mut blur_bootstrap: Option<DispersionModel> = None;
     let mut it = argv.iter();
     while let Some(flag) = it.next() {
         let mut value = || {
@@ -331,6 +336,13 @@ fn parse_args(argv: &[String]) -> Result<Args> {
                 detail_pass = Some(Some(free));
             }
             "--no-detail-pass" => detail_pass = Some(None),
+            "--blur-bootstrap" => {
+                blur_bootstrap = Some(
+                    value()?
+                        .parse()
+                        .map_err(|e: String| anyhow!("--blur-bootstrap: {e}"))?,
+                )
+            }
             "--detail-cold-above" => {
                 let v = value()?;
                 detail_cold_above = Some(if v == "none" {
@@ -511,6 +523,17 @@ fn parse_args(argv: &[String]) -> Result<Args> {
         };
         pass.spectral_groups = groups;
         preset_name += &format!(" ({groups} detail maps)");
+    }
+    if let Some(through) = blur_bootstrap {
+        scene_fit_settings(&mut preset, "--blur-bootstrap")?;
+        let Preset::Default(d) = &mut preset else {
+            bail!("--blur-bootstrap applies to the default preset");
+        };
+        d.blur_bootstrap = Some(BlurBootstrap {
+            through,
+            ..BlurBootstrap::default()
+        });
+        preset_name += &format!(" (blur bootstrap through {})", through.name());
     }
     // the calibration holding a curvature (a model study with --dispersion-a2)
     if let Some(a2) = model_a2 {
@@ -787,6 +810,13 @@ fn run_case(args: &Args, case: &Case, name: &str, scene: &Cube, mask: &Mask) -> 
     .with_context(|| format!("calibrating {name} seed {}", case.seed))?;
     let (truth, est) = (case.truth, cal.parameters);
     let err = |p: Parameter| p.get(&est) - p.get(&truth);
+    // the instrument's ψ in the model family: the simulated curvature
+    // (`--dispersion-a2`, beyond ψ's own) included, for the oracle and
+    // the limits (the errors are over the calibrated parameters, no a2)
+    let instrument = Mismatch {
+        a2: truth.a2 + args.dispersion_a2,
+        ..truth
+    };
     eprintln!(
         "{:<8} {name:<26} {:<13} seed {}\n  truth {}\n  est.  {}\n  err   {}  | {:.1} s, {} evals",
         case.half.key(),
@@ -841,7 +871,7 @@ fn run_case(args: &Args, case: &Case, name: &str, scene: &Cube, mask: &Mask) -> 
         // II, III and IV in the calibrated model's family
         let ii = recon_psnr(&y, mask, scene, &Mismatch::nominal(STRIDE), args.model)?;
         let iii = recon_psnr(&y, mask, scene, &est, args.model)?;
-        let iv = recon_psnr(&y, mask, scene, &truth, args.model)?;
+        let iv = recon_psnr(&y, mask, scene, &instrument, args.model)?;
         let rho = rho(ii, iii, iv);
         eprintln!(
             "  GAP-TV PSNR: II nominal {ii:.2}  III calibrated {iii:.2}  IV true {iv:.2} dB  ρ {}  ({:.1} s)",
@@ -857,19 +887,33 @@ fn run_case(args: &Args, case: &Case, name: &str, scene: &Cube, mask: &Mask) -> 
             photon_peak: PHOTON_PEAK,
             read_noise_e: READ_NOISE,
         };
-        let mut lim = limits::measure(&y, &clean, scene, mask, &est, &truth, detector, args.model);
+        let mut lim = limits::measure(
+            &y,
+            &clean,
+            scene,
+            mask,
+            &est,
+            &instrument,
+            detector,
+            args.model,
+        );
         // the budget runs the default preset's texture stage
         if let Some(preset) = texture_preset(args) {
-            lim["error_budget"] = limits::error_budget(&problem, preset, scene, &est, &truth)?;
+            lim["error_budget"] = limits::error_budget(&problem, preset, scene, &est, &instrument)?;
             let first_pass = cal.stages.iter().find(|s| s.name == SCENE_FIT_STAGE);
             if let (Some(settings), Some(first)) = (&preset.scene_fit, first_pass) {
-                lim["scene_objective"] =
-                    limits::scene_objective(&problem, settings, &first.parameters, &est, &truth)?;
+                lim["scene_objective"] = limits::scene_objective(
+                    &problem,
+                    settings,
+                    &first.parameters,
+                    &est,
+                    &instrument,
+                )?;
             }
         }
         eprintln!("{}", limits::describe(&lim));
         // ρ's own limit: GAP-TV with the ψ the scene-known fit reaches
-        if let (true, Some(known)) = (args.recon, scene_known_psi(&lim)) {
+        if let (true, Some(known)) = (args.recon, scene_known_psi(&lim, &est)) {
             let ii = record["psnr_db"]["II_nominal"].as_f64().unwrap_or(f64::NAN);
             let iv = record["psnr_db"]["IV_true"].as_f64().unwrap_or(f64::NAN);
             let iii = recon_psnr(&y, mask, scene, &known, args.model)?;
@@ -901,14 +945,15 @@ fn fmt_signed(p: Parameter, v: f64) -> String {
     format!("{v:+.d$}")
 }
 
-/// The ψ of the scene-known fit in a case's limits, if it ran.
-fn scene_known_psi(limits: &Value) -> Option<Mismatch> {
+/// The ψ of the scene-known fit in a case's limits, if it ran (what it
+/// does not fit, a held curvature, as `est` holds it: it started there).
+fn scene_known_psi(limits: &Value, est: &Mismatch) -> Option<Mismatch> {
     let e = &limits["oracle_scene"]["estimate"];
     let v: Option<Vec<f64>> = Parameter::CALIBRATED
         .iter()
         .map(|p| e[p.key()].as_f64())
         .collect();
-    v.map(|v| psi_of(&v))
+    v.map(|v| psi_of(est, &v))
 }
 
 /// ρ = (III − II)/(IV − II), undefined where the oracle gains < RHO_MIN_GAIN_DB.
