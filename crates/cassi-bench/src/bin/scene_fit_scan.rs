@@ -3,7 +3,7 @@
 //! at the truth, the coarse scene solved to convergence at each point) on the tuning half's aligned-with-blur
 //! instruments at σ 0.5 px (`--sigma 0.3|0.7` for the benchmark's other
 //! aligned slots; the calibration benchmark's seeds), each
-//! measured three ways:
+//! measured four ways:
 //!
 //! - `physical`: the benchmark's instrument (4× oversampled simulator,
 //!   256×310 detector, 2·10⁴ e⁻ peak, 3 e⁻ read noise);
@@ -13,15 +13,26 @@
 //! - `inverse_crime`: the fitted model's own operator (dispersed-mask,
 //!   blurred) on the full scene, the same noise: no physics the model
 //!   lacks. Labelled as such.
+//! - `model_on_gap_tv_scene`: the same operator on GAP-TV's scene of the
+//!   `physical` measurement (at the true ψ), the same noise: what a
+//!   bootstrap of the fit's bias ([`cassi_core::calib::BlurBootstrap`])
+//!   sees. Where its minimum sits where `physical`'s does, the bootstrap
+//!   measures the bias.
+//!
+//! With `--weighted WINDOW_PX,FLOOR_QUANTILE` the objective is the
+//! residual-weighted one ([`ResidualWeighting`], its weights from the
+//! residual at the truth, held).
 //!
 //! A score whose minimum leaves the truth in `physical` and `inverse_crime`
 //! but not in `physical_coarse_scene` is moved by the scene's detail,
 //! not by the model. Only tuning-half scenes (a diagnosis, not a figure).
 //!
 //! Run: `cargo run --release -p cassi-bench --bin scene_fit_scan [-- --parameter
-//! dx|dy|theta_deg|a1|alpha_deg|blur_sigma_px] [--sigma 0.3|0.5|0.7]`. Writes
-//! `bench/results/scene_fit_scan.json` for dx, `scene_fit_scan_<key>.json`
-//! otherwise, `…_sigma<σ>.json` at another σ (or $CASSI_BENCH_OUT).
+//! dx|dy|theta_deg|a1|alpha_deg|blur_sigma_px] [--sigma 0.3|0.5|0.7]
+//! [--weighted W,Q]`. Writes `bench/results/scene_fit_scan.json` for dx,
+//! `scene_fit_scan_<key>.json` otherwise, `…_sigma<σ>.json` at another σ,
+//! `…_weighted<W>_<Q>.json` weighted (or $CASSI_BENCH_OUT). Records made
+//! before the fourth row have three.
 
 use std::time::Instant;
 

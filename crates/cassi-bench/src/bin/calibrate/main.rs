@@ -55,7 +55,7 @@
 //! [--no-texture] [--no-scene-fit] [--no-fine-pass] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene]
 //! [--fine-pass-free pose-and-slope|geometry|all] [--scene-cell PX]
 //! [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--no-detail-pass]
-//! [--no-recon] [--no-limits] [--out PATH] [--scene-transform none|flip-cols|flip-rows|transpose] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--model-a2 A2] [--detail-cold-above PX|none] [--blur-bootstrap crisp-cells|dispersed-mask] [--verbose]`
+//! [--no-recon] [--no-limits] [--out PATH] [--scene-transform none|flip-cols|flip-rows|transpose] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--model-a2 A2] [--detail-cold-above PX|none] [--blur-bootstrap crisp-cells|dispersed-mask [--blur-bootstrap-noise]] [--verbose]`
 //! (`--no-texture`: the default preset without its texture fit, as it was
 //! before issue #14 — the "before" row; `--no-scene-fit`: without its
 //! scene fit, ending in the texture fit as the records `*_texture.json`
@@ -285,6 +285,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
     let mut model_a2: Option<f64> = None;
     let mut detail_cold_above: Option<Option<f64>> = None;
     let mut blur_bootstrap: Option<DispersionModel> = None;
+    let mut blur_bootstrap_noise = false;
     let mut it = argv.iter();
     while let Some(flag) = it.next() {
         let mut value = || {
@@ -343,6 +344,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
                         .map_err(|e: String| anyhow!("--blur-bootstrap: {e}"))?,
                 )
             }
+            "--blur-bootstrap-noise" => blur_bootstrap_noise = true,
             "--detail-cold-above" => {
                 let v = value()?;
                 detail_cold_above = Some(if v == "none" {
@@ -529,11 +531,18 @@ fn parse_args(argv: &[String]) -> Result<Args> {
         let Preset::Default(d) = &mut preset else {
             bail!("--blur-bootstrap applies to the default preset");
         };
+        // the benchmark's own noise: a study of what the noise does
+        let known_noise = blur_bootstrap_noise.then(|| noise(1));
         d.blur_bootstrap = Some(BlurBootstrap {
             through,
+            noise: known_noise,
             ..BlurBootstrap::default()
         });
-        preset_name += &format!(" (blur bootstrap through {})", through.name());
+        preset_name += &format!(" (blur bootstrap through {}", through.name());
+        if blur_bootstrap_noise {
+            preset_name += ", the benchmark's noise known";
+        }
+        preset_name += ")";
     }
     // the calibration holding a curvature (a model study with --dispersion-a2)
     if let Some(a2) = model_a2 {
