@@ -785,11 +785,7 @@ fn nominal_a1_restart(
     let (textured, _) = texture_stage(&mut again, problem, preset, &start, estimate)?;
     let restarted = scene_fit_stage(&mut again, problem, preset, settings, &textured)?;
     stage.count(again.evaluations());
-    let first_pass = SceneFitSettings {
-        detail_pass: None,
-        fine_pass: None,
-        ..settings
-    };
+    let first_pass = settings.first_pass_only();
     let objective = |psi: &Mismatch| scene_fit_score(problem, &first_pass, psi);
     let (kept, other) = (objective(&found.0)?, objective(&restarted.0)?);
     stage.count(2);
@@ -821,11 +817,7 @@ fn blur_bootstrap_stage(
     found: Mismatch,
 ) -> Result<Mismatch> {
     let stage = run.start();
-    let first_pass = SceneFitSettings {
-        detail_pass: None,
-        fine_pass: None,
-        ..settings
-    };
+    let first_pass = settings.first_pass_only();
     let bias = bootstrap.bias(problem, &first_pass, &found)?;
     stage.count(bias.evaluations);
     let corrected = Mismatch {

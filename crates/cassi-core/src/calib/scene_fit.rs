@@ -243,6 +243,18 @@ impl Default for FinePass {
     }
 }
 
+impl SceneFitSettings {
+    /// These settings with the first pass alone (the detail and fine
+    /// passes off): the objective scans and choices score with.
+    pub fn first_pass_only(self) -> Self {
+        Self {
+            detail_pass: None,
+            fine_pass: None,
+            ..self
+        }
+    }
+}
+
 impl Default for SceneFitSettings {
     fn default() -> Self {
         Self {

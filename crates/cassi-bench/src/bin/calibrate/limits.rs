@@ -325,10 +325,7 @@ pub fn scene_objective(
     truth: &Mismatch,
 ) -> anyhow::Result<Value> {
     let t = Instant::now();
-    let first = SceneFitSettings {
-        fine_pass: None,
-        ..*settings
-    };
+    let first = settings.first_pass_only();
     let score = |psi: &Mismatch| scene_fit_score(problem, &first, psi);
     let (at_truth, at_first_pass, at_estimate) = (score(truth)?, score(first_pass)?, score(blind)?);
     // one pixel along dx and a1 from the first pass's answer: every band
