@@ -354,4 +354,17 @@ fn the_blur_bootstrap_moves_the_blur_alone() {
     eprintln!("σ error: scene fit {was:+.4}, bootstrapped {now:+.4}");
     assert!(was.abs() > 0.02, "the scene fit's own error {was:+.4}");
     assert!(now.abs() <= 0.5 * was.abs(), "{was:+.4} -> {now:+.4}");
+    // below its guard the stage does not run: σ stays the scene fit's
+    let guarded = DefaultPreset {
+        blur_bootstrap: Some(BlurBootstrap {
+            through: model,
+            min_blur_px: 1.0,
+            ..BlurBootstrap::default()
+        }),
+        ..DefaultPreset::default()
+    };
+    let cal = calibrate_default(&p, &guarded, &mut |_| {}).unwrap();
+    let last = cal.stages.last().unwrap();
+    assert_ne!(last.name, BLUR_BOOTSTRAP_STAGE);
+    assert_eq!(cal.parameters, before.parameters);
 }

@@ -22,8 +22,14 @@
 //! moves +0.018 → −0.039 (the physical instrument's own low reading and
 //! its noise are not in the bootstrap's data); on random poses σ RMSE
 //! 0.052 → 0.050 only (balloons' −0.05 … −0.07 stay) and near σ = 0 it
-//! adds blur; and it costs a GAP-TV. The corrected σ keeps the scene fit's
-//! stated error: its coverage is not measured.
+//! adds blur; and it costs a GAP-TV. With GAP-TV's residual added
+//! (`residual_noise`) and the guard (`min_blur_px` 0.15) the tuning half
+//! read better (all six 25 → 29 of 45), but on the held-out half
+//! (`calibrate_physical_held_out_round11_blur_bootstrap.json`, round 11,
+//! checked once) the aligned cases' σ went +0.020 → −0.051 px on average
+//! (all six 13 → 7 of 15; random 10 → 11 of 20, σ RMSE 0.043 → 0.036):
+//! the bootstrap's offset is larger there than where it was tuned. The
+//! corrected σ keeps the scene fit's stated error.
 
 use serde::{Deserialize, Serialize};
 
@@ -35,6 +41,7 @@ use crate::error::Result;
 use crate::optics::{DispersionModel, ModelOperator, NoiseModel};
 use crate::params::{Mismatch, Parameter};
 use crate::recon::{Method, MethodId};
+use crate::rng::Rng;
 use crate::solvers::Silent;
 
 /// Settings of the blur's bootstrap.
@@ -48,6 +55,21 @@ pub struct BlurBootstrap {
     /// known noise: the preset cannot know a camera's.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub noise: Option<NoiseModel>,
+    /// Add GAP-TV's own data residual y − A_ψ̂ x̂ with a random sign per
+    /// pixel (a wild bootstrap): the measurement's noise, its level and
+    /// its dependence on the signal, without a noise model. False in
+    /// settings written before it.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub residual_noise: bool,
+    /// Below this σ̂ (px) σ̂ stays as the scene fit left it: near zero the
+    /// bootstrap's own fit is held at |σ| ≥ 0 and reads high, and the
+    /// correction added blur (chart 14060 at σ 0.07: +0.035 → +0.133).
+    /// 0.15 (the default) chosen on the tuning records after the fact (the
+    /// stage is last, so keeping σ̂ is exactly what the run would give):
+    /// random all six 14 → 15 of 30 with `residual_noise`. Absent in
+    /// settings written before it: 0 (no guard), as they ran.
+    #[serde(default, skip_serializing_if = "crate::params::is_zero")]
+    pub min_blur_px: f64,
 }
 
 impl Default for BlurBootstrap {
@@ -56,9 +78,14 @@ impl Default for BlurBootstrap {
             through: DispersionModel::CrispCells,
             gap_iterations: 50,
             noise: None,
+            residual_noise: false,
+            min_blur_px: 0.15,
         }
     }
 }
+
+/// The wild bootstrap's signs: fixed, so a calibration is repeatable.
+const WILD_SEED: u64 = 0x3a1d;
 
 /// What the bootstrap measured at ψ̂.
 #[derive(Debug, Clone, Copy)]
@@ -94,6 +121,12 @@ impl BlurBootstrap {
         let (rows, cols) = problem.measurement.shape();
         let mut frame = Vec::new();
         reframe(made.as_slice(), made.cols(), &mut frame, cols);
+        if self.residual_noise {
+            let fitted = ModelOperator::new(mask, bands, at, problem.model())?.forward(&scene)?;
+            let mut predicted = Vec::new();
+            reframe(fitted.as_slice(), fitted.cols(), &mut predicted, cols);
+            add_with_random_signs(&mut frame, problem.measurement.as_slice(), &predicted);
+        }
         let bootstrap = Measurement::from_vec(rows, cols, frame)?;
         let again = CalibrationProblem {
             measurement: &bootstrap,
@@ -105,5 +138,48 @@ impl BlurBootstrap {
             bias_px: found.best.psi.blur_sigma_px.abs() - at.blur_sigma_px,
             evaluations: found.evaluations,
         })
+    }
+}
+
+/// frame += s ⊙ (measured − predicted), s = ±1 per pixel at random (the
+/// wild bootstrap: each pixel's residual, its size kept, its sign and so
+/// its correlation with the code lost).
+fn add_with_random_signs(frame: &mut [f32], measured: &[f32], predicted: &[f32]) {
+    let mut rng = Rng::new(WILD_SEED);
+    for ((f, &p), &y) in frame.iter_mut().zip(predicted).zip(measured) {
+        let sign = if rng.uniform() < 0.5 { -1.0 } else { 1.0 };
+        *f += sign * (y - p);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_wild_residual_keeps_each_pixels_size_and_draws_both_signs() {
+        let n = 1000;
+        let measured: Vec<f32> = (0..n).map(|i| (i % 7) as f32).collect();
+        let predicted: Vec<f32> = (0..n).map(|i| (i % 5) as f32 * 0.5).collect();
+        let base: Vec<f32> = (0..n).map(|i| i as f32 * 0.01).collect();
+        let mut frame = base.clone();
+        add_with_random_signs(&mut frame, &measured, &predicted);
+        let (mut plus, mut minus) = (0, 0);
+        for i in 0..n {
+            let (added, residual) = (frame[i] - base[i], measured[i] - predicted[i]);
+            assert!((added.abs() - residual.abs()).abs() < 1e-4, "pixel {i}");
+            if residual != 0.0 {
+                if added == residual {
+                    plus += 1;
+                } else {
+                    minus += 1;
+                }
+            }
+        }
+        assert!(plus > 300 && minus > 300, "{plus} +, {minus} −");
+        // repeatable: the same signs again
+        let mut again = base.clone();
+        add_with_random_signs(&mut again, &measured, &predicted);
+        assert_eq!(frame, again);
     }
 }

@@ -236,7 +236,9 @@ pub fn calibrate_default(
                 if preset.dispersion_a2 != 0.0 {
                     found = nominal_a1_restart(&mut run, problem, preset, settings, &posed, found)?;
                 }
-                if let (Some(bootstrap), true) = (preset.blur_bootstrap, preset.fit_blur) {
+                if let (Some(bootstrap), true) = (preset.blur_bootstrap, preset.fit_blur)
+                    && found.0.blur_sigma_px >= bootstrap.min_blur_px
+                {
                     found.0 =
                         blur_bootstrap_stage(&mut run, problem, settings, bootstrap, found.0)?;
                 }

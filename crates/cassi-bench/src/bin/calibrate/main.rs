@@ -55,7 +55,7 @@
 //! [--no-texture] [--no-scene-fit] [--no-fine-pass] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene]
 //! [--fine-pass-free pose-and-slope|geometry|all] [--scene-cell PX]
 //! [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--no-detail-pass]
-//! [--no-recon] [--no-limits] [--out PATH] [--scene-transform none|flip-cols|flip-rows|transpose] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--model-a2 A2] [--detail-cold-above PX|none] [--blur-bootstrap crisp-cells|dispersed-mask [--blur-bootstrap-noise]] [--verbose]`
+//! [--no-recon] [--no-limits] [--out PATH] [--scene-transform none|flip-cols|flip-rows|transpose] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--model-a2 A2] [--detail-cold-above PX|none] [--blur-bootstrap crisp-cells|dispersed-mask [--blur-bootstrap-noise] [--blur-bootstrap-residual] [--blur-bootstrap-min PX]] [--verbose]`
 //! (`--no-texture`: the default preset without its texture fit, as it was
 //! before issue #14 — the "before" row; `--no-scene-fit`: without its
 //! scene fit, ending in the texture fit as the records `*_texture.json`
@@ -286,6 +286,8 @@ fn parse_args(argv: &[String]) -> Result<Args> {
     let mut detail_cold_above: Option<Option<f64>> = None;
     let mut blur_bootstrap: Option<DispersionModel> = None;
     let mut blur_bootstrap_noise = false;
+    let mut blur_bootstrap_residual = false;
+    let mut blur_bootstrap_min: Option<f64> = None;
     let mut it = argv.iter();
     while let Some(flag) = it.next() {
         let mut value = || {
@@ -345,6 +347,15 @@ fn parse_args(argv: &[String]) -> Result<Args> {
                 )
             }
             "--blur-bootstrap-noise" => blur_bootstrap_noise = true,
+            "--blur-bootstrap-residual" => blur_bootstrap_residual = true,
+            "--blur-bootstrap-min" => {
+                let v = value()?;
+                let px: f64 = v
+                    .parse()
+                    .with_context(|| format!("--blur-bootstrap-min {v}"))?;
+                ensure!(px >= 0.0, "--blur-bootstrap-min {v}: a blur σ ≥ 0 px");
+                blur_bootstrap_min = Some(px);
+            }
             "--detail-cold-above" => {
                 let v = value()?;
                 detail_cold_above = Some(if v == "none" {
@@ -533,14 +544,24 @@ fn parse_args(argv: &[String]) -> Result<Args> {
         };
         // the benchmark's own noise: a study of what the noise does
         let known_noise = blur_bootstrap_noise.then(|| noise(1));
+        let defaults = BlurBootstrap::default();
+        let min_blur_px = blur_bootstrap_min.unwrap_or(defaults.min_blur_px);
         d.blur_bootstrap = Some(BlurBootstrap {
             through,
             noise: known_noise,
-            ..BlurBootstrap::default()
+            residual_noise: blur_bootstrap_residual,
+            min_blur_px,
+            ..defaults
         });
-        preset_name += &format!(" (blur bootstrap through {}", through.name());
+        preset_name += &format!(
+            " (blur bootstrap through {} above σ {min_blur_px} px",
+            through.name()
+        );
         if blur_bootstrap_noise {
             preset_name += ", the benchmark's noise known";
+        }
+        if blur_bootstrap_residual {
+            preset_name += ", GAP-TV's residual with random signs";
         }
         preset_name += ")";
     }
