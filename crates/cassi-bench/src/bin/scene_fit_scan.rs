@@ -44,7 +44,7 @@ use cassi_core::calib::{
 use cassi_core::optics::{
     DispersionModel, ModelOperator, NoiseModel, PhysicalSpec, simulate_physical,
 };
-use cassi_core::recon::{Method, Model};
+use cassi_core::recon::{Method, MethodId, Model};
 use cassi_core::solvers::Silent;
 use cassi_core::{Cube, Mask, Measurement, Mismatch, Parameter, STANDARD_WAVELENGTHS_NM};
 use cassi_eval::machine::Machine;
@@ -116,6 +116,8 @@ impl Measured {
     }
 }
 
+/// The case's measurement of `kind`; `physical` is its `Physical` one,
+/// made first (the reconstruction row starts from it).
 fn measure(
     kind: Measured,
     scene: &Cube,
@@ -123,6 +125,7 @@ fn measure(
     mask: &Mask,
     truth: &Mismatch,
     seed: u64,
+    physical: Option<&Measurement>,
 ) -> anyhow::Result<Measurement> {
     let noise = NoiseModel {
         photon_peak: Some(2e4),
@@ -139,7 +142,8 @@ fn measure(
             // what a bootstrap of the blind fit could see: the model's
             // operator on GAP-TV's scene from the physical measurement
             // (at the true ψ: the most the bootstrap could know)
-            let y = measure(Measured::Physical, scene, settings, mask, truth, seed)?;
+            let y =
+                physical.ok_or_else(|| anyhow::anyhow!("the physical measurement comes first"))?;
             let model = Model::new(
                 mask,
                 scene.bands(),
@@ -147,7 +151,9 @@ fn measure(
                 *truth,
                 DispersionModel::DispersedMask,
             )?;
-            let rec = Method::by_name("gap-tv")?.solve(&y, &model, &mut Silent)?;
+            let gap_tv = Method::defaults(MethodId::GapTv)
+                .ok_or_else(|| anyhow::anyhow!("GAP-TV has defaults"))?;
+            let rec = gap_tv.solve(y, &model, &mut Silent)?;
             model_of(&rec.cube.clipped_to_unit())?
         }
         Measured::Physical | Measured::PhysicalCoarseScene => {
@@ -273,8 +279,21 @@ fn main() -> anyhow::Result<()> {
         let name = cassi_bench::scene_name(path);
         let scene = cassi_io::load_cube(path, None, cassi_io::CubeLayout::Auto)?;
         let seed = SEED_BASE + 20 * index as u64 + slot;
+        // Measured::ALL starts with it: the later rows may start from it
+        let mut physical: Option<Measurement> = None;
         for kind in Measured::ALL {
-            let y = measure(kind, &scene, &settings, &mask, &truth, seed)?;
+            let y = measure(
+                kind,
+                &scene,
+                &settings,
+                &mask,
+                &truth,
+                seed,
+                physical.as_ref(),
+            )?;
+            if kind == Measured::Physical {
+                physical = Some(y.clone());
+            }
             let problem = CalibrationProblem::nominal(
                 &y,
                 &mask,

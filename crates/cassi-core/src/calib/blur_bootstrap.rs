@@ -15,6 +15,9 @@
 //! within +0.005 … +0.014 px on every tuning scene at σ 0.7
 //! (`scene_fit_scan_blur_sigma_px_sigma0.7_bootstrap.json`, row
 //! `model_on_gap_tv_scene`): it keeps the texture the coarse scene lacks.
+//! That probe ran GAP-TV's defaults (100 iterations) and clipped its scene
+//! to [0, 1]; the stage runs `gap_iterations` (50) and sends the scene
+//! back unclipped.
 //!
 //! Why not the default (tuning half, 45 cases,
 //! `calibrate_physical_tuning_blur_bootstrap_crisp_cells.json`): on aligned

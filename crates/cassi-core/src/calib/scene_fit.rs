@@ -508,16 +508,17 @@ impl<'a> SceneFit<'a> {
         first: &Solved,
     ) -> Result<Self> {
         let (rows, cols) = self.problem.measurement.shape();
-        let root = weighting.root_weights(&first.residual, rows, cols)?;
+        self.root_weights = Some(weighting.root_weights(&first.residual, rows, cols)?);
+        // the data √w ⊙ H y, made afresh (any earlier weighting replaced)
         let mut data = std::mem::take(&mut self.data);
-        if let Some(old) = &self.root_weights {
-            // undo an earlier weighting: the data are H y times it
-            data.iter_mut().zip(old).for_each(|(d, &w)| *d /= w);
-        }
-        data.iter_mut().zip(&root).for_each(|(d, &w)| *d *= w);
+        self.high_pass(
+            self.problem.measurement.as_slice(),
+            &mut data,
+            &mut Vec::new(),
+        );
+        self.weigh(&mut data);
         self.data_energy = data.iter().map(|&v| v as f64 * v as f64).sum();
         self.data = data;
-        self.root_weights = Some(root);
         Ok(self)
     }
 
