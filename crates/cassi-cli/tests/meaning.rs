@@ -531,6 +531,20 @@ fn a_curved_dispersion_travels_from_the_calibration_to_the_model() {
             "{k}: ±{half} for {d}"
         );
     }
+    // its second texture and scene fits are in the file, named as its,
+    // before the choice; one of the two answers is the last of them
+    let prefix = cassi_core::calib::NOMINAL_A1_RESTART_PREFIX;
+    let at = stages.iter().position(|st| st["name"] == restart).unwrap();
+    let again: Vec<_> = stages[..at]
+        .iter()
+        .filter(|st| st["name"].as_str().is_some_and(|n| n.starts_with(prefix)))
+        .collect();
+    assert!(again.len() >= 2, "{stages:?}");
+    let last = &again[again.len() - 1]["parameters"];
+    assert!(
+        *last == chose["parameters"] || *last == other["parameters"],
+        "{last} vs {chose}"
+    );
     // only the choosing stage reports a passed-over answer
     assert!(
         stages

@@ -110,14 +110,17 @@ impl Parameter {
     /// The parameters the calibration presets fit: every one but the
     /// curvature a2, which they hold at the value they are given (0 unless
     /// a camera's design or a study says otherwise).
-    pub const CALIBRATED: [Parameter; 6] = [
-        Self::Dx,
-        Self::Dy,
-        Self::ThetaDeg,
-        Self::A1,
-        Self::AlphaDeg,
-        Self::BlurSigmaPx,
-    ];
+    pub const CALIBRATED: [Parameter; 6] = {
+        // the first six of ALL: a2 is listed last there
+        assert!(matches!(Self::ALL[6], Self::A2));
+        let mut out = [Self::A2; 6];
+        let mut i = 0;
+        while i < out.len() {
+            out[i] = Self::ALL[i];
+            i += 1;
+        }
+        out
+    };
 
     /// The parameter's position in [`Self::ALL`] (tables indexed by it).
     pub fn index(self) -> usize {

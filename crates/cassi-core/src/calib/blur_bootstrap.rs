@@ -39,13 +39,12 @@ use serde::{Deserialize, Serialize};
 use super::CalibrationProblem;
 use super::reframe;
 use super::scene_fit::{SceneFit, SceneFitSettings, fit_scene};
+use super::score::gap_tv_reconstruction;
 use crate::cube::Measurement;
 use crate::error::Result;
 use crate::optics::{DispersionModel, ModelOperator, NoiseModel};
 use crate::params::{Mismatch, Parameter};
-use crate::recon::{Method, MethodId};
 use crate::rng::Rng;
-use crate::solvers::Silent;
 
 /// Settings of the blur's bootstrap.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -110,12 +109,7 @@ impl BlurBootstrap {
     ) -> Result<BlurBias> {
         problem.check_cancelled()?;
         let (mask, bands) = (problem.nominal_mask(), problem.bands());
-        let model = problem.nominal.with_mismatch(*at)?;
-        let mut method = Method::defaults(MethodId::GapTv).expect("GAP-TV is iterative");
-        if let Method::GapTv { gap, .. } = &mut method {
-            gap.iterations = self.gap_iterations;
-        }
-        let scene = method.solve(problem.measurement, &model, &mut Silent)?.cube;
+        let scene = gap_tv_reconstruction(problem, at, self.gap_iterations)?;
         let mut made = ModelOperator::new(mask, bands, at, self.through)?.forward(&scene)?;
         if let Some(noise) = &self.noise {
             made = noise.apply(&made)?;

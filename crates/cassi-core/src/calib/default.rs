@@ -774,19 +774,20 @@ fn nominal_a1_restart(
     found: TextureResult,
 ) -> Result<TextureResult> {
     problem.check_cancelled()?;
-    let stage = run.start();
     let start = Mismatch {
         a1: preset.stride,
         alpha_deg: 0.0,
         a2: preset.dispersion_a2,
         ..*posed
     };
-    let mut unreported = |_: &StageReport| {};
-    let mut again = StageRunner::new(&mut unreported);
-    let estimate = SceneEstimate::Proxy { at: start };
-    let (textured, _) = texture_stage(&mut again, problem, preset, &start, estimate)?;
-    let restarted = scene_fit_stage(&mut again, problem, preset, settings, &textured)?;
-    stage.count(again.evaluations());
+    // the second run's stages are reported as they finish, names prefixed
+    let restarted = run.prefixed(NOMINAL_A1_RESTART_PREFIX, |run| {
+        let estimate = SceneEstimate::Proxy { at: start };
+        let (textured, _) = texture_stage(run, problem, preset, &start, estimate)?;
+        scene_fit_stage(run, problem, preset, settings, &textured)
+    })?;
+    // this stage is the choice alone: its time and its two scores
+    let stage = run.start();
     let first_pass = settings.first_pass_only();
     let objective = |psi: &Mismatch| scene_fit_score(problem, &first_pass, psi);
     let (kept, other) = (objective(&found.0)?, objective(&restarted.0)?);
@@ -842,6 +843,10 @@ pub const BLUR_BOOTSTRAP_STAGE: &str =
 /// The name of [`nominal_a1_restart`]'s stage in the stage reports.
 pub const NOMINAL_A1_RESTART_STAGE: &str =
     "curved dispersion: fits again from the nominal a1, the lower scene objective kept";
+
+/// Put before the names of [`nominal_a1_restart`]'s second texture and scene
+/// fits in the stage reports (reported before its choosing stage).
+pub const NOMINAL_A1_RESTART_PREFIX: &str = "from the nominal a1: ";
 
 /// The name of the scene fit's first pass in the stage reports.
 pub const SCENE_FIT_STAGE: &str = "scene fit (coarse scene per ψ)";

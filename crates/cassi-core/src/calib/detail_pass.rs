@@ -27,6 +27,16 @@
 //! configuration 3 maps gave 26 of 45 against 25, RMSE mixed
 //! (`calibrate_physical_tuning_detail_groups3.json`): not the default.
 //!
+//! [`DetailSource::GapTv`] takes the maps from GAP-TV's scene instead of
+//! the proxy's: on the tuning half's first configuration (45 cases,
+//! `calibrate_physical_tuning_detail_gap_tv50.json`, 50 iterations,
+//! against the default's answers in `…_tuning_blur_bootstrap_crisp_cells.json`)
+//! all six within tolerance stayed 12 of 30 random and 13 of 15 aligned;
+//! random RMSE dx 0.155 → 0.146 px, dy 0.040 → 0.035, α 0.063 → 0.060°,
+//! aligned dy 0.007 → 0.014 px, α 0.011 → 0.023°, σ unchanged (the pass
+//! holds it); the pass took 2.8 s instead of 1.1 (median; runs overlapped,
+//! not a timing figure): not the default.
+//!
 //! Chosen on the tuning half, four configurations
 //! (`calibrate_physical_tuning_detail_pass{,_flip_cols,_flip_rows,_transpose}.json`
 //! as commit 8daad63 made them, its scene solved from zero, against
@@ -40,7 +50,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::scene_fit::FinePassFree;
-use super::score::{CalibrationProblem, ProxyParams, proxy_reconstruction};
+use super::score::{CalibrationProblem, ProxyParams, gap_tv_reconstruction, proxy_reconstruction};
 use crate::error::{CassiError, Result};
 use crate::optics::ModelOperator;
 use crate::optics::blur::GaussianBlur;
@@ -76,6 +86,29 @@ pub struct DetailPass {
     /// case; every other case unchanged.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub cold_above_blur_px: Option<f64>,
+    /// The reconstruction the maps are taken from. Absent in settings
+    /// written before it: the proxy's.
+    #[serde(default, skip_serializing_if = "DetailSource::is_proxy")]
+    pub source: DetailSource,
+}
+
+/// Where the detail maps' luminance comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum DetailSource {
+    /// The proxy reconstruction at the first pass's ψ (cheap; below about
+    /// a pixel it carries the mask's imprint, whence the pre-smoothing).
+    #[default]
+    Proxy,
+    /// GAP-TV's reconstruction at the first pass's ψ, this many iterations:
+    /// closer to the scene, one solve dearer.
+    GapTv { iterations: usize },
+}
+
+impl DetailSource {
+    fn is_proxy(&self) -> bool {
+        *self == Self::Proxy
+    }
 }
 
 fn one_group() -> usize {
@@ -90,6 +123,7 @@ impl Default for DetailPass {
             free: FinePassFree::Geometry,
             spectral_groups: 1,
             cold_above_blur_px: Some(0.85),
+            source: DetailSource::Proxy,
         }
     }
 }
@@ -112,8 +146,16 @@ impl DetailPass {
     ) -> Result<Vec<f32>> {
         self.check(problem.bands())?;
         let (rows, cols) = problem.nominal_mask().shape();
-        let op = ModelOperator::new(problem.nominal_mask(), problem.bands(), at, problem.model())?;
-        let cube = proxy_reconstruction(&op, problem.measurement, proxy);
+        let cube = match self.source {
+            DetailSource::Proxy => {
+                let (mask, bands) = (problem.nominal_mask(), problem.bands());
+                let op = ModelOperator::new(mask, bands, at, problem.model())?;
+                proxy_reconstruction(&op, problem.measurement, proxy)
+            }
+            DetailSource::GapTv { iterations } => {
+                gap_tv_reconstruction(problem, at, iterations)?.into_vec()
+            }
+        };
         let (groups, plane) = (self.spectral_groups, rows * cols);
         let mut maps = Vec::with_capacity(groups * plane);
         for l in group_luminance(&cube, plane, groups).chunks_exact(plane) {
@@ -154,6 +196,13 @@ impl DetailPass {
                     ),
                 });
             }
+        }
+        if self.source == (DetailSource::GapTv { iterations: 0 }) {
+            return Err(CassiError::InvalidParameter {
+                name: "detail_pass.source.gap_tv.iterations",
+                value: 0.0,
+                reason: "GAP-TV's iterations for the detail maps: 1 or more".into(),
+            });
         }
         if let Some(px) = self.cold_above_blur_px
             && !(px.is_finite() && px >= 0.0)
@@ -336,6 +385,34 @@ mod tests {
         assert_eq!(cold.cold_above_blur_px, Some(0.85));
         let json = serde_json::to_string(&cold).unwrap();
         assert_eq!(serde_json::from_str::<DetailPass>(&json).unwrap(), cold);
+    }
+
+    /// Settings written before the source existed read as the proxy's, the
+    /// proxy is not written out (older readers and settings digests see
+    /// nothing new), GAP-TV's round-trips, and zero iterations are refused
+    /// by name.
+    #[test]
+    fn the_detail_source_is_the_proxy_unless_named() {
+        let plain = serde_json::to_value(DetailPass::default()).unwrap();
+        assert!(plain.get("source").is_none(), "{plain}");
+        let back: DetailPass = serde_json::from_value(plain).unwrap();
+        assert_eq!(back.source, DetailSource::Proxy);
+        let gap = DetailPass {
+            source: DetailSource::GapTv { iterations: 30 },
+            ..DetailPass::default()
+        };
+        let json = serde_json::to_value(gap).unwrap();
+        assert_eq!(json["source"]["gap_tv"]["iterations"], 30, "{json}");
+        assert_eq!(serde_json::from_value::<DetailPass>(json).unwrap(), gap);
+        assert!(gap.check(28).is_ok());
+        let e = DetailPass {
+            source: DetailSource::GapTv { iterations: 0 },
+            ..gap
+        }
+        .check(28)
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("detail_pass.source.gap_tv.iterations"), "{e}");
     }
 
     /// The default starts cold only above 0.85 px (the tuning half's wide

@@ -39,10 +39,10 @@ use serde::{Deserialize, Serialize};
 pub use adam::AdamSettings;
 pub use blur_bootstrap::BlurBootstrap;
 pub use default::{
-    BLUR_BOOTSTRAP_STAGE, DETAIL_PASS_STAGE, DefaultPreset, NOMINAL_A1_RESTART_STAGE,
-    SCENE_FIT_STAGE, calibrate_default, texture_fit,
+    BLUR_BOOTSTRAP_STAGE, DETAIL_PASS_STAGE, DefaultPreset, NOMINAL_A1_RESTART_PREFIX,
+    NOMINAL_A1_RESTART_STAGE, SCENE_FIT_STAGE, calibrate_default, texture_fit,
 };
-pub use detail_pass::DetailPass;
+pub use detail_pass::{DetailPass, DetailSource};
 pub use gradient::Parameter;
 pub use nelder_mead::nelder_mead;
 pub use paper::{GradientStage, PaperPreset, calibrate_paper};

@@ -85,6 +85,8 @@ pub(crate) struct StageRunner<'a> {
     started: Instant,
     reports: Vec<StageReport>,
     on_stage: &'a mut dyn FnMut(&StageReport),
+    /// Put before every stage name (a stage run again inside another).
+    prefix: &'static str,
 }
 
 impl<'a> StageRunner<'a> {
@@ -94,7 +96,22 @@ impl<'a> StageRunner<'a> {
             started: Instant::now(),
             reports: Vec::new(),
             on_stage,
+            prefix: "",
         }
+    }
+
+    /// Runs `stages` with `prefix` before each of their names: stages run
+    /// again inside another (a restart's fits), reported in order with the
+    /// rest.
+    pub(crate) fn prefixed<R>(
+        &mut self,
+        prefix: &'static str,
+        stages: impl FnOnce(&mut Self) -> R,
+    ) -> R {
+        let outer = std::mem::replace(&mut self.prefix, prefix);
+        let out = stages(self);
+        self.prefix = outer;
+        out
     }
 
     /// Starts a stage's clock and count.
@@ -133,6 +150,11 @@ impl<'a> StageRunner<'a> {
         best: Scored,
         passed_over: Option<PassedOver>,
     ) -> Mismatch {
+        let name = if self.prefix.is_empty() {
+            name
+        } else {
+            format!("{}{name}", self.prefix)
+        };
         let report = StageReport {
             name,
             evaluations: stage.evaluations.count(),
@@ -195,5 +217,20 @@ mod tests {
         );
         assert_eq!(reports[0].parameters.dx, 1.0);
         assert_eq!(seen, vec!["one", "two"]);
+    }
+
+    #[test]
+    fn prefixed_stages_carry_the_prefix_and_the_runner_drops_it_after() {
+        let mut seen = Vec::new();
+        let mut on_stage = |r: &StageReport| seen.push(r.name.clone());
+        let mut run = StageRunner::new(&mut on_stage);
+        let best = Scored::infinite(Mismatch::nominal(2.0));
+        run.prefixed("again: ", |run| {
+            let stage = run.start();
+            run.finish(stage, "fit", best);
+        });
+        let stage = run.start();
+        run.finish(stage, "choice", best);
+        assert_eq!(seen, vec!["again: fit", "choice"]);
     }
 }

@@ -54,7 +54,7 @@
 //! [--no-inverse-crime] [--model rounded|subpixel|dispersed-mask|crisp-cells] [--preset NAME]
 //! [--no-texture] [--no-scene-fit] [--no-fine-pass] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene]
 //! [--fine-pass-free pose-and-slope|geometry|all] [--scene-cell PX]
-//! [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--no-detail-pass]
+//! [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv ITERATIONS] [--no-detail-pass]
 //! [--no-recon] [--no-limits] [--out PATH] [--scene-transform none|flip-cols|flip-rows|transpose] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--model-a2 A2] [--detail-cold-above PX|none] [--blur-bootstrap crisp-cells|dispersed-mask [--blur-bootstrap-noise] [--blur-bootstrap-residual] [--blur-bootstrap-min PX]] [--verbose]`
 //! (`--no-texture`: the default preset without its texture fit, as it was
 //! before issue #14 — the "before" row; `--no-scene-fit`: without its
@@ -65,7 +65,8 @@
 //! `--fine-pass-anchor` and `--fine-pass-free`, this anchor and these
 //! parameters); `--detail-pass FREE`: the scene fit's detail pass
 //! (`calib::DetailPass`) refitting these, `--detail-groups G` with G
-//! detail maps (spectral groups of bands), `--detail-cold-above PX|none` its
+//! detail maps (spectral groups of bands), `--detail-gap-tv N` its maps
+//! from GAP-TV's scene (N iterations) instead of the proxy's, `--detail-cold-above PX|none` its
 //! scene solved from zero where the first pass's σ exceeds PX px (the
 //! default 0.85), or never (as the records before it were made),
 //! `--no-detail-pass` without it;
@@ -90,8 +91,8 @@ use std::time::Instant;
 use anyhow::{Context, Result, anyhow, bail, ensure};
 use cassi_bench::{median, physical_random_mismatch, psi_of, scene_name, shared_data};
 use cassi_core::calib::{
-    BlurBootstrap, CalibrationProblem, DefaultPreset, DetailPass, FinePass, FinePassFree,
-    PRESET_NAMES, Preset, SCENE_FIT_STAGE, SceneFitSettings, calibrate, grid_phase,
+    BlurBootstrap, CalibrationProblem, DefaultPreset, DetailPass, DetailSource, FinePass,
+    FinePassFree, PRESET_NAMES, Preset, SCENE_FIT_STAGE, SceneFitSettings, calibrate, grid_phase,
     model_error_floor,
 };
 use cassi_core::metrics::psnr;
@@ -257,7 +258,7 @@ impl SceneTransform {
 
 const USAGE: &str = "calibrate [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] \
                      [--no-aligned] [--no-inverse-crime] [--no-wide-blur] [--model rounded|subpixel|dispersed-mask|crisp-cells] \
-                     [--preset NAME] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all] [--scene-cell PX] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--no-detail-pass] [--no-recon] [--no-limits] [--out PATH] \
+                     [--preset NAME] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all] [--scene-cell PX] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv N] [--no-detail-pass] [--no-recon] [--no-limits] [--out PATH] \
                      [--scene-transform none|flip-cols|flip-rows|transpose] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--verbose]";
 
 fn parse_args(argv: &[String]) -> Result<Args> {
@@ -277,6 +278,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
     let mut no_fine_pass = false;
     let mut scene_cell: Option<usize> = None;
     let mut detail_groups: Option<usize> = None;
+    let mut detail_gap_tv: Option<usize> = None;
     let mut detail_pass: Option<Option<FinePassFree>> = None;
     let mut out = None;
     let mut transform = SceneTransform::None;
@@ -376,6 +378,12 @@ fn parse_args(argv: &[String]) -> Result<Args> {
                 let g: usize = v.parse().with_context(|| format!("--detail-groups {v}"))?;
                 ensure!(g >= 1, "--detail-groups {v}: at least one detail map");
                 detail_groups = Some(g);
+            }
+            "--detail-gap-tv" => {
+                let v = value()?;
+                let n: usize = v.parse().with_context(|| format!("--detail-gap-tv {v}"))?;
+                ensure!(n >= 1, "--detail-gap-tv {v}: at least one GAP-TV iteration");
+                detail_gap_tv = Some(n);
             }
             "--halo" => {
                 let v = value()?;
@@ -536,6 +544,14 @@ fn parse_args(argv: &[String]) -> Result<Args> {
         };
         pass.spectral_groups = groups;
         preset_name += &format!(" ({groups} detail maps)");
+    }
+    if let Some(iterations) = detail_gap_tv {
+        let settings = scene_fit_settings(&mut preset, "--detail-gap-tv")?;
+        let Some(pass) = settings.detail_pass.as_mut() else {
+            bail!("--detail-gap-tv: the detail pass is off (--no-detail-pass)");
+        };
+        pass.source = DetailSource::GapTv { iterations };
+        preset_name += &format!(" (detail maps from GAP-TV, {iterations} iterations)");
     }
     if let Some(through) = blur_bootstrap {
         scene_fit_settings(&mut preset, "--blur-bootstrap")?;
