@@ -47,7 +47,9 @@
 //! scene-known model at the true ψ and the simulator's noise level. The
 //! true ψ of the oracle (IV) and of the limits carries the simulated
 //! curvature (`--dispersion-a2`): the instrument's, not the straight ψ the
-//! case drew.
+//! case drew. `--limits-gap-tv FAMILY` adds the scene-known fit in FAMILY
+//! with GAP-TV's reconstruction in place of the scene, made at the truth
+//! and at the blind estimate (what a reconstruct-then-fit round reaches).
 //!
 //! Run: `cargo run --release -p cassi-bench --bin calibrate --
 //! [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] [--no-aligned]
@@ -55,7 +57,7 @@
 //! [--no-texture] [--no-scene-fit] [--no-fine-pass] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene]
 //! [--fine-pass-free pose-and-slope|geometry|all] [--scene-cell PX]
 //! [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv ITERATIONS] [--no-detail-pass]
-//! [--no-recon] [--no-limits] [--out PATH] [--scene-transform none|flip-cols|flip-rows|transpose] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--model-a2 A2] [--detail-cold-above PX|none] [--blur-bootstrap crisp-cells|dispersed-mask [--blur-bootstrap-noise] [--blur-bootstrap-residual] [--blur-bootstrap-min PX]] [--verbose]`
+//! [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--out PATH] [--scene-transform none|flip-cols|flip-rows|transpose] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--model-a2 A2] [--detail-cold-above PX|none] [--blur-bootstrap crisp-cells|dispersed-mask [--blur-bootstrap-noise] [--blur-bootstrap-residual] [--blur-bootstrap-min PX]] [--verbose]`
 //! (`--no-texture`: the default preset without its texture fit, as it was
 //! before issue #14 — the "before" row; `--no-scene-fit`: without its
 //! scene fit, ending in the texture fit as the records `*_texture.json`
@@ -186,6 +188,9 @@ struct Args {
     preset: Preset,
     recon: bool,
     limits: bool,
+    /// `--limits-gap-tv FAMILY`: with `--limits`, the scene-known fit in
+    /// FAMILY on GAP-TV's scene ([`limits::gap_tv_scene_fits`]).
+    limits_gap_tv: Option<DispersionModel>,
     out: PathBuf,
     verbose: bool,
     /// `--scene-transform`: every scene flipped or transposed before the
@@ -258,7 +263,7 @@ impl SceneTransform {
 
 const USAGE: &str = "calibrate [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] \
                      [--no-aligned] [--no-inverse-crime] [--no-wide-blur] [--model rounded|subpixel|dispersed-mask|crisp-cells] \
-                     [--preset NAME] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all] [--scene-cell PX] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv N] [--no-detail-pass] [--no-recon] [--no-limits] [--out PATH] \
+                     [--preset NAME] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all] [--scene-cell PX] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv N] [--no-detail-pass] [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--out PATH] \
                      [--scene-transform none|flip-cols|flip-rows|transpose] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--verbose]";
 
 fn parse_args(argv: &[String]) -> Result<Args> {
@@ -268,6 +273,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
     let (mut aligned, mut inverse_crime, mut recon, mut verbose) = (true, true, true, false);
     let mut wide_blur = true;
     let mut limits = true;
+    let mut limits_gap_tv: Option<DispersionModel> = None;
     let mut model = DispersionModel::DispersedMask;
     let mut preset_name = "default".to_string();
     let mut texture = true;
@@ -451,6 +457,13 @@ fn parse_args(argv: &[String]) -> Result<Args> {
             "--recon" => recon = true,
             "--no-recon" => recon = false,
             "--limits" => limits = true,
+            "--limits-gap-tv" => {
+                limits_gap_tv = Some(
+                    value()?
+                        .parse()
+                        .map_err(|e: String| anyhow!("--limits-gap-tv: {e}"))?,
+                )
+            }
             "--no-limits" => limits = false,
             "--out" => out = Some(PathBuf::from(value()?)),
             "--scene-transform" => transform = SceneTransform::parse(&value()?)?,
@@ -615,6 +628,10 @@ fn parse_args(argv: &[String]) -> Result<Args> {
                 half_name.replace('-', "_")
             ))
     });
+    ensure!(
+        limits || limits_gap_tv.is_none(),
+        "--limits-gap-tv: the limits are off (--no-limits)"
+    );
     Ok(Args {
         halves,
         half_name,
@@ -630,6 +647,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
         preset,
         recon,
         limits,
+        limits_gap_tv,
         out,
         verbose,
         transform,
@@ -955,6 +973,29 @@ fn run_case(args: &Args, case: &Case, name: &str, scene: &Cube, mask: &Mask) -> 
                     &est,
                     &instrument,
                 )?;
+            }
+        }
+        if let Some(family) = args.limits_gap_tv {
+            lim["gap_tv_scene"] =
+                limits::gap_tv_scene_fits(&problem, mask, &est, &instrument, family, 100)?;
+            for (key, fit) in lim["gap_tv_scene"]["fits"]
+                .as_object()
+                .into_iter()
+                .flatten()
+            {
+                let e = &fit["error"];
+                eprintln!(
+                    "  GAP-TV scene {key}: {}",
+                    Parameter::CALIBRATED
+                        .iter()
+                        .map(|p| format!(
+                            "{} {:+.4}",
+                            p.name(),
+                            e[p.key()].as_f64().unwrap_or(f64::NAN)
+                        ))
+                        .collect::<Vec<_>>()
+                        .join("  ")
+                );
             }
         }
         eprintln!("{}", limits::describe(&lim));
