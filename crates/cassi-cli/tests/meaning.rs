@@ -562,6 +562,10 @@ fn a_curved_dispersion_travels_from_the_calibration_to_the_model() {
             &["--preset", "paper", "--dispersion-a2", "0.001"][..],
             &["--dispersion-a2", "paper preset"][..],
         ),
+        (
+            &["--preset", "paper", "--blur-pass"][..],
+            &["--blur-pass", "paper preset"][..],
+        ),
     ] {
         let args = calibrate(extra);
         assert_fails(
@@ -570,4 +574,38 @@ fn a_curved_dispersion_travels_from_the_calibration_to_the_model() {
             &cal,
         );
     }
+}
+
+#[test]
+fn the_blur_pass_is_the_last_stage_when_asked_for() {
+    let d = dir("blur_pass");
+    let (meas, mask) = simulated(&d);
+    let cal = d.join("cal.json");
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    let args = [
+        "calibrate".to_string(),
+        s(&meas),
+        "--mask".into(),
+        s(&mask),
+        "--blur-pass".into(),
+        "-o".into(),
+        s(&cal),
+        "-q".into(),
+    ];
+    ok(&cassi(&args.iter().map(String::as_str).collect::<Vec<_>>()));
+    let record: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&cal).unwrap()).unwrap();
+    let stages = record["stages"].as_array().expect("stages");
+    let last = stages.last().expect("a stage");
+    assert_eq!(
+        last["name"],
+        cassi_core::calib::BLUR_PASS_STAGE,
+        "{stages:?}"
+    );
+    // it moves σ alone: the geometry is the stage before's
+    let before = &stages[stages.len() - 2]["parameters"];
+    for k in ["dx", "dy", "theta_deg", "a1", "alpha_deg"] {
+        assert_eq!(before[k], last["parameters"][k], "{k}");
+    }
+    assert_eq!(record["parameters"], last["parameters"]);
 }

@@ -16,6 +16,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::blur_bootstrap::BlurBootstrap;
+use super::blur_pass::BlurPass;
 use super::rounded_dispersion::{rounded_dispersion, rounding_intervals};
 use super::scene_fit::{
     FinePassFree, RidgeAnchor, SceneFit, SceneFitResult, SceneFitSettings, fit_scene,
@@ -121,6 +122,12 @@ pub struct DefaultPreset {
     /// (`None`) by default and in records made before it.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub blur_bootstrap: Option<BlurBootstrap>,
+    /// After the scene fit, σ refitted on the crisp-cell model with
+    /// GAP-TV's texture, the geometry held ([`BlurPass`]; needs the scene
+    /// fit and `fit_blur`; before the bootstrap when both are on). Off
+    /// (`None`) by default and in records made before it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub blur_pass: Option<BlurPass>,
 }
 
 fn yes() -> bool {
@@ -172,6 +179,7 @@ impl Default for DefaultPreset {
             scene_fit: Some(SceneFitSettings::default()),
             dispersion_a2: 0.0,
             blur_bootstrap: None,
+            blur_pass: None,
         }
     }
 }
@@ -235,6 +243,9 @@ pub fn calibrate_default(
                 let mut found = scene_fit_stage(&mut run, problem, preset, settings, &best)?;
                 if preset.dispersion_a2 != 0.0 {
                     found = nominal_a1_restart(&mut run, problem, preset, settings, &posed, found)?;
+                }
+                if let (Some(pass), true) = (preset.blur_pass, preset.fit_blur) {
+                    found.0 = blur_pass_stage(&mut run, problem, preset, settings, pass, found.0)?;
                 }
                 if let (Some(bootstrap), true) = (preset.blur_bootstrap, preset.fit_blur)
                     && found.0.blur_sigma_px >= bootstrap.min_blur_px
@@ -835,6 +846,34 @@ fn blur_bootstrap_stage(
     };
     Ok(run.finish(stage, BLUR_BOOTSTRAP_STAGE, scored))
 }
+
+/// σ refitted by the [`BlurPass`]; every other parameter as the scene fit
+/// left it.
+fn blur_pass_stage(
+    run: &mut StageRunner<'_>,
+    problem: &CalibrationProblem<'_>,
+    preset: &DefaultPreset,
+    settings: SceneFitSettings,
+    pass: BlurPass,
+    found: Mismatch,
+) -> Result<Mismatch> {
+    let stage = run.start();
+    let first_pass = settings.first_pass_only();
+    let refit = pass.refit(problem, &first_pass, &preset.proxy, &found)?;
+    stage.count(refit.evaluations);
+    let scored = Scored {
+        parameters: Mismatch {
+            blur_sigma_px: refit.blur_sigma_px,
+            ..found
+        },
+        score: refit.score,
+    };
+    Ok(run.finish(stage, BLUR_PASS_STAGE, scored))
+}
+
+/// The name of [`blur_pass_stage`] in the stage reports.
+pub const BLUR_PASS_STAGE: &str =
+    "blur pass: σ refitted on the crisp-cell model with GAP-TV's texture";
 
 /// The name of [`blur_bootstrap_stage`] in the stage reports.
 pub const BLUR_BOOTSTRAP_STAGE: &str =

@@ -10,6 +10,7 @@
 
 pub(crate) mod adam;
 mod blur_bootstrap;
+mod blur_pass;
 mod coarse_scene;
 mod default;
 mod detail_pass;
@@ -38,9 +39,11 @@ use serde::{Deserialize, Serialize};
 
 pub use adam::AdamSettings;
 pub use blur_bootstrap::BlurBootstrap;
+pub use blur_pass::BlurPass;
 pub use default::{
-    BLUR_BOOTSTRAP_STAGE, DETAIL_PASS_STAGE, DefaultPreset, NOMINAL_A1_RESTART_PREFIX,
-    NOMINAL_A1_RESTART_STAGE, SCENE_FIT_STAGE, calibrate_default, texture_fit,
+    BLUR_BOOTSTRAP_STAGE, BLUR_PASS_STAGE, DETAIL_PASS_STAGE, DefaultPreset,
+    NOMINAL_A1_RESTART_PREFIX, NOMINAL_A1_RESTART_STAGE, SCENE_FIT_STAGE, calibrate_default,
+    texture_fit,
 };
 pub use detail_pass::{DetailPass, DetailSource};
 pub use gradient::Parameter;
@@ -250,6 +253,25 @@ impl Preset {
                     .into(),
             }),
             paper => Ok(paper),
+        }
+    }
+
+    /// The preset with the [`BlurPass`] on (σ refitted last on the crisp-cell
+    /// model with GAP-TV's texture: slower, σ nearer on blurred instruments;
+    /// see the README). Only the default preset has one.
+    pub fn with_blur_pass(self) -> crate::error::Result<Self> {
+        match self {
+            Self::Default(p) => Ok(Self::Default(DefaultPreset {
+                blur_pass: Some(BlurPass::default()),
+                ..p
+            })),
+            Self::Paper(_) => Err(crate::error::CassiError::InvalidParameter {
+                name: "blur_pass",
+                value: 1.0,
+                reason: "the paper preset does not fit a blur; the blur pass needs the default \
+                         preset"
+                    .into(),
+            }),
         }
     }
 

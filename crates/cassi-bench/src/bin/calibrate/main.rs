@@ -56,7 +56,7 @@
 //! [--no-inverse-crime] [--model rounded|subpixel|dispersed-mask|crisp-cells] [--preset NAME]
 //! [--no-texture] [--no-scene-fit] [--no-fine-pass] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene]
 //! [--fine-pass-free pose-and-slope|geometry|all] [--scene-cell PX]
-//! [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv ITERATIONS] [--no-detail-pass]
+//! [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv ITERATIONS] [--no-detail-pass] [--blur-pass]
 //! [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--out PATH] [--scene-transform none|flip-cols|flip-rows|transpose] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--model-a2 A2] [--detail-cold-above PX|none] [--blur-bootstrap crisp-cells|dispersed-mask [--blur-bootstrap-noise] [--blur-bootstrap-residual] [--blur-bootstrap-min PX]] [--verbose]`
 //! (`--no-texture`: the default preset without its texture fit, as it was
 //! before issue #14 — the "before" row; `--no-scene-fit`: without its
@@ -93,7 +93,7 @@ use std::time::Instant;
 use anyhow::{Context, Result, anyhow, bail, ensure};
 use cassi_bench::{median, physical_random_mismatch, psi_of, scene_name, shared_data};
 use cassi_core::calib::{
-    BlurBootstrap, CalibrationProblem, DefaultPreset, DetailPass, DetailSource, FinePass,
+    BlurBootstrap, BlurPass, CalibrationProblem, DefaultPreset, DetailPass, DetailSource, FinePass,
     FinePassFree, PRESET_NAMES, Preset, SCENE_FIT_STAGE, SceneFitSettings, calibrate, grid_phase,
     model_error_floor,
 };
@@ -263,7 +263,7 @@ impl SceneTransform {
 
 const USAGE: &str = "calibrate [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] \
                      [--no-aligned] [--no-inverse-crime] [--no-wide-blur] [--model rounded|subpixel|dispersed-mask|crisp-cells] \
-                     [--preset NAME] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all] [--scene-cell PX] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv N] [--no-detail-pass] [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--out PATH] \
+                     [--preset NAME] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all] [--scene-cell PX] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv N] [--no-detail-pass] [--blur-pass] [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--out PATH] \
                      [--scene-transform none|flip-cols|flip-rows|transpose] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--verbose]";
 
 fn parse_args(argv: &[String]) -> Result<Args> {
@@ -293,6 +293,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
     let mut model_a2: Option<f64> = None;
     let mut detail_cold_above: Option<Option<f64>> = None;
     let mut blur_bootstrap: Option<DispersionModel> = None;
+    let mut blur_pass = false;
     let mut blur_bootstrap_noise = false;
     let mut blur_bootstrap_residual = false;
     let mut blur_bootstrap_min: Option<f64> = None;
@@ -347,6 +348,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
                 detail_pass = Some(Some(free));
             }
             "--no-detail-pass" => detail_pass = Some(None),
+            "--blur-pass" => blur_pass = true,
             "--blur-bootstrap" => {
                 blur_bootstrap = Some(
                     value()?
@@ -565,6 +567,14 @@ fn parse_args(argv: &[String]) -> Result<Args> {
         };
         pass.source = DetailSource::GapTv { iterations };
         preset_name += &format!(" (detail maps from GAP-TV, {iterations} iterations)");
+    }
+    if blur_pass {
+        scene_fit_settings(&mut preset, "--blur-pass")?;
+        let Preset::Default(d) = &mut preset else {
+            bail!("--blur-pass applies to the default preset");
+        };
+        d.blur_pass = Some(BlurPass::default());
+        preset_name += " (blur pass: σ on the crisp-cell model with GAP-TV's texture)";
     }
     if let Some(through) = blur_bootstrap {
         scene_fit_settings(&mut preset, "--blur-bootstrap")?;
