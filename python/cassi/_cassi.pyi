@@ -165,9 +165,11 @@ def calibrate(
     model: Optional[Model] = None,
     preset: Literal["default", "paper"] = "default",
     dispersion_a2: float = 0.0,
+    blur_pass: bool = False,
     progress: Optional[Callable[[Dict[str, Any]], object]] = None,
 ) -> Calibration:
-    """Self-calibration from the measurement and the nominal mask alone."""
+    """Self-calibration from the measurement and the nominal mask alone;
+    `blur_pass`: σ refitted last on the crisp-cell model (slower)."""
 
 @overload
 def reconstruct(

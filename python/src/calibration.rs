@@ -208,6 +208,10 @@ enum Message {
 ///     dispersion_a2: the dispersion's curvature the calibration holds, px
 ///         per band² (band k at a1·k + a2·k²): the prism's design value;
 ///         not fitted; default preset only.
+///     blur_pass: refit the blur σ last on the crisp-cell model with
+///         GAP-TV's texture, the geometry held (the CLI's --blur-pass): σ
+///         nearer the truth on blurred instruments, about 3 s more per
+///         256² snapshot; default preset only.
 ///     progress: called with a dict {name, evaluations, seconds,
 ///         parameters, score} as each stage finishes.
 ///
@@ -224,7 +228,7 @@ enum Message {
 ///
 /// The GIL is released while the calibration runs.
 #[pyfunction]
-#[pyo3(signature = (y, mask, *, bands=28, stride=2.0, model=None, preset="default", dispersion_a2=0.0, progress=None))]
+#[pyo3(signature = (y, mask, *, bands=28, stride=2.0, model=None, preset="default", dispersion_a2=0.0, blur_pass=false, progress=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn calibrate(
     py: Python<'_>,
@@ -235,11 +239,17 @@ pub fn calibrate(
     model: Option<&str>,
     preset: &str,
     dispersion_a2: f64,
+    blur_pass: bool,
     progress: Option<Bound<'_, PyAny>>,
 ) -> PyResult<PyCalibration> {
-    let preset = Preset::by_name(preset, stride)
+    let mut preset = Preset::by_name(preset, stride)
         .and_then(|p| p.with_dispersion_a2(dispersion_a2))
         .map_err(|e| value_error(py, e.to_string()))?;
+    if blur_pass {
+        preset = preset
+            .with_blur_pass()
+            .map_err(|e| value_error(py, format!("blur_pass: {e}")))?;
+    }
     let model = match model {
         Some(name) => params::model(py, name)?,
         None => preset.default_model(),

@@ -81,6 +81,24 @@ def test_default_calibration_reports_trade_offs_and_blur(case):
         assert a in cassi.PARAMETERS and b in cassi.PARAMETERS and abs(corr) >= 0.8
 
 
+def test_the_blur_pass_refits_the_blur_alone_last(case):
+    scene, mask, _ = case
+    truth = dict(TRUTH, blur_sigma_px=0.6)
+    y = cassi.simulate(scene, mask, truth, model="crisp-cells", noise=False)
+    cal = cassi.calibrate(y, mask, bands=8, blur_pass=True)
+    *_, before, last = cal.stages
+    assert last["name"].startswith("blur pass"), last
+    assert cal.parameters == last["parameters"]
+    for k in ["dx", "dy", "theta_deg", "a1", "alpha_deg"]:
+        assert last["parameters"][k] == before["parameters"][k], k
+    # on the crisp-cell model's own data it moves σ toward the truth
+    was = abs(before["parameters"]["blur_sigma_px"] - 0.6)
+    now = abs(last["parameters"]["blur_sigma_px"] - 0.6)
+    assert now < was, (was, now)
+    with pytest.raises(ValueError, match="blur_pass"):
+        cassi.calibrate(y, mask, bands=8, preset="paper", blur_pass=True)
+
+
 def test_calibrated_reconstruction_beats_the_nominal_model(case):
     scene, mask, y = case
     cal = cassi.calibrate(y, mask, bands=8, model="rounded")
