@@ -2,8 +2,8 @@
 //! truth, and the `default` preset recovers known parameters.
 
 use cassi_core::calib::{
-    BLUR_BOOTSTRAP_STAGE, BLUR_PASS_STAGE, BlurBootstrap, BlurPass, CalibrationProblem,
-    DETAIL_PASS_STAGE, DefaultPreset, Fit, ProxyParams, calibrate_default,
+    BLUR_BOOTSTRAP_STAGE, BLUR_PASS_STAGE, BlurBootstrap, BlurPass, Calibration,
+    CalibrationProblem, DETAIL_PASS_STAGE, DefaultPreset, Fit, ProxyParams, calibrate_default,
 };
 use cassi_core::optics::{DispersionModel, SimulationSpec, simulate};
 use cassi_core::synth::{SceneSpec, random_binary_mask, synthetic_scene};
@@ -311,6 +311,26 @@ fn a_bad_detail_pass_is_refused_before_the_work() {
     assert_eq!(stages, 0);
 }
 
+/// Checks that `cal`'s last stage is `stage`, gives the answer and moved σ
+/// alone; returns the stage before's ψ and σ's error before and after it.
+fn blur_moved_alone_last(cal: &Calibration, stage: &str, truth: &Mismatch) -> (Mismatch, f64, f64) {
+    let [.., before, last] = cal.stages.as_slice() else {
+        panic!("{} stages", cal.stages.len());
+    };
+    assert_eq!(last.name, stage);
+    assert_eq!(cal.parameters, last.parameters);
+    for q in Parameter::CALIBRATED {
+        if q != Parameter::BlurSigmaPx {
+            assert_eq!(q.get(&before.parameters), q.get(&last.parameters), "{q:?}");
+        }
+    }
+    (
+        before.parameters,
+        before.parameters.blur_sigma_px - truth.blur_sigma_px,
+        last.parameters.blur_sigma_px - truth.blur_sigma_px,
+    )
+}
+
 /// The blur's bootstrap (opt-in) is the calibration's last stage and moves
 /// σ alone, by the first pass's σ bias measured on GAP-TV's scene sent
 /// back through the model. On data of the model's own operator (an inverse
@@ -337,20 +357,7 @@ fn the_blur_bootstrap_moves_the_blur_alone() {
         ..DefaultPreset::default()
     };
     let cal = calibrate_default(&p, &preset, &mut |_| {}).unwrap();
-    let [.., before, last] = cal.stages.as_slice() else {
-        panic!("{} stages", cal.stages.len());
-    };
-    assert_eq!(last.name, BLUR_BOOTSTRAP_STAGE);
-    assert_eq!(cal.parameters, last.parameters);
-    for q in Parameter::CALIBRATED {
-        if q != Parameter::BlurSigmaPx {
-            assert_eq!(q.get(&before.parameters), q.get(&last.parameters), "{q:?}");
-        }
-    }
-    let (was, now) = (
-        before.parameters.blur_sigma_px - truth.blur_sigma_px,
-        last.parameters.blur_sigma_px - truth.blur_sigma_px,
-    );
+    let (before, was, now) = blur_moved_alone_last(&cal, BLUR_BOOTSTRAP_STAGE, &truth);
     eprintln!("σ error: scene fit {was:+.4}, bootstrapped {now:+.4}");
     assert!(was.abs() > 0.02, "the scene fit's own error {was:+.4}");
     assert!(now.abs() <= 0.5 * was.abs(), "{was:+.4} -> {now:+.4}");
@@ -366,7 +373,7 @@ fn the_blur_bootstrap_moves_the_blur_alone() {
     let cal = calibrate_default(&p, &guarded, &mut |_| {}).unwrap();
     let last = cal.stages.last().unwrap();
     assert_ne!(last.name, BLUR_BOOTSTRAP_STAGE);
-    assert_eq!(cal.parameters, before.parameters);
+    assert_eq!(cal.parameters, before);
 }
 
 /// The blur pass (opt-in) is the calibration's last stage and moves σ
@@ -391,20 +398,7 @@ fn the_blur_pass_moves_the_blur_alone() {
         ..DefaultPreset::default()
     };
     let cal = calibrate_default(&p, &preset, &mut |_| {}).unwrap();
-    let [.., before, last] = cal.stages.as_slice() else {
-        panic!("{} stages", cal.stages.len());
-    };
-    assert_eq!(last.name, BLUR_PASS_STAGE);
-    assert_eq!(cal.parameters, last.parameters);
-    for q in Parameter::CALIBRATED {
-        if q != Parameter::BlurSigmaPx {
-            assert_eq!(q.get(&before.parameters), q.get(&last.parameters), "{q:?}");
-        }
-    }
-    let (was, now) = (
-        before.parameters.blur_sigma_px - truth.blur_sigma_px,
-        last.parameters.blur_sigma_px - truth.blur_sigma_px,
-    );
+    let (_, was, now) = blur_moved_alone_last(&cal, BLUR_PASS_STAGE, &truth);
     eprintln!("σ error: scene fit {was:+.4}, blur pass {now:+.4}");
     assert!(was.abs() > 0.02, "the scene fit's own error {was:+.4}");
     assert!(now.abs() <= 0.5 * was.abs(), "{was:+.4} -> {now:+.4}");
