@@ -210,8 +210,8 @@ enum Message {
 ///         not fitted; default preset only.
 ///     blur_pass: refit the blur σ last on the crisp-cell model with
 ///         GAP-TV's texture, the geometry held (the CLI's --blur-pass): σ
-///         nearer the truth on blurred instruments, about 3 s more per
-///         256² snapshot; default preset only.
+///         nearer the truth on blurred instruments, at the cost of a
+///         GAP-TV and a few crisp-cell solves; default preset only.
 ///     progress: called with a dict {name, evaluations, seconds,
 ///         parameters, score} as each stage finishes.
 ///

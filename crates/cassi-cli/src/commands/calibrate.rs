@@ -43,8 +43,8 @@ pub struct CalibrateArgs {
     pub dispersion_a2: f64,
     /// Refit the blur σ last on the crisp-cell model with GAP-TV's texture,
     /// the geometry held: σ nearer the truth on blurred instruments (held
-    /// out: aligned σ RMSE 0.028 → 0.015 px), about 3 s more per 256²
-    /// snapshot. Default preset only.
+    /// out: aligned σ RMSE 0.028 → 0.015 px), at the cost of a GAP-TV
+    /// and a few crisp-cell solves. Default preset only.
     #[arg(long)]
     pub blur_pass: bool,
     /// Output calibration JSON (for `cassi reconstruct --calibration`).

@@ -14,9 +14,17 @@
 //! σ before it is the run's previous stage, the default's answer): random
 //! poses σ RMSE 0.052 → 0.041 px, within 19 → 22 of 30, all six 12 → 16;
 //! aligned σ RMSE 0.038 → 0.030, mean +0.018 → +0.009, but beads at σ 0.3
-//! +0.045 → +0.056 (all six 13 → 12 of 15): 25 → 28 of 45. The stage's own
-//! time, 3.5 s median in runs that overlapped (not a timing figure), is
-//! most of a GAP-TV and the crisp-cell model's cold solves.
+//! +0.045 → +0.056 (all six 13 → 12 of 15): 25 → 28 of 45. With 20
+//! GAP-TV iterations (`…_tuning_blur_pass_gap20.json`) alike (28 of 45,
+//! σ RMSE random 0.040, aligned 0.031) and the stage 2.85 s instead of
+//! 3.52 s (medians in runs that overlapped: not timing figures): the
+//! crisp-cell model's cold solves, not GAP-TV, are most of its cost. Held
+//! out, fresh round 12, checked once
+//! (`calibrate_physical_held_out_round12_blur_pass.json`): aligned σ RMSE
+//! 0.028 → 0.015 px, all six 14 → 15 of 15; random σ RMSE 0.032 → 0.027,
+//! all six 7 → 7 of 20. Opt-in, not the default: its cost against the
+//! issue's 5 s per 256² calibration is not yet measured by the timing
+//! bench.
 
 use serde::{Deserialize, Serialize};
 

@@ -56,7 +56,7 @@
 //! [--no-inverse-crime] [--model rounded|subpixel|dispersed-mask|crisp-cells] [--preset NAME]
 //! [--no-texture] [--no-scene-fit] [--no-fine-pass] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene]
 //! [--fine-pass-free pose-and-slope|geometry|all] [--scene-cell PX]
-//! [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv ITERATIONS] [--no-detail-pass] [--blur-pass]
+//! [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv ITERATIONS] [--no-detail-pass] [--blur-pass [--blur-pass-gap N]]
 //! [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--out PATH] [--scene-transform none|flip-cols|flip-rows|transpose] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--model-a2 A2] [--detail-cold-above PX|none] [--blur-bootstrap crisp-cells|dispersed-mask [--blur-bootstrap-noise] [--blur-bootstrap-residual] [--blur-bootstrap-min PX]] [--verbose]`
 //! (`--no-texture`: the default preset without its texture fit, as it was
 //! before issue #14 — the "before" row; `--no-scene-fit`: without its
@@ -263,7 +263,7 @@ impl SceneTransform {
 
 const USAGE: &str = "calibrate [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] \
                      [--no-aligned] [--no-inverse-crime] [--no-wide-blur] [--model rounded|subpixel|dispersed-mask|crisp-cells] \
-                     [--preset NAME] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all] [--scene-cell PX] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv N] [--no-detail-pass] [--blur-pass] [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--out PATH] \
+                     [--preset NAME] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all] [--scene-cell PX] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv N] [--no-detail-pass] [--blur-pass [--blur-pass-gap N]] [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--out PATH] \
                      [--scene-transform none|flip-cols|flip-rows|transpose] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--verbose]";
 
 fn parse_args(argv: &[String]) -> Result<Args> {
@@ -294,6 +294,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
     let mut detail_cold_above: Option<Option<f64>> = None;
     let mut blur_bootstrap: Option<DispersionModel> = None;
     let mut blur_pass = false;
+    let mut blur_pass_gap: Option<usize> = None;
     let mut blur_bootstrap_noise = false;
     let mut blur_bootstrap_residual = false;
     let mut blur_bootstrap_min: Option<f64> = None;
@@ -349,6 +350,12 @@ fn parse_args(argv: &[String]) -> Result<Args> {
             }
             "--no-detail-pass" => detail_pass = Some(None),
             "--blur-pass" => blur_pass = true,
+            "--blur-pass-gap" => {
+                let v = value()?;
+                let n: usize = v.parse().with_context(|| format!("--blur-pass-gap {v}"))?;
+                ensure!(n >= 1, "--blur-pass-gap {v}: at least one GAP-TV iteration");
+                blur_pass_gap = Some(n);
+            }
             "--blur-bootstrap" => {
                 blur_bootstrap = Some(
                     value()?
@@ -573,8 +580,17 @@ fn parse_args(argv: &[String]) -> Result<Args> {
         let Preset::Default(d) = &mut preset else {
             bail!("--blur-pass applies to the default preset");
         };
-        d.blur_pass = Some(BlurPass::default());
-        preset_name += " (blur pass: σ on the crisp-cell model with GAP-TV's texture)";
+        let pass = BlurPass::default();
+        let gap_iterations = blur_pass_gap.unwrap_or(pass.gap_iterations);
+        d.blur_pass = Some(BlurPass {
+            gap_iterations,
+            ..pass
+        });
+        preset_name += &format!(
+            " (blur pass: σ on the crisp-cell model with GAP-TV's texture, {gap_iterations} iterations)"
+        );
+    } else if blur_pass_gap.is_some() {
+        bail!("--blur-pass-gap: the blur pass is off (--blur-pass)");
     }
     if let Some(through) = blur_bootstrap {
         scene_fit_settings(&mut preset, "--blur-bootstrap")?;
