@@ -402,4 +402,16 @@ fn the_blur_pass_moves_the_blur_alone() {
     eprintln!("σ error: scene fit {was:+.4}, blur pass {now:+.4}");
     assert!(was.abs() > 0.02, "the scene fit's own error {was:+.4}");
     assert!(now.abs() <= 0.5 * was.abs(), "{was:+.4} -> {now:+.4}");
+    // a pass without GAP-TV iterations is refused by its own name, before any stage
+    let empty = DefaultPreset {
+        blur_pass: Some(BlurPass {
+            gap_iterations: 0,
+            ..BlurPass::default()
+        }),
+        ..DefaultPreset::default()
+    };
+    let mut stages = 0;
+    let e = calibrate_default(&p, &empty, &mut |_| stages += 1).unwrap_err();
+    assert!(e.to_string().contains("blur_pass.gap_iterations"), "{e}");
+    assert_eq!(stages, 0);
 }

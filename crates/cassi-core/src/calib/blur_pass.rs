@@ -31,7 +31,7 @@ use serde::{Deserialize, Serialize};
 use super::detail_pass::{DetailPass, DetailSource};
 use super::scene_fit::{SceneFit, SceneFitSettings, fit_scene};
 use super::score::{CalibrationProblem, ProxyParams};
-use crate::error::Result;
+use crate::error::{CassiError, Result};
 use crate::optics::DispersionModel;
 use crate::params::{Mismatch, Parameter};
 
@@ -63,6 +63,18 @@ pub(crate) struct BlurRefit {
 }
 
 impl BlurPass {
+    /// Its settings, named when out of range (a settings file's, say).
+    pub(crate) fn check(&self) -> Result<()> {
+        if self.gap_iterations == 0 {
+            return Err(CassiError::InvalidParameter {
+                name: "blur_pass.gap_iterations",
+                value: 0.0,
+                reason: "GAP-TV's iterations for the blur pass's texture: 1 or more".into(),
+            });
+        }
+        Ok(())
+    }
+
     /// σ refitted at `at` (every other parameter held): GAP-TV's scene at
     /// `at` gives the detail maps ([`DetailPass`]'s defaults otherwise),
     /// the first pass's coarse scene times them is solved afresh in
@@ -75,6 +87,7 @@ impl BlurPass {
         at: &Mismatch,
     ) -> Result<BlurRefit> {
         problem.check_cancelled()?;
+        self.check()?;
         let maps = DetailPass {
             source: DetailSource::GapTv {
                 iterations: self.gap_iterations,

@@ -209,6 +209,9 @@ pub fn calibrate_default(
     if let Some(pass) = preset.scene_fit.and_then(|s| s.detail_pass) {
         pass.check(problem.bands())?;
     }
+    if let Some(pass) = preset.blur_pass {
+        pass.check()?;
+    }
     let mut run = StageRunner::new(on_stage);
     let scores = Scores::new(problem, preset);
     let mut best = correlation(&mut run, &scores)?;

@@ -54,7 +54,7 @@ pub use scene_fit::{
     FinePass, FinePassFree, RidgeAnchor, SceneFitSettings, coarse_scene_of,
     reweighted_scene_fit_scores, scene_fit_score,
 };
-pub use score::{CalibrationProblem, ProxyParams};
+pub use score::{CalibrationProblem, ProxyParams, gap_tv_reconstruction};
 pub use texture::{SCENE_SMOOTH_PX, SceneEstimate};
 
 use crate::optics::DispersionModel;

@@ -161,7 +161,7 @@ pub fn proxy_residual(op: &ModelOperator, measurement: &Measurement, proxy: &Pro
 /// measurement in the nominal model moved to `at`, `iterations` iterations
 /// (its defaults otherwise): a scene estimate far closer than the proxy's,
 /// at the cost of a solve.
-pub(crate) fn gap_tv_reconstruction(
+pub fn gap_tv_reconstruction(
     problem: &CalibrationProblem<'_>,
     at: &Mismatch,
     iterations: usize,

@@ -33,11 +33,9 @@ use std::time::Instant;
 use cassi_bench::{predict_on_detector, psi_of};
 use cassi_core::calib::{
     CalibrationProblem, DefaultPreset, SCENE_SMOOTH_PX, SceneEstimate, SceneFitSettings,
-    nelder_mead, scene_fit_score, texture_fit,
+    gap_tv_reconstruction, nelder_mead, scene_fit_score, texture_fit,
 };
 use cassi_core::optics::DispersionModel;
-use cassi_core::recon::{Method, MethodId};
-use cassi_core::solvers::Silent;
 use cassi_core::{Cube, Mask, Measurement, Mismatch, Parameter};
 use serde_json::{Value, json};
 
@@ -295,12 +293,7 @@ pub fn gap_tv_scene_fits(
     let mut out = serde_json::Map::new();
     for (key, at) in [("at_truth", truth), ("at_estimate", blind)] {
         let t = Instant::now();
-        let model = problem.nominal.with_mismatch(*at)?;
-        let mut method = Method::defaults(MethodId::GapTv).expect("GAP-TV is iterative");
-        if let Method::GapTv { gap, .. } = &mut method {
-            gap.iterations = gap_iterations;
-        }
-        let scene = method.solve(y, &model, &mut Silent)?.cube;
+        let scene = gap_tv_reconstruction(problem, at, gap_iterations)?;
         let gap_seconds = t.elapsed().as_secs_f64();
         let known = SceneKnown {
             mask,
