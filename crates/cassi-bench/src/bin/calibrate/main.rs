@@ -55,7 +55,7 @@
 //! [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] [--no-aligned]
 //! [--no-inverse-crime] [--model rounded|subpixel|dispersed-mask|crisp-cells] [--preset NAME]
 //! [--no-texture] [--no-scene-fit] [--no-fine-pass] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene]
-//! [--fine-pass-free pose-and-slope|geometry|all] [--scene-cell PX]
+//! [--fine-pass-free pose-and-slope|geometry|all] [--scene-cell PX] [--scene-nodes N]
 //! [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv ITERATIONS] [--no-detail-pass] [--blur-pass [--blur-pass-gap N]]
 //! [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--out PATH] [--scene-transform none|flip-cols|flip-rows|transpose] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--model-a2 A2] [--detail-cold-above PX|none] [--blur-bootstrap crisp-cells|dispersed-mask [--blur-bootstrap-noise] [--blur-bootstrap-residual] [--blur-bootstrap-min PX]] [--verbose]`
 //! (`--no-texture`: the default preset without its texture fit, as it was
@@ -263,7 +263,7 @@ impl SceneTransform {
 
 const USAGE: &str = "calibrate [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] \
                      [--no-aligned] [--no-inverse-crime] [--no-wide-blur] [--model rounded|subpixel|dispersed-mask|crisp-cells] \
-                     [--preset NAME] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all] [--scene-cell PX] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv N] [--no-detail-pass] [--blur-pass [--blur-pass-gap N]] [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--out PATH] \
+                     [--preset NAME] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all] [--scene-cell PX] [--scene-nodes N] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv N] [--no-detail-pass] [--blur-pass [--blur-pass-gap N]] [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--out PATH] \
                      [--scene-transform none|flip-cols|flip-rows|transpose] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--verbose]";
 
 fn parse_args(argv: &[String]) -> Result<Args> {
@@ -283,6 +283,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
     let mut fine_pass_free = None;
     let mut no_fine_pass = false;
     let mut scene_cell: Option<usize> = None;
+    let mut scene_nodes: Option<usize> = None;
     let mut detail_groups: Option<usize> = None;
     let mut detail_gap_tv: Option<usize> = None;
     let mut detail_pass: Option<Option<FinePassFree>> = None;
@@ -440,6 +441,12 @@ fn parse_args(argv: &[String]) -> Result<Args> {
                 ensure!(px >= 1, "--scene-cell {v}: a node spacing of at least 1 px");
                 scene_cell = Some(px);
             }
+            "--scene-nodes" => {
+                let v = value()?;
+                let n: usize = v.parse().with_context(|| format!("--scene-nodes {v}"))?;
+                ensure!(n >= 2, "--scene-nodes {v}: at least 2 spectral nodes");
+                scene_nodes = Some(n);
+            }
             "--fine-pass" => {
                 let v = value()?;
                 let ridge: f64 = v.parse().with_context(|| format!("--fine-pass {v}"))?;
@@ -535,6 +542,11 @@ fn parse_args(argv: &[String]) -> Result<Args> {
     if let Some(px) = scene_cell {
         scene_fit_settings(&mut preset, "--scene-cell")?.cell_px = px;
         preset_name += &format!(" (first pass on {px}-px nodes)");
+    }
+    // the coarse scene with another count of spectral nodes (every pass's)
+    if let Some(n) = scene_nodes {
+        scene_fit_settings(&mut preset, "--scene-nodes")?.spectral_nodes = n;
+        preset_name += &format!(" ({n} spectral nodes)");
     }
     // the detail pass on (refitting these) or off
     if let Some(free) = detail_pass {
