@@ -211,7 +211,8 @@ enum Message {
 ///     blur_pass: refit the blur σ last on the crisp-cell model with
 ///         GAP-TV's texture, the geometry held (the CLI's --blur-pass): σ
 ///         nearer the truth on blurred instruments, at the cost of a
-///         GAP-TV and a few crisp-cell solves; default preset only.
+///         GAP-TV and a few crisp-cell solves (about a fifth more time on
+///         the timing bench); default preset only.
 ///     progress: called with a dict {name, evaluations, seconds,
 ///         parameters, score} as each stage finishes.
 ///

@@ -44,7 +44,8 @@ pub struct CalibrateArgs {
     /// Refit the blur σ last on the crisp-cell model with GAP-TV's texture,
     /// the geometry held: σ nearer the truth on blurred instruments (held
     /// out: aligned σ RMSE 0.028 → 0.015 px), at the cost of a GAP-TV
-    /// and a few crisp-cell solves. Default preset only.
+    /// and a few crisp-cell solves (about a fifth more time on the timing
+    /// bench). Default preset only.
     #[arg(long)]
     pub blur_pass: bool,
     /// Output calibration JSON (for `cassi reconstruct --calibration`).

@@ -22,9 +22,11 @@
 //! out, fresh round 12, checked once
 //! (`calibrate_physical_held_out_round12_blur_pass.json`): aligned σ RMSE
 //! 0.028 → 0.015 px, all six 14 → 15 of 15; random σ RMSE 0.032 → 0.027,
-//! all six 7 → 7 of 20. Opt-in, not the default: its cost against the
-//! issue's 5 s per 256² calibration is not yet measured by the timing
-//! bench.
+//! all six 7 → 7 of 20. Opt-in, not the default: the timing bench, run
+//! alone (`calibrate_physical_held_out_timing_blur_pass.json`), puts the
+//! stage at 3.07 s (median) of 15.5 s per case — a fifth of a
+//! calibration, which would take the 10-node default's 4.53 s median to
+//! about 5.6 s, over the 5 s.
 
 use serde::{Deserialize, Serialize};
 
