@@ -20,6 +20,7 @@ pub(crate) mod init;
 pub(crate) mod nelder_mead;
 mod objective;
 mod paper;
+mod quasi_newton;
 mod residual_weights;
 mod rounded_dispersion;
 mod scene_fit;

@@ -36,6 +36,7 @@ use serde::{Deserialize, Serialize};
 
 use super::coarse_scene::{CoarseRows, CoarseScene};
 use super::detail_pass::DetailPass;
+use super::quasi_newton::{LeastSquares, minimise};
 use super::residual_weights::ResidualWeighting;
 use super::{CalibrationProblem, reframe};
 use crate::cube::Cube;
@@ -748,62 +749,8 @@ pub(crate) struct SceneFitResult {
     pub evaluations: usize,
 }
 
-/// Solves the n × n system `a x = b` (Gaussian elimination with partial
-/// pivoting); `None` when singular.
-fn solve_small(a: &[f64], b: &[f64], n: usize) -> Option<Vec<f64>> {
-    let mut m: Vec<f64> = (0..n)
-        .flat_map(|i| a[i * n..(i + 1) * n].iter().copied().chain([b[i]]))
-        .collect();
-    let w = n + 1;
-    for c in 0..n {
-        let p = (c..n).max_by(|&i, &j| m[i * w + c].abs().total_cmp(&m[j * w + c].abs()))?;
-        if m[p * w + c].abs() < 1e-300 {
-            return None;
-        }
-        for k in 0..w {
-            m.swap(c * w + k, p * w + k);
-        }
-        for r in c + 1..n {
-            let f = m[r * w + c] / m[c * w + c];
-            for k in c..w {
-                m[r * w + k] -= f * m[c * w + k];
-            }
-        }
-    }
-    let mut x = vec![0.0; n];
-    for r in (0..n).rev() {
-        let s: f64 = (r + 1..n).map(|k| m[r * w + k] * x[k]).sum();
-        x[r] = (m[r * w + n] - s) / m[r * w + r];
-    }
-    x.iter().all(|v| v.is_finite()).then_some(x)
-}
-
-/// JᵀJ (n × n) and Jᵀr.
-pub(crate) fn normal_equations(columns: &[Vec<f32>], residual: &[f32]) -> (Vec<f64>, Vec<f64>) {
-    let n = columns.len();
-    let mut jtj = vec![0.0f64; n * n];
-    let mut jtr = vec![0.0f64; n];
-    for i in 0..n {
-        for j in 0..=i {
-            let v: f64 = columns[i]
-                .iter()
-                .zip(&columns[j])
-                .map(|(&a, &b)| a as f64 * b as f64)
-                .sum();
-            jtj[i * n + j] = v;
-            jtj[j * n + i] = v;
-        }
-        jtr[i] = columns[i]
-            .iter()
-            .zip(residual)
-            .map(|(&a, &b)| a as f64 * b as f64)
-            .sum();
-    }
-    (jtj, jtr)
-}
-
 /// Minimises the score over `free` from `start` by BFGS with a
-/// backtracking line search. The gradient is exact at each solved z (Jᵀr,
+/// backtracking line search (`quasi_newton.rs`). The gradient is exact at each solved z (Jᵀr,
 /// J with z held); the curvature starts from JᵀJ and learns the rest from
 /// the gradients' change — JᵀJ alone (Gauss–Newton with z held) overstates
 /// it along the directions a re-solved z partly absorbs (dx with a1, α, σ),
@@ -824,102 +771,62 @@ pub(crate) fn fit_scene_from(
     scene: Option<&[f32]>,
     free: &[Parameter],
 ) -> Result<SceneFitResult> {
-    let n = free.len();
-    let energy = fit.data_energy.max(f64::MIN_POSITIVE);
-    let mut evaluations = 1;
-    let mut best = fit.solve_with(start, scene, fit.settings.cold_solve)?;
-    let mut jacobian = fit.jacobian(&best, free)?;
-    evaluations += n;
-    // score = ‖r‖²/E: gradient 2 Jᵀr / E, Gauss–Newton curvature 2 JᵀJ / E
-    let gradient_and_curvature = |jacobian: &[Vec<f32>], r: &[f32]| {
-        let (jtj, jtr) = normal_equations(jacobian, r);
-        (
-            jtr.iter().map(|v| 2.0 * v / energy).collect::<Vec<f64>>(),
-            jtj.iter().map(|v| 2.0 * v / energy).collect::<Vec<f64>>(),
-        )
-    };
-    let (mut gradient, initial) = gradient_and_curvature(&jacobian, &best.residual);
-    let mut curvature = initial;
-    for _ in 0..fit.settings().max_steps {
-        let descent = |b: &[f64]| {
-            solve_small(b, &gradient.iter().map(|v| -v).collect::<Vec<_>>(), n)
-                .filter(|d| d.iter().zip(&gradient).map(|(a, g)| a * g).sum::<f64>() < 0.0)
-        };
-        let direction = match descent(&curvature) {
-            Some(d) => d,
-            None => {
-                // not a descent direction: start the curvature again
-                curvature = gradient_and_curvature(&jacobian, &best.residual).1;
-                match descent(&curvature) {
-                    Some(d) => d,
-                    None => break,
-                }
-            }
-        };
-        let slope: f64 = direction.iter().zip(&gradient).map(|(d, g)| d * g).sum();
-        let mut accepted = None;
-        let mut t = 1.0;
-        for _ in 0..6 {
-            let mut trial = best.psi;
-            for (&p, &d) in free.iter().zip(&direction) {
-                let v = p.get(&trial) + t * d;
-                p.set(&mut trial, v);
-            }
-            trial.blur_sigma_px = trial.blur_sigma_px.abs();
-            evaluations += 1;
-            match fit.solve(&trial, Some(&best.z)) {
-                Ok(c) if c.score <= best.score + 1e-4 * t * slope => {
-                    accepted = Some(c);
-                    break;
-                }
-                Err(crate::CassiError::Cancelled { what }) => {
-                    return Err(crate::CassiError::Cancelled { what });
-                }
-                _ => t *= 0.3,
-            }
-        }
-        let Some(next) = accepted else {
-            break;
-        };
-        let step: Vec<f64> = free
-            .iter()
-            .map(|&p| p.get(&next.psi) - p.get(&best.psi))
-            .collect();
-        best = next;
-        jacobian = fit.jacobian(&best, free)?;
-        evaluations += n;
-        let (g_new, _) = gradient_and_curvature(&jacobian, &best.residual);
-        let y: Vec<f64> = g_new.iter().zip(&gradient).map(|(a, b)| a - b).collect();
-        gradient = g_new;
-        let ys: f64 = y.iter().zip(&step).map(|(a, b)| a * b).sum();
-        let bs: Vec<f64> = (0..n)
-            .map(|i| (0..n).map(|j| curvature[i * n + j] * step[j]).sum())
-            .collect();
-        let sbs: f64 = bs.iter().zip(&step).map(|(a, b)| a * b).sum();
-        if ys > 1e-12 * sbs.abs().max(f64::MIN_POSITIVE) && sbs > 0.0 {
-            for i in 0..n {
-                for j in 0..n {
-                    curvature[i * n + j] += y[i] * y[j] / ys - bs[i] * bs[j] / sbs;
-                }
-            }
-        }
-        if free
-            .iter()
-            .zip(&step)
-            .all(|(&p, &d)| d.abs() < settled_step(p))
-        {
-            break;
-        }
-    }
+    let first = fit.solve_with(start, scene, fit.settings.cold_solve)?;
+    let found = minimise(
+        &OverParameters { fit, free },
+        first,
+        fit.settings().max_steps,
+    )?;
     Ok(SceneFitResult {
-        best,
-        jacobian,
-        evaluations,
+        best: found.best,
+        jacobian: found.jacobian,
+        evaluations: 1 + found.evaluations,
     })
+}
+
+/// The scene fit's score over the `free` parameters of ψ.
+struct OverParameters<'a, 'f> {
+    fit: &'a SceneFit<'f>,
+    free: &'a [Parameter],
+}
+
+impl LeastSquares for OverParameters<'_, '_> {
+    type Point = Solved;
+    fn coordinates(&self, at: &Solved) -> Vec<f64> {
+        self.free.iter().map(|&p| p.get(&at.psi)).collect()
+    }
+    fn residual<'p>(&self, at: &'p Solved) -> &'p [f32] {
+        &at.residual
+    }
+    fn score(&self, at: &Solved) -> f64 {
+        at.score
+    }
+    fn energy(&self) -> f64 {
+        self.fit.data_energy
+    }
+    fn step(&self, at: &Solved, step: &[f64]) -> Result<Solved> {
+        let mut psi = at.psi;
+        for (&p, &d) in self.free.iter().zip(step) {
+            let v = p.get(&psi) + d;
+            p.set(&mut psi, v);
+        }
+        psi.blur_sigma_px = psi.blur_sigma_px.abs();
+        self.fit.solve(&psi, Some(&at.z))
+    }
+    fn jacobian(&self, at: &Solved) -> Result<Vec<Vec<f32>>> {
+        self.fit.jacobian(at, self.free)
+    }
+    fn settled(&self, step: &[f64]) -> bool {
+        self.free
+            .iter()
+            .zip(step)
+            .all(|(&p, &d)| d.abs() < settled_step(p))
+    }
 }
 
 #[cfg(test)]
 mod tests {
+    use super::super::quasi_newton::normal_equations;
     use super::*;
     use crate::linop::adjoint_mismatch;
     use crate::optics::{DispersionModel, NoiseModel, PhysicalSpec, simulate_physical};

@@ -1,7 +1,8 @@
 //! Per-parameter standard errors: from the texture fit's block sandwich
 //! (the `default` preset), or from the proxy score's curvature (`paper`).
 
-use super::scene_fit::{SceneFit, SceneFitResult, normal_equations};
+use super::quasi_newton::normal_equations;
+use super::scene_fit::{SceneFit, SceneFitResult};
 use super::texture::{BLOCKS_PER_SIDE, TextureFit, block_contributions};
 use super::{CalibrationProblem, ProxyParams, Uncertainty};
 use crate::optics::{Dispersion, DispersionModel, landing_phase};
