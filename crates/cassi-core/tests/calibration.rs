@@ -3,7 +3,8 @@
 
 use cassi_core::calib::{
     BLUR_BOOTSTRAP_STAGE, BLUR_PASS_STAGE, BlurBootstrap, BlurPass, Calibration,
-    CalibrationProblem, DETAIL_PASS_STAGE, DefaultPreset, Fit, ProxyParams, calibrate_default,
+    CalibrationProblem, DETAIL_PASS_STAGE, DefaultPreset, Fit, NOMINAL_START_STAGE, ProxyParams,
+    calibrate_default,
 };
 use cassi_core::optics::{DispersionModel, SimulationSpec, simulate};
 use cassi_core::synth::{SceneSpec, random_binary_mask, synthetic_scene};
@@ -126,12 +127,12 @@ fn the_subpixel_score_is_minimal_at_the_true_dispersion() {
 fn default_preset_recovers_a_known_mask_misalignment() {
     // rounded: a1 and α act only through the rounding pattern, so the truth
     // keeps the nominal one; subpixel and dispersed-mask: a drifted, tilted prism (band 7 lands
-    // 14.35 columns and 0.37 rows away) that the preset must recover
+    // 14.49 columns and 0.38 rows away) that the preset must recover
     let drifted = Mismatch {
         dx: 1.3,
         dy: -0.8,
         theta_deg: 0.35,
-        a1: 2.05,
+        a1: 2.07,
         alpha_deg: 1.5,
         ..Mismatch::nominal(2.0)
     };
@@ -192,10 +193,18 @@ fn default_preset_recovers_a_known_mask_misalignment() {
         let last = cal.stages.last().map(|s| s.name.as_str()).unwrap_or("");
         match model {
             DispersionModel::DispersedMask | DispersionModel::CrispCells => {
-                assert_eq!(cal.stages.len(), 8);
+                // a1 2.07 lies beyond the nominal start's gap from the
+                // stride: the first pass runs again from a1 = 2, α = 0, and
+                // the choosing stage keeps the lower objective
+                assert_eq!(cal.stages.len(), 9);
                 let first = cal.stages[5].name.as_str();
                 assert!(first.starts_with("scene fit ("), "{first}");
-                assert_eq!(cal.stages[6].name, DETAIL_PASS_STAGE);
+                let chose = &cal.stages[6];
+                assert_eq!(chose.name, NOMINAL_START_STAGE);
+                let passed = chose.passed_over.as_ref().expect("the answer passed over");
+                assert!(chose.score <= passed.score, "{chose:?}");
+                assert!(cal.stages[5].passed_over.is_none());
+                assert_eq!(cal.stages[7].name, DETAIL_PASS_STAGE);
                 assert!(last.starts_with("scene fit's fine pass"), "{last}");
                 assert_eq!(cal.uncertainty_fit, Some(Fit::SceneDetailPass));
             }

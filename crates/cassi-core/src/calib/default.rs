@@ -692,6 +692,54 @@ fn scene_fit_stage(
         parameters: found.best.psi,
         score: found.best.score,
     };
+    // the first pass again from the nominal dispersion; its choice then
+    // stands for the first pass
+    let (found, pending, restart) = match settings
+        .nominal_start
+        .and_then(|n| n.start(&found.best.psi, preset.stride))
+    {
+        Some(from) => {
+            run.finish(stage, SCENE_FIT_STAGE, scored(&found));
+            problem.check_cancelled()?;
+            let stage = run.start();
+            let other = fit_scene(&fit, &from, &free)?;
+            stage.count(other.evaluations);
+            // both scored cold: a warm solve's score depends on its path
+            let cold =
+                |r: &SceneFitResult| -> Result<f64> { Ok(fit.solve(&r.best.psi, None)?.score) };
+            let (first_score, other_score) = (cold(&found)?, cold(&other)?);
+            stage.count(2);
+            // the texture fit's start stays on a tie
+            let ((kept, kept_score), (passed, passed_score)) = if other_score < first_score {
+                ((other, other_score), (found, first_score))
+            } else {
+                ((found, first_score), (other, other_score))
+            };
+            let pending = PendingStage {
+                stage,
+                name: NOMINAL_START_STAGE,
+                best: Scored {
+                    parameters: kept.best.psi,
+                    score: kept_score,
+                },
+                passed_over: Some(PassedOver {
+                    parameters: passed.best.psi,
+                    score: passed_score,
+                }),
+            };
+            let restart = (kept.best.psi, passed.best.psi);
+            (kept, pending, Some(restart))
+        }
+        None => {
+            let pending = PendingStage {
+                stage,
+                name: SCENE_FIT_STAGE,
+                best: scored(&found),
+                passed_over: None,
+            };
+            (found, pending, None)
+        }
+    };
     let moves = |p: &Parameter| free.contains(p);
     let moved_by = |pass: FinePassFree| -> Vec<Parameter> {
         pass.parameters().iter().copied().filter(moves).collect()
@@ -699,9 +747,9 @@ fn scene_fit_stage(
     // the detail pass, when on, stands in for the first pass from here
     // (its fit for the uncertainty; the fine pass's scene still starts from
     // the smooth factor, in the first pass's basis)
-    let (detailed, found, stage, stage_name) = match settings.detail_pass {
+    let (detailed, found, pending) = match settings.detail_pass {
         Some(pass) if !moved_by(pass.free).is_empty() => {
-            run.finish(stage, SCENE_FIT_STAGE, scored(&found));
+            pending.finish(run);
             problem.check_cancelled()?;
             let stage = run.start();
             let detail = pass.detail_map(problem, &found.best.psi, &preset.proxy)?;
@@ -718,14 +766,25 @@ fn scene_fit_stage(
             stage.count(refit.evaluations);
             refit.jacobian = detailed.jacobian(&refit.best, &free)?;
             stage.count(free.len());
-            (Some(detailed), refit, stage, DETAIL_PASS_STAGE)
+            let pending = PendingStage {
+                stage,
+                name: DETAIL_PASS_STAGE,
+                best: scored(&refit),
+                passed_over: None,
+            };
+            (Some(detailed), refit, pending)
         }
-        _ => (None, found, stage, SCENE_FIT_STAGE),
+        _ => (None, found, pending),
     };
     let first_fit = detailed.as_ref().unwrap_or(&fit);
+    // two first passes in different optima leave the truth near either
+    let widen = |u: UncertaintyEstimate| match restart {
+        Some((kept, passed)) => with_restart_disagreement(u, &kept, &passed),
+        None => u,
+    };
     match settings.fine_pass {
         Some(pass) if pass.free.parameters().iter().any(moves) => {
-            run.finish(stage, stage_name, scored(&found));
+            pending.finish(run);
             problem.check_cancelled()?;
             let stage = run.start();
             let fine_settings = SceneFitSettings {
@@ -755,11 +814,29 @@ fn scene_fit_stage(
             // its score is the penalised one on the finer scene: not
             // comparable with the first pass's
             let name = format!("scene fit's fine pass ({}-px scene, ridge)", pass.cell_px);
-            Ok((run.finish(stage, name, scored(&refined)), u))
+            Ok((run.finish(stage, name, scored(&refined)), widen(u)))
         }
         _ => {
             let u = scene_fit_uncertainty(first_fit, &found, &free, start);
-            Ok((run.finish(stage, stage_name, scored(&found)), u))
+            Ok((pending.finish(run), widen(u)))
+        }
+    }
+}
+
+/// A stage whose report waits until the next stage starts (the last one
+/// is reported after the uncertainty is read).
+struct PendingStage {
+    stage: Stage,
+    name: &'static str,
+    best: Scored,
+    passed_over: Option<PassedOver>,
+}
+
+impl PendingStage {
+    fn finish(self, run: &mut StageRunner<'_>) -> Mismatch {
+        match self.passed_over {
+            Some(passed_over) => run.finish_choosing(self.stage, self.name, self.best, passed_over),
+            None => run.finish(self.stage, self.name, self.best),
         }
     }
 }
@@ -892,6 +969,11 @@ pub const NOMINAL_A1_RESTART_PREFIX: &str = "from the nominal a1: ";
 
 /// The name of the scene fit's first pass in the stage reports.
 pub const SCENE_FIT_STAGE: &str = "scene fit (coarse scene per ψ)";
+
+/// The name of the scene fit's second start ([`NominalStart`]) in the stage
+/// reports: its first pass from the nominal dispersion and the choice.
+pub const NOMINAL_START_STAGE: &str =
+    "scene fit from the nominal dispersion, the lower objective kept";
 
 /// The name of the scene fit's detail pass in the stage reports.
 pub const DETAIL_PASS_STAGE: &str = "scene fit's detail pass (coarse scene × texture)";

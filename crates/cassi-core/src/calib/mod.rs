@@ -18,6 +18,7 @@ pub(crate) mod gradient;
 mod grid;
 pub(crate) mod init;
 pub(crate) mod nelder_mead;
+mod nominal_start;
 mod objective;
 mod paper;
 mod quasi_newton;
@@ -43,12 +44,13 @@ pub use blur_bootstrap::BlurBootstrap;
 pub use blur_pass::BlurPass;
 pub use default::{
     BLUR_BOOTSTRAP_STAGE, BLUR_PASS_STAGE, DETAIL_PASS_STAGE, DefaultPreset,
-    NOMINAL_A1_RESTART_PREFIX, NOMINAL_A1_RESTART_STAGE, SCENE_FIT_STAGE, calibrate_default,
-    texture_fit,
+    NOMINAL_A1_RESTART_PREFIX, NOMINAL_A1_RESTART_STAGE, NOMINAL_START_STAGE, SCENE_FIT_STAGE,
+    calibrate_default, texture_fit,
 };
 pub use detail_pass::{DetailPass, DetailSource};
 pub use gradient::Parameter;
 pub use nelder_mead::nelder_mead;
+pub use nominal_start::NominalStart;
 pub use paper::{GradientStage, PaperPreset, calibrate_paper};
 pub use residual_weights::ResidualWeighting;
 pub use scene_fit::{
@@ -185,6 +187,9 @@ impl Uncertainty {
 }
 
 /// A calibration preset with its settings.
+// one per calibration, never held in bulk: boxing the larger variant would
+// buy nothing but an indirection in every caller's match
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "preset", rename_all = "lowercase")]
 pub enum Preset {

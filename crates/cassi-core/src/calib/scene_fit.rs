@@ -36,6 +36,7 @@ use serde::{Deserialize, Serialize};
 
 use super::coarse_scene::{CoarseRows, CoarseScene};
 use super::detail_pass::DetailPass;
+use super::nominal_start::NominalStart;
 use super::quasi_newton::{LeastSquares, minimise};
 use super::residual_weights::ResidualWeighting;
 use super::{CalibrationProblem, reframe};
@@ -85,6 +86,11 @@ pub struct SceneFitSettings {
     /// they ran.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub detail_pass: Option<DetailPass>,
+    /// The first pass run again from the nominal dispersion ([`NominalStart`];
+    /// on by default). `None` (off) in settings written before it existed,
+    /// which read back without it, as they ran.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub nominal_start: Option<NominalStart>,
 }
 
 /// The scene fit's second pass, on by default: from the
@@ -261,6 +267,7 @@ impl SceneFitSettings {
         Self {
             detail_pass: None,
             fine_pass: None,
+            nominal_start: None,
             ..self
         }
     }
@@ -283,6 +290,7 @@ impl Default for SceneFitSettings {
             max_steps: 20,
             fine_pass: Some(FinePass::default()),
             detail_pass: Some(DetailPass::default()),
+            nominal_start: Some(NominalStart::default()),
         }
     }
 }

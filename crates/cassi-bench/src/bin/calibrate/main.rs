@@ -54,7 +54,7 @@
 //! Run: `cargo run --release -p cassi-bench --bin calibrate --
 //! [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] [--no-aligned]
 //! [--no-inverse-crime] [--model rounded|subpixel|dispersed-mask|crisp-cells] [--preset NAME]
-//! [--no-texture] [--no-scene-fit] [--no-fine-pass] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene]
+//! [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene]
 //! [--fine-pass-free pose-and-slope|geometry|all] [--scene-cell PX] [--scene-nodes N]
 //! [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv ITERATIONS] [--no-detail-pass] [--blur-pass [--blur-pass-gap N]]
 //! [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--out PATH] [--scene-transform none|flip-cols|flip-rows|transpose] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--model-a2 A2] [--detail-cold-above PX|none] [--blur-bootstrap crisp-cells|dispersed-mask [--blur-bootstrap-noise] [--blur-bootstrap-residual] [--blur-bootstrap-min PX]] [--verbose]`
@@ -63,6 +63,8 @@
 //! scene fit, ending in the texture fit as the records `*_texture.json`
 //! were made; `--no-fine-pass`: the scene fit without its second pass
 //! (`calib::FinePass`), as the records before it were made;
+//! `--no-nominal-start`: the scene fit's first pass from the texture fit's
+//! answer alone (`calib::NominalStart` off), as the records before it were made;
 //! `--fine-pass RIDGE`: the pass with this ridge and, with
 //! `--fine-pass-anchor` and `--fine-pass-free`, this anchor and these
 //! parameters); `--detail-pass FREE`: the scene fit's detail pass
@@ -263,7 +265,7 @@ impl SceneTransform {
 
 const USAGE: &str = "calibrate [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] \
                      [--no-aligned] [--no-inverse-crime] [--no-wide-blur] [--model rounded|subpixel|dispersed-mask|crisp-cells] \
-                     [--preset NAME] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all] [--scene-cell PX] [--scene-nodes N] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv N] [--no-detail-pass] [--blur-pass [--blur-pass-gap N]] [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--out PATH] \
+                     [--preset NAME] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all] [--scene-cell PX] [--scene-nodes N] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv N] [--no-detail-pass] [--blur-pass [--blur-pass-gap N]] [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--out PATH] \
                      [--scene-transform none|flip-cols|flip-rows|transpose] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--verbose]";
 
 fn parse_args(argv: &[String]) -> Result<Args> {
@@ -282,6 +284,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
     let mut fine_pass_anchor = None;
     let mut fine_pass_free = None;
     let mut no_fine_pass = false;
+    let mut no_nominal_start = false;
     let mut scene_cell: Option<usize> = None;
     let mut scene_nodes: Option<usize> = None;
     let mut detail_groups: Option<usize> = None;
@@ -343,6 +346,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
             "--no-texture" => texture = false,
             "--no-scene-fit" => scene_fit = false,
             "--no-fine-pass" => no_fine_pass = true,
+            "--no-nominal-start" => no_nominal_start = true,
             "--detail-pass" => {
                 let free = value()?
                     .parse()
@@ -537,6 +541,12 @@ fn parse_args(argv: &[String]) -> Result<Args> {
     if no_fine_pass {
         scene_fit_settings(&mut preset, "--no-fine-pass")?.fine_pass = None;
         preset_name += " (no fine pass)";
+    }
+    // the first pass from the texture fit's answer alone, as before the
+    // nominal start became the default
+    if no_nominal_start {
+        scene_fit_settings(&mut preset, "--no-nominal-start")?.nominal_start = None;
+        preset_name += " (no nominal start)";
     }
     // the scene fit's first pass on another node spacing (a model study)
     if let Some(px) = scene_cell {
@@ -963,10 +973,20 @@ fn run_case(args: &Args, case: &Case, name: &str, scene: &Cube, mask: &Mask) -> 
         "nominal_score": cal.nominal_score,
         "seconds": cal.seconds,
         "evaluations": cal.evaluations,
-        "stages": cal.stages.iter().map(|s| json!({
-            "name": s.name, "seconds": s.seconds, "evaluations": s.evaluations, "score": s.score,
-            "parameters": per_parameter(|p| json!(p.get(&s.parameters))),
-        })).collect::<Vec<_>>(),
+        "stages": cal.stages.iter().map(|s| {
+            let mut stage = json!({
+                "name": s.name, "seconds": s.seconds, "evaluations": s.evaluations, "score": s.score,
+                "parameters": per_parameter(|p| json!(p.get(&s.parameters))),
+            });
+            // a choosing stage's other answer (`calib::PassedOver`)
+            if let Some(passed) = &s.passed_over {
+                stage["passed_over"] = json!({
+                    "score": passed.score,
+                    "parameters": per_parameter(|p| json!(p.get(&passed.parameters))),
+                });
+            }
+            stage
+        }).collect::<Vec<_>>(),
     });
     if args.recon {
         let t = Instant::now();
