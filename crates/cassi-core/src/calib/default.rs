@@ -694,7 +694,7 @@ fn scene_fit_stage(
     };
     // the first pass again from the nominal dispersion; its choice then
     // stands for the first pass
-    let (found, pending, restart) = match settings
+    let (found, pending) = match settings
         .nominal_start
         .and_then(|n| n.start(&found.best.psi, preset.stride))
     {
@@ -727,8 +727,7 @@ fn scene_fit_stage(
                     score: passed_score,
                 }),
             };
-            let restart = (kept.best.psi, passed.best.psi);
-            (kept, pending, Some(restart))
+            (kept, pending)
         }
         None => {
             let pending = PendingStage {
@@ -737,7 +736,7 @@ fn scene_fit_stage(
                 best: scored(&found),
                 passed_over: None,
             };
-            (found, pending, None)
+            (found, pending)
         }
     };
     let moves = |p: &Parameter| free.contains(p);
@@ -777,11 +776,6 @@ fn scene_fit_stage(
         _ => (None, found, pending),
     };
     let first_fit = detailed.as_ref().unwrap_or(&fit);
-    // two first passes in different optima leave the truth near either
-    let widen = |u: UncertaintyEstimate| match restart {
-        Some((kept, passed)) => with_restart_disagreement(u, &kept, &passed),
-        None => u,
-    };
     match settings.fine_pass {
         Some(pass) if pass.free.parameters().iter().any(moves) => {
             pending.finish(run);
@@ -814,11 +808,11 @@ fn scene_fit_stage(
             // its score is the penalised one on the finer scene: not
             // comparable with the first pass's
             let name = format!("scene fit's fine pass ({}-px scene, ridge)", pass.cell_px);
-            Ok((run.finish(stage, name, scored(&refined)), widen(u)))
+            Ok((run.finish(stage, name, scored(&refined)), u))
         }
         _ => {
             let u = scene_fit_uncertainty(first_fit, &found, &free, start);
-            Ok((pending.finish(run), widen(u)))
+            Ok((pending.finish(run), u))
         }
     }
 }
