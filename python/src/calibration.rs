@@ -96,7 +96,8 @@ impl PyCalibration {
 
     /// Each stage as {name, evaluations, seconds, parameters, score,
     /// passed_over}: passed_over is {parameters, score} of the answer a
-    /// choosing stage did not keep (the held curvature's restart), else None.
+    /// choosing stage did not keep (the held curvature's restart, the scene
+    /// fit's nominal start), else None.
     #[getter]
     fn stages<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
         let list = PyList::empty(py);

@@ -90,7 +90,7 @@ pub fn run(args: &CalibrateArgs, reporter: &Reporter) -> anyhow::Result<()> {
         ));
         if let Some(other) = &s.passed_over {
             reporter.say(&format!(
-                "  {:<20} {}  score {:.4e}  (passed over; the errors carry the difference)",
+                "  {:<20} {}  score {:.4e}  (passed over: scored higher)",
                 "",
                 Parameter::format_all(&other.parameters),
                 other.score

@@ -88,9 +88,11 @@ pub struct StageReport {
     /// Proxy score at `parameters` with this stage's proxy.
     pub score: f64,
     /// A stage that chose between two answers (the held curvature's
-    /// restart from the nominal a1): the one it did not keep, with its
-    /// score on the same objective. Where the two differ the calibration
-    /// does not know which is right; its errors carry the difference.
+    /// restart from the nominal a1, the scene fit's nominal start): the one
+    /// it did not keep, with its score on the same objective (higher). The
+    /// held curvature's restart adds the two's difference to the kept
+    /// answer's errors (its objective chose wrongly on the tuning half);
+    /// the nominal start does not (see [`NominalStart`]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub passed_over: Option<PassedOver>,
 }
