@@ -19,6 +19,12 @@ __version__: str
 PARAMETERS: List[str]
 #: The PARAMETERS the presets fit: all but the curvature a2, which they hold.
 CALIBRATED_PARAMETERS: List[str]
+#: The stages that choose between two answers, by what they are:
+#: nominal_a1_restart (a held curvature's fits again from the nominal a1) and
+#: nominal_start (the scene fit's first pass again from the nominal
+#: dispersion) → the stage name in Calibration.stages, whose passed_over
+#: is the answer not kept.
+CHOOSING_STAGES: Dict[str, str]
 PARAMETER_UNITS: Dict[str, str]
 #: Every reconstruction method of the library's registry: (name, kind).
 METHODS: List[Tuple[str, str]]

@@ -850,6 +850,15 @@ fn _cassi(m: &Bound<'_, PyModule>) -> PyResult<()> {
             .map(|p| p.key())
             .collect::<Vec<_>>(),
     )?;
+    // the names of the stages that choose between two answers (their
+    // `passed_over` names the other), for finding them in `stages`
+    let choosing = PyDict::new(py);
+    choosing.set_item(
+        "nominal_a1_restart",
+        cassi_core::calib::NOMINAL_A1_RESTART_STAGE,
+    )?;
+    choosing.set_item("nominal_start", cassi_core::calib::NOMINAL_START_STAGE)?;
+    m.add("CHOOSING_STAGES", choosing)?;
     let units = PyDict::new(py);
     for p in Parameter::ALL {
         units.set_item(p.key(), p.unit())?;

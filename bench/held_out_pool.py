@@ -1,0 +1,56 @@
+#!/usr/bin/env python3
+"""Pooled figures over held-out calibration records (bench/results/calibrate_physical_held_out*.json).
+
+Each case is keyed by (scene, seed, kind); a case in a later file replaces the same case in an
+earlier one (a re-run of part of a round). Only the physical rows are pooled (random poses and
+aligned-with-blur); the wide-blur and inverse-crime rows are left out. Prints, per file and pooled:
+cases, all six parameters within the issue's tolerances (random / aligned), and the share of cases
+whose |error| is within the stated standard error and within the stated 95 % half-width.
+
+    python3 bench/held_out_pool.py RECORD.json [RECORD.json ...] [--no-coverage]
+"""
+import json
+import os
+import sys
+
+PARAMS = ["dx", "dy", "theta_deg", "a1", "alpha_deg", "blur_sigma_px"]
+KINDS = ("random", "aligned_blur")
+
+
+def cases(path):
+    return {(c["scene"], c["seed"], c["kind"]): c for c in json.load(open(path))["cases"] if c["kind"] in KINDS}
+
+
+def summary(pool, coverage):
+    n = len(pool)
+    within = {k: [0, 0] for k in KINDS}
+    one = {p: 0 for p in PARAMS}
+    ninety_five = {p: 0 for p in PARAMS}
+    for c in pool.values():
+        within[c["kind"]][0] += c["all_within_tolerance"]
+        within[c["kind"]][1] += 1
+        for p in PARAMS:
+            e = abs(c["error"][p])
+            one[p] += e <= c["uncertainty"][p]
+            ninety_five[p] += e <= c["interval_95"][p]
+    total = sum(w[0] for w in within.values())
+    line = f"{n} cases: all six {total} (random {within['random'][0]}/{within['random'][1]}, aligned {within['aligned_blur'][0]}/{within['aligned_blur'][1]})"
+    if coverage:
+        line += "; 1σ " + ", ".join(f"{p} {round(100 * one[p] / n)}" for p in PARAMS)
+        line += " %; 95 % " + ", ".join(f"{p} {round(100 * ninety_five[p] / n)}" for p in PARAMS) + " %"
+    return line
+
+
+def main(args):
+    coverage = "--no-coverage" not in args
+    paths = [a for a in args if a != "--no-coverage"]
+    pool = {}
+    for path in paths:
+        own = cases(path)
+        print(f"{os.path.basename(path)}: {summary(own, coverage)}")
+        pool.update(own)
+    print(f"pooled: {summary(pool, coverage)}")
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
