@@ -4,9 +4,9 @@
 //! snapshots the texture fit puts a1 at 2.04–2.08 (its blur at 1.3–1.6 px)
 //! and the first pass moves four of the five to 1.981–1.992; legoman's
 //! stays at 2.079, where its own objective scores 0.459 against 0.382 at
-//! the answer a start from the nominal dispersion reaches (a1 1.990;
-//! `bench/results/real/scene3_legoman.*probe*`): a local minimum along the
-//! dx–a1 ridge. The nominal dispersion (a1 = the stride, α = 0) is what the
+//! the answer a start from the nominal dispersion reaches (a1 1.989;
+//! `bench/results/real/scene3_legoman.{scene_objective,dy_alpha_ridge}_probe.tsv`):
+//! a local minimum along the dx–a1 ridge. The nominal dispersion (a1 = the stride, α = 0) is what the
 //! camera was built to; where the first pass ends far from it, starting
 //! there too and keeping the lower objective costs one more first pass.
 
