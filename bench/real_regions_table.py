@@ -139,7 +139,8 @@ def main():
       "The whole-frame real rows are the committed `../<name>.default.calib.json`. "
       "Machines: the real regions and the control (`control_*`) ran on a lent 16-core Intel "
       "Xeon (CPU only; one process per snapshot and split at once, so their `seconds` are not "
-      "timings), the decoupled control on the 2-core AMD EPYC VM; the estimates are bitwise "
+      "timings), as did the decoupled control's thirds; its whole frames and halves ran on "
+      "the 2-core AMD EPYC VM; the estimates are bitwise "
       "the same on both (checked on legoplant's real halves and control thirds). The real "
       "halves' records were written before the binary recorded `measurements` and `truth`; "
       "the control's measurements were made by the steps `bench/real_regions_control.sh` "
@@ -163,11 +164,11 @@ def main():
     dec_a1, dec_errors = control_section(w, names, decoupled, DECOUPLED) if decoupled else ({}, {})
     w("## a1 across regions (max − min)\n\n")
     w("| snapshot | real halves | real thirds | control halves | control thirds | "
-      "decoupled halves |\n|---|---|---|---|---|---|\n")
+      "decoupled halves | decoupled thirds |\n|---|---|---|---|---|---|---|\n")
     for n in names:
         r, c, d = real_a1.get(n, {}), control_a1.get(n, {}), dec_a1.get(n, {})
         cells = [r.get("halves"), r.get("thirds"), c.get("halves"), c.get("thirds"),
-                 d.get("halves")]
+                 d.get("halves"), d.get("thirds")]
         w(f"| {n} | " + " | ".join("" if v is None else f"{spread(v):.4f}" for v in cells)
           + " |\n")
     w("\n")
