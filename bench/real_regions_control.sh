@@ -15,7 +15,7 @@
 # a1 +0.012, α −0.2° (what imprint is left pulls away from the truth)
 # → control_decoupled_<regions>.json.
 #
-# Run from the repository root:
+# The scenes and ψ come from bench/real_content.py. Run from the repository root:
 #   bench/real_regions_control.sh [--decoupled] [whole|halves|thirds ...]
 # (default: all three). Needs ../shared/data/real and python3 with numpy.
 set -euo pipefail
@@ -35,32 +35,13 @@ for meas in "$data"/scene*.mat; do
   seed=$((seed + 1))
   "$cassi" reconstruct "$meas" --mask "$mask" -q \
     --calibration "bench/results/real/$name.default.calib.json" -o "$work/$name.recon.npy"
-  psi=$(python3 - "$work" "$name" "$decoupled" <<'PY'
-import json, sys
-import numpy as np
-work, name, decoupled = sys.argv[1], sys.argv[2], sys.argv[3] == "1"
-cube = np.load(f"{work}/{name}.recon.npy")
-top = np.percentile(cube, 99.9)  # GAP-TV's few edge outliers would set the scale
-cube = np.clip(cube, 0, top) / top
-p = json.load(open(f"bench/results/real/{name}.default.calib.json"))["parameters"]
-if decoupled:
-    x = np.arange(-4, 5)
-    g = np.exp(-0.5 * x**2)
-    g /= g.sum()
-    for axis in (1, 2):  # separable 1-px Gaussian over rows, then columns (edges replicated)
-        pad = [(0, 0)] * 3
-        pad[axis] = (4, 4)
-        padded = np.pad(cube, pad, mode="edge")
-        n = cube.shape[axis]
-        cube = sum(w * np.take(padded, range(i, i + n), axis=axis) for i, w in enumerate(g))
-    for key, off in (("dx", 0.35), ("dy", -0.25), ("theta_deg", 0.02), ("a1", 0.012),
-                     ("alpha_deg", -0.2)):
-        p[key] += off
-np.save(f"{work}/{name}.scene.npy", cube.astype(np.float32))
-print(f"--dx {p['dx']:.4f} --dy {p['dy']:.4f} --theta {p['theta_deg']:.4f} --a1 {p['a1']:.4f}"
-      f" --alpha {p['alpha_deg']:.3f} --blur {p['blur_sigma_px']:.3f}")
-PY
-)
+  if [[ $decoupled == 1 ]]; then
+    python3 bench/real_content.py scene "$work/$name.recon.npy" "$work/$name.scene.npy" --smooth
+    psi=$(python3 bench/real_content.py psi "bench/results/real/$name.default.calib.json" --offset)
+  else
+    python3 bench/real_content.py scene "$work/$name.recon.npy" "$work/$name.scene.npy"
+    psi=$(python3 bench/real_content.py psi "bench/results/real/$name.default.calib.json")
+  fi
   # shellcheck disable=SC2086
   "$cassi" simulate --scene "$work/$name.scene.npy" --mask "$mask" --oversample 4 $psi \
     --detector 660x714 --photon-peak 20000 --read-noise 3 --noise-seed "$seed" -q \
