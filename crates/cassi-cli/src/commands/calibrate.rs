@@ -43,9 +43,11 @@ pub struct CalibrateArgs {
     pub dispersion_a2: f64,
     /// Refit the blur σ last on the crisp-cell model with GAP-TV's texture,
     /// the geometry held: σ nearer the truth on blurred instruments (held
-    /// out: aligned σ RMSE 0.028 → 0.015 px), at the cost of a GAP-TV
-    /// and a few crisp-cell solves (about a fifth more time on the timing
-    /// bench). Default preset only.
+    /// out: aligned σ RMSE 0.028 → 0.015 px) and above all on smooth scenes
+    /// at a pose off the pixel grid, where the default reads σ about
+    /// 0.07 px low (the benchmark on the real snapshots' content: random-pose
+    /// σ RMSE 0.074 → 0.024 px), at the cost of a GAP-TV and a few crisp-cell
+    /// solves (a fifth to a half more time). Default preset only.
     #[arg(long)]
     pub blur_pass: bool,
     /// Output calibration JSON (for `cassi reconstruct --calibration`).
