@@ -7,7 +7,7 @@ intervals' coverage.
 
 Run from the repository root:
     python3 bench/real_regions_table.py > bench/results/real/regions/README.md
-Reads bench/results/real/regions/{real,control}_{whole,halves,thirds}*.json and
+Reads bench/results/real/regions/{real,control,control_decoupled}_{whole,halves,thirds}*.json and
 the whole-frame real calibrations bench/results/real/<name>.default.calib.json.
 """
 import glob
