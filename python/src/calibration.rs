@@ -211,9 +211,10 @@ enum Message {
 ///         not fitted; default preset only.
 ///     blur_pass: refit the blur σ last on the crisp-cell model with
 ///         GAP-TV's texture, the geometry held (the CLI's --blur-pass): σ
-///         nearer the truth on blurred instruments, at the cost of a
-///         GAP-TV and a few crisp-cell solves (about a fifth more time on
-///         the timing bench); default preset only.
+///         nearer the truth on blurred instruments and above all on smooth
+///         scenes at a pose off the pixel grid, where the default reads σ
+///         about 0.07 px low, at the cost of a GAP-TV and a few crisp-cell
+///         solves (a fifth to a half more time); default preset only.
 ///     progress: called with a dict {name, evaluations, seconds,
 ///         parameters, score} as each stage finishes.
 ///
