@@ -171,11 +171,13 @@ def calibrate(
     model: Optional[Model] = None,
     preset: Literal["default", "paper"] = "default",
     dispersion_a2: float = 0.0,
-    blur_pass: bool = False,
+    blur_pass: bool | None = None,
     progress: Optional[Callable[[Dict[str, Any]], object]] = None,
 ) -> Calibration:
     """Self-calibration from the measurement and the nominal mask alone;
-    `blur_pass`: σ refitted last on the crisp-cell model (slower)."""
+    `blur_pass`: None keeps the preset's own last stage (the default preset's
+    blur pass: σ refitted on the crisp-cell model); False leaves it out; True asks
+    for it (an error with the paper preset)."""
 
 @overload
 def reconstruct(

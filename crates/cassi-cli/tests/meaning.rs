@@ -577,24 +577,26 @@ fn a_curved_dispersion_travels_from_the_calibration_to_the_model() {
 }
 
 #[test]
-fn the_blur_pass_is_the_last_stage_when_asked_for() {
+fn the_blur_pass_is_the_default_last_stage_and_no_blur_pass_leaves_it_out() {
     let d = dir("blur_pass");
     let (meas, mask) = simulated(&d);
-    let cal = d.join("cal.json");
     let s = |p: &Path| p.to_str().unwrap().to_string();
-    let args = [
-        "calibrate".to_string(),
-        s(&meas),
-        "--mask".into(),
-        s(&mask),
-        "--blur-pass".into(),
-        "-o".into(),
-        s(&cal),
-        "-q".into(),
-    ];
-    ok(&cassi(&args.iter().map(String::as_str).collect::<Vec<_>>()));
-    let record: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&cal).unwrap()).unwrap();
+    let run = |extra: &[&str], name: &str| -> serde_json::Value {
+        let cal = d.join(name);
+        let mut args = vec![
+            "calibrate".to_string(),
+            s(&meas),
+            "--mask".into(),
+            s(&mask),
+            "-o".into(),
+            s(&cal),
+            "-q".into(),
+        ];
+        args.extend(extra.iter().map(|a| a.to_string()));
+        ok(&cassi(&args.iter().map(String::as_str).collect::<Vec<_>>()));
+        serde_json::from_str(&std::fs::read_to_string(&cal).unwrap()).unwrap()
+    };
+    let record = run(&[], "cal.json");
     let stages = record["stages"].as_array().expect("stages");
     let last = stages.last().expect("a stage");
     assert_eq!(
@@ -603,9 +605,18 @@ fn the_blur_pass_is_the_last_stage_when_asked_for() {
         "{stages:?}"
     );
     // it moves σ alone: the geometry is the stage before's
-    let before = &stages[stages.len() - 2]["parameters"];
+    let before = &stages[stages.len() - 2];
     for k in ["dx", "dy", "theta_deg", "a1", "alpha_deg"] {
-        assert_eq!(before[k], last["parameters"][k], "{k}");
+        assert_eq!(before["parameters"][k], last["parameters"][k], "{k}");
     }
     assert_eq!(record["parameters"], last["parameters"]);
+    // without it the calibration ends one stage earlier, at that answer
+    let without = run(&["--no-blur-pass"], "without.json");
+    let without_stages = without["stages"].as_array().expect("stages");
+    assert_eq!(without_stages.len(), stages.len() - 1);
+    assert_eq!(without_stages.last().unwrap()["name"], before["name"]);
+    assert_eq!(without["parameters"], before["parameters"]);
+    // the old flag still runs (the pass was opt-in before stop 41)
+    let asked = run(&["--blur-pass"], "asked.json");
+    assert_eq!(asked["parameters"], record["parameters"]);
 }

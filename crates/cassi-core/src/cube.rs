@@ -172,6 +172,23 @@ impl Frame {
     pub fn row_mut(&mut self, r: usize) -> &mut [f32] {
         &mut self.data[r * self.cols..(r + 1) * self.cols]
     }
+    /// Rows `first..end` as a frame of their own; errors naming the range
+    /// when it is empty or runs past the last row.
+    pub fn rows_range(&self, first: usize, end: usize) -> Result<Frame> {
+        if first >= end || end > self.rows {
+            return Err(shape_error(
+                "row range",
+                format!("{first}..{end}"),
+                format!("a non-empty range within 0..{}", self.rows),
+            ));
+        }
+        let data = self.data[first * self.cols..end * self.cols].to_vec();
+        Ok(Frame {
+            rows: end - first,
+            cols: self.cols,
+            data,
+        })
+    }
     pub fn get(&self, row: usize, col: usize) -> f32 {
         self.data[row * self.cols + col]
     }
@@ -216,6 +233,21 @@ mod tests {
         // element (band 1, row 0, col 2) sits at 1*6 + 0*3 + 2 = 8
         assert_eq!(c.get(1, 0, 2), 8.0);
         assert_eq!(c.band(1), &[6.0, 7.0, 8.0, 9.0, 10.0, 11.0]);
+    }
+
+    #[test]
+    fn a_row_range_is_those_rows_and_a_bad_one_is_named() {
+        let f = Frame::from_vec(4, 3, (0..12).map(|v| v as f32).collect()).unwrap();
+        let band = f.rows_range(1, 3).unwrap();
+        assert_eq!(band.shape(), (2, 3));
+        assert_eq!(band.as_slice(), &[3.0, 4.0, 5.0, 6.0, 7.0, 8.0]);
+        for (first, end) in [(2, 2), (3, 1), (1, 5)] {
+            let e = f.rows_range(first, end).unwrap_err().to_string();
+            assert!(
+                e.contains(&format!("{first}..{end}")) && e.contains("0..4"),
+                "{e}"
+            );
+        }
     }
 
     #[test]

@@ -301,6 +301,21 @@ impl Mismatch {
         }
     }
 
+    /// The same instrument described from a band of the frame's rows whose
+    /// centre lies `rows_below` rows below the frame's centre: the pose
+    /// turns about the band's own centre (see `optics::warp`), so the shift
+    /// picks up (R(θ) − I)(0, h) — dx − sin θ·h, dy + (cos θ − 1)·h — and
+    /// nothing else changes (the dispersion and the blur are the same at
+    /// every row).
+    pub fn seen_from_rows_below(&self, rows_below: f64) -> Self {
+        let t = self.theta_deg.to_radians();
+        Self {
+            dx: self.dx - t.sin() * rows_below,
+            dy: self.dy + (t.cos() - 1.0) * rows_below,
+            ..*self
+        }
+    }
+
     pub fn dispersion(&self) -> DispersionParams {
         DispersionParams {
             a1: self.a1,

@@ -187,7 +187,7 @@ fn default_preset_recovers_a_known_mask_misalignment() {
         assert!(cal.score < cal.nominal_score / 2.0);
         // the texture fit replaces the subpixel model's proxy refinements
         // (tilt, joint), and the dispersed-mask model ends in the scene fit
-        // and its fine pass, each a stage;
+        // and its fine pass, each a stage, then the blur pass (σ alone);
         // the rounded model keeps its joint refinement and does not fit the
         // blur
         let last = cal.stages.last().map(|s| s.name.as_str()).unwrap_or("");
@@ -196,7 +196,7 @@ fn default_preset_recovers_a_known_mask_misalignment() {
                 // a1 2.07 lies beyond the nominal start's gap from the
                 // stride: the first pass runs again from a1 = 2, α = 0, and
                 // the choosing stage keeps the lower objective
-                assert_eq!(cal.stages.len(), 9);
+                assert_eq!(cal.stages.len(), 10);
                 let first = cal.stages[5].name.as_str();
                 assert!(first.starts_with("scene fit ("), "{first}");
                 let chose = &cal.stages[6];
@@ -205,7 +205,9 @@ fn default_preset_recovers_a_known_mask_misalignment() {
                 assert!(chose.score <= passed.score, "{chose:?}");
                 assert!(cal.stages[5].passed_over.is_none());
                 assert_eq!(cal.stages[7].name, DETAIL_PASS_STAGE);
-                assert!(last.starts_with("scene fit's fine pass"), "{last}");
+                let fine = cal.stages[8].name.as_str();
+                assert!(fine.starts_with("scene fit's fine pass"), "{fine}");
+                assert_eq!(last, BLUR_PASS_STAGE);
                 assert_eq!(cal.uncertainty_fit, Some(Fit::SceneDetailPass));
             }
             DispersionModel::Subpixel => {
@@ -358,11 +360,14 @@ fn the_blur_bootstrap_moves_the_blur_alone() {
     let model = DispersionModel::DispersedMask;
     let (y, mask) = setup(96, 8, truth, model);
     let p = CalibrationProblem::nominal(&y, &mask, 8, 2.0, model).unwrap();
+    // the scene fit's σ, the one the bootstrap measures the bias of (not
+    // the blur pass's, the default's last stage since stop 41)
     let preset = DefaultPreset {
         blur_bootstrap: Some(BlurBootstrap {
             through: model,
             ..BlurBootstrap::default()
         }),
+        blur_pass: None,
         ..DefaultPreset::default()
     };
     let cal = calibrate_default(&p, &preset, &mut |_| {}).unwrap();
@@ -377,6 +382,7 @@ fn the_blur_bootstrap_moves_the_blur_alone() {
             min_blur_px: 1.0,
             ..BlurBootstrap::default()
         }),
+        blur_pass: None,
         ..DefaultPreset::default()
     };
     let cal = calibrate_default(&p, &guarded, &mut |_| {}).unwrap();
@@ -385,7 +391,7 @@ fn the_blur_bootstrap_moves_the_blur_alone() {
     assert_eq!(cal.parameters, before);
 }
 
-/// The blur pass (opt-in) is the calibration's last stage and moves σ
+/// The blur pass (the default's since stop 41) is the calibration's last stage and moves σ
 /// alone, refitted on the crisp-cell model with GAP-TV's texture. On data
 /// of the crisp-cell model's own operator (an inverse crime: the pass's
 /// model made them, at a fractional row phase) it at least halves the

@@ -264,9 +264,23 @@ impl Preset {
         }
     }
 
+    /// The preset without its [`BlurPass`] (the default preset's last stage
+    /// since stop 41): σ as the scene fit leaves it. The paper preset has
+    /// none and is returned as it is.
+    pub fn without_blur_pass(self) -> Self {
+        match self {
+            Self::Default(p) => Self::Default(DefaultPreset {
+                blur_pass: None,
+                ..p
+            }),
+            paper => paper,
+        }
+    }
+
     /// The preset with the [`BlurPass`] on (σ refitted last on the crisp-cell
-    /// model with GAP-TV's texture: slower, σ nearer on blurred instruments;
-    /// see the README). Only the default preset has one.
+    /// model with GAP-TV's texture: σ nearer on blurred instruments and
+    /// smooth scenes; see the README) — the default preset's own since
+    /// stop 41. Only the default preset has one.
     pub fn with_blur_pass(self) -> crate::error::Result<Self> {
         match self {
             Self::Default(p) => Ok(Self::Default(DefaultPreset {

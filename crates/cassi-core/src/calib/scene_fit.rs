@@ -522,13 +522,30 @@ impl<'a> SceneFit<'a> {
     /// The fit with its residual weighted by `weighting`'s weights from
     /// `first`'s residual (a solve of this fit, unweighted).
     pub(crate) fn with_weights(
-        mut self,
+        self,
         weighting: &ResidualWeighting,
         first: &Solved,
     ) -> Result<Self> {
         let (rows, cols) = self.problem.measurement.shape();
-        self.root_weights = Some(weighting.root_weights(&first.residual, rows, cols)?);
-        // the data √w ⊙ H y, made afresh (any earlier weighting replaced)
+        let root_weights = weighting.root_weights(&first.residual, rows, cols)?;
+        Ok(self.with_root_weights(root_weights))
+    }
+
+    /// The fit scored on the measurement's rows `first..end` alone (weight
+    /// 1 there, 0 elsewhere): the rows around them stay in the model, so
+    /// light that crosses the window's edge is still predicted.
+    pub(crate) fn with_row_window(self, first: usize, end: usize) -> Self {
+        let (rows, cols) = self.problem.measurement.shape();
+        let root_weights = (0..rows * cols)
+            .map(|i| f32::from((first..end).contains(&(i / cols))))
+            .collect();
+        self.with_root_weights(root_weights)
+    }
+
+    /// √w set, and the data √w ⊙ H y made afresh (any earlier weighting
+    /// replaced).
+    fn with_root_weights(mut self, root_weights: Vec<f32>) -> Self {
+        self.root_weights = Some(root_weights);
         let mut data = std::mem::take(&mut self.data);
         self.high_pass(
             self.problem.measurement.as_slice(),
@@ -538,7 +555,7 @@ impl<'a> SceneFit<'a> {
         self.weigh(&mut data);
         self.data_energy = data.iter().map(|&v| v as f64 * v as f64).sum();
         self.data = data;
-        Ok(self)
+        self
     }
 
     /// v ← √w ⊙ v (nothing when unweighted).
@@ -833,7 +850,7 @@ impl LeastSquares for OverParameters<'_, '_> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::super::quasi_newton::normal_equations;
     use super::*;
     use crate::linop::adjoint_mismatch;
@@ -843,10 +860,10 @@ mod tests {
     /// A 128×128, 16-band physical-simulator measurement (4× oversampled,
     /// crisp mask, blur, noise) of `truth`. (At 64×64 with 8 bands the
     /// spacing pins a1 only to ~0.01 px/band.)
-    const BANDS: usize = 16;
+    pub(crate) const BANDS: usize = 16;
     const SIZE: usize = 128;
 
-    fn measured(truth: &Mismatch, noise: bool) -> (crate::Measurement, crate::Mask) {
+    pub(crate) fn measured(truth: &Mismatch, noise: bool) -> (crate::Measurement, crate::Mask) {
         let (rows, cols, bands) = (SIZE, SIZE, BANDS);
         let wl: Vec<f64> = (0..bands)
             .map(|k| 450.0 + 200.0 / bands as f64 * k as f64)
@@ -873,7 +890,7 @@ mod tests {
         (y, mask)
     }
 
-    fn truth() -> Mismatch {
+    pub(crate) fn truth() -> Mismatch {
         Mismatch {
             dx: 0.6,
             dy: -0.4,

@@ -641,6 +641,36 @@ mod tests {
         assert!((w.get(4, 5) - 0.5).abs() < 1e-6 && (w.get(4, 6) - 0.5).abs() < 1e-6);
     }
 
+    /// A band of rows warped with the pose as seen from it is the frame's
+    /// warp there (away from the band's edges, where the frame's warp
+    /// reads mask rows the band does not have); the frame's own pose is not.
+    #[test]
+    fn a_band_of_rows_sees_the_pose_about_its_own_centre() {
+        use crate::params::Mismatch;
+        let mask = crate::synth::random_binary_mask(96, 80, 0.5, 3).unwrap();
+        let psi = Mismatch {
+            dx: 0.3,
+            dy: -0.4,
+            theta_deg: 0.6,
+            ..Mismatch::nominal(2.0)
+        };
+        let frame = warp_mask(&mask, &psi.pose());
+        let (first, end) = (50, 90);
+        let band = mask.rows_range(first, end).unwrap();
+        let below = (first + end) as f64 / 2.0 - 96.0 / 2.0;
+        let largest_difference = |pose: &MaskPose| {
+            let warped = warp_mask(&band, pose);
+            (6..end - first - 6)
+                .flat_map(|r| (2..78).map(move |c| (r, c)))
+                .map(|(r, c)| (warped.get(r, c) - frame.get(first + r, c)).abs())
+                .fold(0.0f32, f32::max)
+        };
+        let seen = largest_difference(&psi.seen_from_rows_below(below).pose());
+        assert!(seen < 1e-4, "{seen}");
+        let unmoved = largest_difference(&psi.pose());
+        assert!(unmoved > 0.1, "{unmoved}");
+    }
+
     #[test]
     fn positive_theta_turns_col_axis_toward_rows_about_the_centre() {
         // 21×21 mask, centre (10, 10). A point 8 columns right of centre,

@@ -83,6 +83,18 @@ impl<'m> Model<'m> {
         )
     }
 
+    /// This instrument with `nominal_mask` in place of its own (a band of
+    /// its rows, say); bands, stride, mismatch and family kept.
+    pub fn with_mask<'n>(&self, nominal_mask: &'n Mask) -> Result<Model<'n>> {
+        Model::new(
+            nominal_mask,
+            self.bands,
+            self.stride,
+            self.mismatch,
+            self.dispersion,
+        )
+    }
+
     /// This instrument fitted with another dispersion family (nothing the
     /// constructor checks depends on it).
     pub fn with_dispersion(&self, dispersion: DispersionModel) -> Self {

@@ -56,13 +56,17 @@
 //! [--no-inverse-crime] [--model rounded|subpixel|dispersed-mask|crisp-cells] [--preset NAME]
 //! [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene]
 //! [--fine-pass-free pose-and-slope|geometry|all] [--scene-cell PX] [--scene-nodes N]
-//! [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv ITERATIONS] [--no-detail-pass] [--blur-pass [--blur-pass-gap N]]
+//! [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv ITERATIONS] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N]]
 //! [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--out PATH] [--scene-transform none|flip-cols|flip-rows|transpose] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--model-a2 A2] [--detail-cold-above PX|none] [--blur-bootstrap crisp-cells|dispersed-mask [--blur-bootstrap-noise] [--blur-bootstrap-residual] [--blur-bootstrap-min PX]] [--verbose]`
 //! (`--no-texture`: the default preset without its texture fit, as it was
 //! before issue #14 — the "before" row; `--no-scene-fit`: without its
 //! scene fit, ending in the texture fit as the records `*_texture.json`
 //! were made; `--no-fine-pass`: the scene fit without its second pass
 //! (`calib::FinePass`), as the records before it were made;
+//! `--no-blur-pass`: the default without its last stage, the blur pass
+//! (`calib::BlurPass`, the default's since stop 41), as the records before
+//! it were made (their `--blur-pass` runs are the pass on every row with
+//! up to 20 steps: `--blur-pass-share all --blur-pass-steps 20`);
 //! `--no-nominal-start`: the scene fit's first pass from the texture fit's
 //! answer alone (`calib::NominalStart` off), as the records before it were made;
 //! `--fine-pass RIDGE`: the pass with this ridge and, with
@@ -265,7 +269,7 @@ impl SceneTransform {
 
 const USAGE: &str = "calibrate [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] \
                      [--no-aligned] [--no-inverse-crime] [--no-wide-blur] [--model rounded|subpixel|dispersed-mask|crisp-cells] \
-                     [--preset NAME] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all] [--scene-cell PX] [--scene-nodes N] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv N] [--no-detail-pass] [--blur-pass [--blur-pass-gap N]] [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--out PATH] \
+                     [--preset NAME] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all] [--scene-cell PX] [--scene-nodes N] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv N] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N]] [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--out PATH] \
                      [--scene-transform none|flip-cols|flip-rows|transpose] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--verbose]";
 
 fn parse_args(argv: &[String]) -> Result<Args> {
@@ -298,7 +302,10 @@ fn parse_args(argv: &[String]) -> Result<Args> {
     let mut detail_cold_above: Option<Option<f64>> = None;
     let mut blur_bootstrap: Option<DispersionModel> = None;
     let mut blur_pass = false;
+    let mut no_blur_pass = false;
     let mut blur_pass_gap: Option<usize> = None;
+    let mut blur_pass_share: Option<Option<f64>> = None;
+    let mut blur_pass_steps: Option<usize> = None;
     let mut blur_bootstrap_noise = false;
     let mut blur_bootstrap_residual = false;
     let mut blur_bootstrap_min: Option<f64> = None;
@@ -355,11 +362,35 @@ fn parse_args(argv: &[String]) -> Result<Args> {
             }
             "--no-detail-pass" => detail_pass = Some(None),
             "--blur-pass" => blur_pass = true,
+            "--no-blur-pass" => no_blur_pass = true,
             "--blur-pass-gap" => {
                 let v = value()?;
                 let n: usize = v.parse().with_context(|| format!("--blur-pass-gap {v}"))?;
                 ensure!(n >= 1, "--blur-pass-gap {v}: at least one GAP-TV iteration");
                 blur_pass_gap = Some(n);
+            }
+            "--blur-pass-steps" => {
+                let v = value()?;
+                let n: usize = v
+                    .parse()
+                    .with_context(|| format!("--blur-pass-steps {v}"))?;
+                ensure!(n >= 1, "--blur-pass-steps {v}: at least one step");
+                blur_pass_steps = Some(n);
+            }
+            "--blur-pass-share" => {
+                let v = value()?;
+                blur_pass_share = Some(if v == "all" {
+                    None
+                } else {
+                    let f: f64 = v
+                        .parse()
+                        .with_context(|| format!("--blur-pass-share {v}"))?;
+                    ensure!(
+                        f > 0.0 && f <= 1.0,
+                        "--blur-pass-share {v}: a share in (0, 1] (or all)"
+                    );
+                    Some(f)
+                });
             }
             "--blur-bootstrap" => {
                 blur_bootstrap = Some(
@@ -597,22 +628,41 @@ fn parse_args(argv: &[String]) -> Result<Args> {
         pass.source = DetailSource::GapTv { iterations };
         preset_name += &format!(" (detail maps from GAP-TV, {iterations} iterations)");
     }
-    if blur_pass {
+    // the pass is the default preset's last stage since stop 41: the flags
+    // below retune it (`--blur-pass` alone: the default's own)
+    let tuned_pass = blur_pass
+        || blur_pass_gap.is_some()
+        || blur_pass_share.is_some()
+        || blur_pass_steps.is_some();
+    if no_blur_pass {
+        ensure!(
+            !tuned_pass,
+            "--no-blur-pass with --blur-pass, --blur-pass-gap, --blur-pass-share or --blur-pass-steps: pick one"
+        );
+        if let Preset::Default(d) = &mut preset {
+            d.blur_pass = None;
+        }
+        preset_name += " (no blur pass)";
+    } else if tuned_pass {
         scene_fit_settings(&mut preset, "--blur-pass")?;
         let Preset::Default(d) = &mut preset else {
             bail!("--blur-pass applies to the default preset");
         };
         let pass = BlurPass::default();
         let gap_iterations = blur_pass_gap.unwrap_or(pass.gap_iterations);
+        let window_share = blur_pass_share.unwrap_or(pass.window_share);
         d.blur_pass = Some(BlurPass {
             gap_iterations,
+            window_share,
+            max_steps: blur_pass_steps.or(pass.max_steps),
             ..pass
         });
+        let rows = window_share.map_or(", every row".to_string(), |f| {
+            format!(", the middle {f} of the rows")
+        });
         preset_name += &format!(
-            " (blur pass: σ on the crisp-cell model with GAP-TV's texture, {gap_iterations} iterations)"
+            " (blur pass: σ on the crisp-cell model with GAP-TV's texture, {gap_iterations} iterations{rows})"
         );
-    } else if blur_pass_gap.is_some() {
-        bail!("--blur-pass-gap: the blur pass is off (--blur-pass)");
     }
     if let Some(through) = blur_bootstrap {
         scene_fit_settings(&mut preset, "--blur-bootstrap")?;
