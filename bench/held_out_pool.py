@@ -6,8 +6,9 @@ earlier one (a re-run of part of a round). Only the physical rows are pooled (ra
 aligned-with-blur); the wide-blur and inverse-crime rows are left out. Prints, per file and pooled:
 cases, all six parameters within the issue's tolerances (random / aligned), and the share of cases
 whose |error| is within the stated standard error and within the stated 95 % half-width.
-With --before-blur-pass, a case run with the blur pass (`--blur-pass`) counts with the answer of
-the stage before it: the default's answer (the pass changes σ alone and states no new errors).
+With --before-blur-pass, a case run with the blur pass counts with the answer of the stage
+before it (the pass changes σ alone and states no new errors): the default's answer before stop
+41, which made the pass the default's last stage (`--no-blur-pass` runs the default without it).
 
     python3 bench/held_out_pool.py RECORD.json [RECORD.json ...] [--no-coverage] [--before-blur-pass]
 """
@@ -23,7 +24,7 @@ BLUR_PASS_STAGE = "blur pass"  # the start of the pass's stage name (calib::BLUR
 
 
 def before_blur_pass(case, tolerances):
-    """The case as the default answered it: the stage before the blur pass."""
+    """The case as the default before stop 41 answered it: the stage before the blur pass."""
     names = [s["name"] for s in case["stages"]]
     passes = [i for i, n in enumerate(names) if n.startswith(BLUR_PASS_STAGE)]
     if not passes:
