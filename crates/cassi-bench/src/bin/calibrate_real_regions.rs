@@ -36,7 +36,7 @@
 use anyhow::{Context, Result, anyhow, bail, ensure};
 use cassi_bench::{bench_out, scene_name, shared_data};
 use cassi_core::calib::{CalibrationProblem, Preset, StageReport, calibrate};
-use cassi_core::{Frame, Mask, Measurement};
+use cassi_core::{Mask, Measurement};
 use serde_json::json;
 
 const BANDS: usize = 28;
@@ -80,13 +80,6 @@ impl Regions {
             ],
         }
     }
-}
-
-/// Rows `first..end` of `frame`.
-fn rows_of(frame: &Frame, first: usize, end: usize) -> Result<Frame> {
-    let cols = frame.cols();
-    let data = frame.as_slice()[first * cols..end * cols].to_vec();
-    Ok(Frame::from_vec(end - first, cols, data)?)
 }
 
 /// A simulated measurement's true ψ, from its sidecar (`x.json` beside
@@ -187,8 +180,8 @@ fn main() -> Result<()> {
             mask.rows()
         );
         for (region, first, end) in regions.bands(meas.rows()) {
-            let m = rows_of(&meas, first, end)?;
-            let k = rows_of(&mask, first, end)?;
+            let m = meas.rows_range(first, end)?;
+            let k = mask.rows_range(first, end)?;
             let problem = CalibrationProblem::nominal(&m, &k, BANDS, STRIDE, model)?;
             let mut quiet = |_: &StageReport| {};
             let cal = calibrate(&problem, &preset, &mut quiet)?;
