@@ -294,6 +294,11 @@ mod tests {
         };
         let settings = SceneFitSettings::default().first_pass_only();
         let proxy = ProxyParams::default();
+        // 48 of 128 rows with their margin do not cover the frame: the
+        // windowed pass below runs on a band, not on the whole frame again
+        let (rows, cols) = y.shape();
+        let band = RowWindow::centred(48, rows, cols, BANDS, &start, settings.high_pass_px);
+        assert!(band.is_some_and(|w| w.end - w.first < rows), "{band:?}");
         let sigma = |window_share| {
             let pass = BlurPass {
                 window_share,
