@@ -40,6 +40,55 @@ fn setup(
     (y, mask)
 }
 
+/// On a frame taller than `search_rows` the search stages run on its
+/// middle rows: their scores are the band's (not the frame's), and they
+/// still find the basin of a pose turned about the frame's centre.
+#[test]
+fn the_search_stages_run_on_a_band_of_a_tall_frame() {
+    let truth = Mismatch {
+        dx: 1.3,
+        dy: -0.8,
+        theta_deg: 0.35,
+        ..Mismatch::nominal(2.0)
+    };
+    let model = DispersionModel::Rounded;
+    let (y, mask) = setup(96, 8, truth, model);
+    let p = CalibrationProblem::nominal(&y, &mask, 8, 2.0, model).unwrap();
+    let run = |search_rows| {
+        let preset = DefaultPreset {
+            search_rows,
+            ..DefaultPreset::default()
+        };
+        let cal = calibrate_default(&p, &preset, &mut |_| {}).unwrap();
+        // stage 3b, the last search stage, and the frame's own search score there
+        let searched = cal.stages[3].clone();
+        assert_eq!(searched.name, "re-fit pose per dispersion");
+        let proxy = ProxyParams {
+            iterations: preset.search_iterations,
+            ..preset.proxy
+        };
+        let frame_score = p.score(&searched.parameters, &proxy).unwrap();
+        (cal, searched, frame_score)
+    };
+    let (whole, searched, frame_score) = run(None);
+    assert_eq!(searched.score, frame_score);
+    let (band, searched, frame_score) = run(Some(40));
+    assert!(
+        (searched.score / frame_score - 1.0).abs() > 1e-3,
+        "the band's score {} is the frame's {frame_score}",
+        searched.score
+    );
+    let s = searched.parameters;
+    assert!((s.dx - truth.dx).abs() < 0.15, "{s:?}");
+    assert!((s.dy - truth.dy).abs() < 0.15, "{s:?}");
+    assert!((s.theta_deg - truth.theta_deg).abs() < 0.15, "{s:?}");
+    for cal in [whole, band] {
+        let e = cal.parameters;
+        assert!((e.dx - truth.dx).abs() < 0.1, "{e:?}");
+        assert!((e.dy - truth.dy).abs() < 0.1, "{e:?}");
+    }
+}
+
 #[test]
 fn the_score_is_minimal_at_the_truth_without_noise() {
     let truth = Mismatch {

@@ -51,6 +51,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::detail_pass::{DetailPass, DetailSource};
+use super::row_window::{RowBand, RowWindow};
 use super::scene_fit::{SceneFit, SceneFitSettings, fit_scene};
 use super::score::{CalibrationProblem, ProxyParams};
 use crate::error::{CassiError, Result};
@@ -91,55 +92,6 @@ impl Default for BlurPass {
             window_share: Some(0.25),
             max_steps: Some(2),
         }
-    }
-}
-
-/// The rows a windowed pass runs on: the frame's rows `first..end`, scored
-/// on `margin` rows in from either end (the margin's own light comes
-/// partly from outside the band, which the band's model cannot see).
-#[derive(Debug, Clone, Copy, PartialEq)]
-struct RowWindow {
-    first: usize,
-    end: usize,
-    margin: usize,
-}
-
-impl RowWindow {
-    /// `kept` middle rows of a frame of `rows` rows with `cols` columns, or
-    /// `None` when they and their margin would cover it. The margin holds
-    /// every way light reaches a kept row from outside the band at `at`:
-    /// the pose's shift and tilt across the columns, the dispersion's tilt
-    /// over the bands, the blur's and the high-pass's reach, and the
-    /// interpolation's pixel, plus a spare row.
-    fn centred(
-        kept: usize,
-        rows: usize,
-        cols: usize,
-        bands: usize,
-        at: &Mismatch,
-        high_pass_px: f64,
-    ) -> Option<Self> {
-        let reach = at.dy.abs()
-            + at.theta_deg.to_radians().sin().abs() * cols as f64 / 2.0
-            + at.a1.abs() * bands as f64 * at.alpha_deg.to_radians().sin().abs()
-            + 4.0 * at.blur_sigma_px
-            + 4.0 * high_pass_px
-            + 2.0;
-        let margin = reach.ceil() as usize;
-        if kept == 0 || kept + 2 * margin >= rows {
-            return None;
-        }
-        let first = (rows - kept) / 2 - margin;
-        Some(Self {
-            first,
-            end: first + kept + 2 * margin,
-            margin,
-        })
-    }
-
-    /// Rows the band's centre lies below the frame's.
-    fn centre_below(&self, rows: usize) -> f64 {
-        (self.first + self.end) as f64 / 2.0 - rows as f64 / 2.0
     }
 }
 
@@ -198,16 +150,15 @@ impl BlurPass {
         let Some(w) = window else {
             return self.refit_on(problem, first_pass, proxy, at, None);
         };
-        let measurement = problem.measurement.rows_range(w.first, w.end)?;
-        let mask = problem.nominal_mask().rows_range(w.first, w.end)?;
-        let band = CalibrationProblem {
-            measurement: &measurement,
-            nominal: problem.nominal.with_mask(&mask)?,
-            cancel: problem.cancel,
-        };
-        let at = at.seen_from_rows_below(w.centre_below(rows));
-        let scored = (w.margin, w.end - w.first - w.margin);
-        self.refit_on(&band, first_pass, proxy, &at, Some(scored))
+        let band = RowBand::cut(problem, w)?;
+        let at = band.seen(at);
+        self.refit_on(
+            &band.problem(problem)?,
+            first_pass,
+            proxy,
+            &at,
+            Some(w.kept()),
+        )
     }
 
     /// [`Self::refit`] on `problem` as it is, scored on its rows
@@ -249,33 +200,6 @@ impl BlurPass {
 mod tests {
     use super::super::scene_fit::tests::{BANDS, measured, truth};
     use super::*;
-
-    #[test]
-    fn the_window_keeps_a_margin_that_grows_with_the_pose() {
-        let aligned = Mismatch {
-            blur_sigma_px: 0.5,
-            ..Mismatch::nominal(2.0)
-        };
-        let w = RowWindow::centred(64, 256, 310, 28, &aligned, 0.5).unwrap();
-        assert_eq!((w.first + w.margin, w.end - w.margin), (96, 160));
-        assert_eq!(w.centre_below(256), 0.0);
-        let moved = Mismatch {
-            dy: 2.5,
-            theta_deg: 0.8,
-            alpha_deg: 1.0,
-            ..aligned
-        };
-        let wide = RowWindow::centred(64, 256, 310, 28, &moved, 0.5).unwrap();
-        // dy, θ across half the columns and α over the bands add ≈ 5.7 rows
-        assert!(
-            wide.margin >= w.margin + 5,
-            "{} vs {}",
-            wide.margin,
-            w.margin
-        );
-        // a window that with its margin would cover the frame is the frame
-        assert_eq!(RowWindow::centred(250, 256, 310, 28, &aligned, 0.5), None);
-    }
 
     /// A physical-simulator measurement (4× oversampled, crisp cells, blur,
     /// noise): the pass on 48 of its 128 rows reads σ within the issue's

@@ -18,6 +18,7 @@ use serde::{Deserialize, Serialize};
 use super::blur_bootstrap::BlurBootstrap;
 use super::blur_pass::BlurPass;
 use super::rounded_dispersion::{rounded_dispersion, rounding_intervals};
+use super::row_window::{RowBand, RowWindow};
 use super::scene_fit::{
     FinePassFree, RidgeAnchor, SceneFit, SceneFitResult, SceneFitSettings, fit_scene,
     fit_scene_from, scene_fit_score,
@@ -129,6 +130,17 @@ pub struct DefaultPreset {
     /// enough; see `blur_pass.rs`); `None` in records made before it.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub blur_pass: Option<BlurPass>,
+    /// The search stages (2, 3 and 3b: the pose from several starts, the
+    /// dispersion hypotheses, their pose re-fits) on this many middle rows
+    /// of a taller frame (with the margin of `row_window.rs`), `None`: on
+    /// every row. They only have to find the basin the texture and scene
+    /// fits refine on the whole frame, and they were tuned on the
+    /// benchmark's 256-row frames, so a 660-row snapshot's search sees the
+    /// rows a benchmark frame has, at 40 % of its cost; a frame of 256
+    /// rows runs as before. `None` in records made before it (stop 42),
+    /// which ran on every row.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub search_rows: Option<usize>,
 }
 
 fn yes() -> bool {
@@ -181,6 +193,7 @@ impl Default for DefaultPreset {
             dispersion_a2: 0.0,
             blur_bootstrap: None,
             blur_pass: Some(BlurPass::default()),
+            search_rows: Some(256),
         }
     }
 }
@@ -214,7 +227,8 @@ pub fn calibrate_default(
         pass.check()?;
     }
     let mut run = StageRunner::new(on_stage);
-    let scores = Scores::new(problem, preset);
+    let band = search_band(problem, preset)?;
+    let scores = Scores::new(problem, preset, band.as_ref())?;
     let mut best = correlation(&mut run, &scores)?;
     best = pose_from_starts(&mut run, &scores, best)?;
     let posed = best;
@@ -296,27 +310,56 @@ pub fn calibrate_default(
     })
 }
 
+/// The band of rows the search stages run on ([`DefaultPreset::search_rows`]),
+/// `None` when they run on the whole frame.
+fn search_band(
+    problem: &CalibrationProblem<'_>,
+    preset: &DefaultPreset,
+) -> Result<Option<RowBand>> {
+    let Some(kept) = preset.search_rows else {
+        return Ok(None);
+    };
+    let (rows, cols) = problem.measurement.shape();
+    // the proxy has no high-pass; the margin is for the nominal pose (the
+    // search scores every row of the band, its margin's too)
+    RowWindow::centred(kept, rows, cols, problem.bands(), &preset.nominal(), 0.0)
+        .map(|w| RowBand::cut(problem, w))
+        .transpose()
+}
+
 /// The scores the stages minimise, and the preset's settings.
 struct Scores<'a> {
     problem: &'a CalibrationProblem<'a>,
-    /// The problem with the rounded model (see [`Scores::search`]).
+    /// The problem with the rounded model, on the search band when there
+    /// is one (see [`Scores::search`]).
     front: CalibrationProblem<'a>,
+    /// Rows the front's centre lies below the frame's (0: the whole frame).
+    front_below: f64,
     preset: &'a DefaultPreset,
     /// `preset.proxy` with the search stages' iterations.
     search_proxy: ProxyParams,
 }
 
 impl<'a> Scores<'a> {
-    fn new(problem: &'a CalibrationProblem<'a>, preset: &'a DefaultPreset) -> Self {
-        Self {
+    fn new(
+        problem: &'a CalibrationProblem<'a>,
+        preset: &'a DefaultPreset,
+        band: Option<&'a RowBand>,
+    ) -> Result<Self> {
+        let (front, front_below) = match band {
+            Some(band) => (band.problem(problem)?, band.centre_below),
+            None => (*problem, 0.0),
+        };
+        Ok(Self {
             problem,
-            front: problem.with_model(DispersionModel::Rounded),
+            front: front.with_model(DispersionModel::Rounded),
+            front_below,
             preset,
             search_proxy: ProxyParams {
                 iterations: preset.search_iterations,
                 ..preset.proxy
             },
-        }
+        })
     }
 
     /// The final proxy on the problem's model (∞ for an invalid ψ).
@@ -331,10 +374,14 @@ impl<'a> Scores<'a> {
     /// both models are the same operator, and its exact rounding patterns
     /// resolve the a1/dx coupling globally (the subpixel model's own a1 grid
     /// ended 0/10 on the paper mismatch, dx RMSE 0.53 px, against 10/10
-    /// without global failures for this front end).
+    /// without global failures for this front end). On the search band ψ
+    /// is seen from the band's centre.
     fn search(&self, m: &Mismatch) -> f64 {
         self.front
-            .score(m, &self.search_proxy)
+            .score(
+                &m.seen_from_rows_below(self.front_below),
+                &self.search_proxy,
+            )
             .unwrap_or(f64::INFINITY)
     }
 

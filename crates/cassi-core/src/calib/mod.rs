@@ -24,6 +24,7 @@ mod paper;
 mod quasi_newton;
 mod residual_weights;
 mod rounded_dispersion;
+mod row_window;
 mod scene_fit;
 pub(crate) mod score;
 pub(crate) mod smooth;
