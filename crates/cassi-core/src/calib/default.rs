@@ -4,7 +4,8 @@
 //! hypotheses with the mask shifts each implies (`rounded_dispersion.rs`:
 //! exact rounding patterns), a short pose re-fit of the best few dispersion
 //! hypotheses, then a final joint refinement. These search stages score with
-//! the rounded model for either instrument model. A subpixel-family problem
+//! the rounded model for either instrument model, on the middle 256 rows of a
+//! taller frame ([`DefaultPreset::search_rows`]). A subpixel-family problem
 //! then gets the texture fit (`texture.rs`: all six parameters against a
 //! smoothed proxy scene x̃ held fixed) and, for the dispersed-mask model,
 //! the scene fit (`scene_fit.rs`: the coarse scene solved for each
