@@ -57,7 +57,7 @@
 //! [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene]
 //! [--fine-pass-free pose-and-slope|geometry|all] [--scene-cell PX] [--scene-nodes N]
 //! [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv ITERATIONS] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N]]
-//! [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--out PATH] [--scene-transform none|flip-cols|flip-rows|transpose] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--model-a2 A2] [--detail-cold-above PX|none] [--blur-bootstrap crisp-cells|dispersed-mask [--blur-bootstrap-noise] [--blur-bootstrap-residual] [--blur-bootstrap-min PX]] [--verbose]`
+//! [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--out PATH] [--scene-transform none|flip-cols|flip-rows|transpose] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--model-a2 A2] [--mask-capture SIGMA_PX] [--detail-cold-above PX|none] [--blur-bootstrap crisp-cells|dispersed-mask [--blur-bootstrap-noise] [--blur-bootstrap-residual] [--blur-bootstrap-min PX]] [--verbose]`
 //! (`--no-texture`: the default preset without its texture fit, as it was
 //! before issue #14 — the "before" row; `--no-scene-fit`: without its
 //! scene fit, ending in the texture fit as the records `*_texture.json`
@@ -83,7 +83,10 @@
 //! dispersion curved by A2·k² px (model studies: no model fitted has
 //! either); `--model-a2 A2`: the calibration holding the curvature A2
 //! (`DefaultPreset::dispersion_a2`; with `--dispersion-a2` the same value,
-//! the model that knows the curvature); `--scene-transform`: every scene flipped or transposed — the
+//! the model that knows the curvature); `--mask-capture SIGMA_PX`: the
+//! instrument's mask a binary code (the file thresholded), rendered crisp,
+//! and the calibration handed that code blurred by SIGMA_PX — a camera's
+//! mask file is an image of its code (`Masks`); `--scene-transform`: every scene flipped or transposed — the
 //! tuning scenes in three more configurations against the mask, with their
 //! own `--seed-round`, for the uncertainty floors); without flags it
 //! reproduces the README's held-out table (every scene of the held-out
@@ -104,6 +107,7 @@ use cassi_core::calib::{
     model_error_floor,
 };
 use cassi_core::metrics::psnr;
+use cassi_core::optics::blur::GaussianBlur;
 use cassi_core::optics::{
     DispersionModel, Halo, NoiseModel, PhysicalSpec, SimulationSpec, simulate, simulate_physical,
 };
@@ -208,6 +212,53 @@ struct Args {
     /// `--dispersion-a2 A2`: the simulated prism's curvature, px per band²
     /// (a model study: every model fitted is linear in the band index).
     dispersion_a2: f64,
+    /// `--mask-capture SIGMA_PX`: the instrument's mask a binary code (the
+    /// file thresholded at half its maximum) rendered crisp, the
+    /// calibration handed that code blurred by a Gaussian of SIGMA_PX
+    /// ([`Masks`]).
+    mask_capture_px: Option<f64>,
+}
+
+/// The masks of a run: the one the simulated instrument carries and the
+/// one the calibration (and every reconstruction) is handed.
+struct Masks {
+    instrument: Mask,
+    nominal: Mask,
+}
+
+impl Masks {
+    /// Without a capture σ both are the file (crisp cells whose
+    /// transmissions are its values). With one, the instrument carries a
+    /// binary code — the file thresholded at half its maximum, rendered
+    /// crisp — and the calibration gets that code blurred by a Gaussian of
+    /// `capture_px`: what a camera's mask file is, an image of its chrome
+    /// code through the relay optics. Why: both TSA mask files are smooth
+    /// (`bench/mask_crispness.py`: 33–40 % of their values between 10 and
+    /// 90 % of the maximum), so rendering the file's values as crisp cells
+    /// makes the crisp-cell model right by construction.
+    fn new(file: Mask, capture_px: Option<f64>) -> Result<Self> {
+        let Some(sigma) = capture_px else {
+            return Ok(Self {
+                instrument: file.clone(),
+                nominal: file,
+            });
+        };
+        let (rows, cols) = file.shape();
+        let half = 0.5 * file.max();
+        let code: Vec<f32> = file
+            .as_slice()
+            .iter()
+            .map(|&v| f32::from(u8::from(v >= half)))
+            .collect();
+        let blur = GaussianBlur::new(sigma, rows, cols)
+            .with_context(|| format!("--mask-capture {sigma}"))?;
+        let mut captured = vec![0.0; rows * cols];
+        blur.apply(&code, &mut captured, &mut vec![0.0; rows * cols]);
+        Ok(Self {
+            instrument: Mask::from_vec(rows, cols, code)?,
+            nominal: Mask::from_vec(rows, cols, captured)?,
+        })
+    }
 }
 
 /// A rigid re-orientation of the scene cubes (the mask stays): the same
@@ -270,7 +321,7 @@ impl SceneTransform {
 const USAGE: &str = "calibrate [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] \
                      [--no-aligned] [--no-inverse-crime] [--no-wide-blur] [--model rounded|subpixel|dispersed-mask|crisp-cells] \
                      [--preset NAME] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all] [--scene-cell PX] [--scene-nodes N] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv N] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N]] [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--out PATH] \
-                     [--scene-transform none|flip-cols|flip-rows|transpose] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--verbose]";
+                     [--scene-transform none|flip-cols|flip-rows|transpose] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--mask-capture SIGMA_PX] [--verbose]";
 
 fn parse_args(argv: &[String]) -> Result<Args> {
     let mut half_name = "held-out".to_string();
@@ -298,6 +349,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
     let mut transform = SceneTransform::None;
     let mut halo = None;
     let mut dispersion_a2 = 0.0;
+    let mut mask_capture_px = None;
     let mut model_a2: Option<f64> = None;
     let mut detail_cold_above: Option<Option<f64>> = None;
     let mut blur_bootstrap: Option<DispersionModel> = None;
@@ -465,6 +517,15 @@ fn parse_args(argv: &[String]) -> Result<Args> {
                 .validate()
                 .with_context(|| format!("--dispersion-a2 {v}"))?;
                 dispersion_a2 = a2;
+            }
+            "--mask-capture" => {
+                let v = value()?;
+                let sigma: f64 = v.parse().with_context(|| format!("--mask-capture {v}"))?;
+                ensure!(
+                    sigma.is_finite() && sigma > 0.0,
+                    "--mask-capture {v}: the capture's blur σ in pixels, above 0"
+                );
+                mask_capture_px = Some(sigma);
             }
             "--model-a2" => {
                 let v = value()?;
@@ -751,6 +812,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
         transform,
         halo,
         dispersion_a2,
+        mask_capture_px,
     })
 }
 
@@ -881,7 +943,7 @@ fn noise(seed: u64) -> NoiseModel {
 fn measure(
     case: &Case,
     scene: &Cube,
-    mask: &Mask,
+    masks: &Masks,
     noise: Option<&NoiseModel>,
     args: &Args,
 ) -> Result<Measurement> {
@@ -898,7 +960,7 @@ fn measure(
             };
             simulate_physical(
                 scene,
-                mask,
+                &masks.instrument,
                 &STANDARD_WAVELENGTHS_NM,
                 &case.truth,
                 &spec,
@@ -911,7 +973,8 @@ fn measure(
                 model,
                 noise: noise.copied(),
             };
-            simulate(scene, mask, &spec)?
+            // the model's own operator: with the mask it is handed
+            simulate(scene, &masks.nominal, &spec)?
         }
     })
 }
@@ -953,8 +1016,9 @@ fn scene_fit_settings<'p>(preset: &'p mut Preset, flag: &str) -> Result<&'p mut 
     }
 }
 
-fn run_case(args: &Args, case: &Case, name: &str, scene: &Cube, mask: &Mask) -> Result<Value> {
-    let y = measure(case, scene, mask, Some(&noise(case.seed)), args)?;
+fn run_case(args: &Args, case: &Case, name: &str, scene: &Cube, masks: &Masks) -> Result<Value> {
+    let y = measure(case, scene, masks, Some(&noise(case.seed)), args)?;
+    let mask = &masks.nominal;
     let problem = CalibrationProblem::nominal(&y, mask, scene.bands(), 2.0, args.model)?;
     let verbose = args.verbose;
     let cal = calibrate(&problem, &args.preset, &mut |st| {
@@ -1054,7 +1118,7 @@ fn run_case(args: &Args, case: &Case, name: &str, scene: &Cube, mask: &Mask) -> 
         record["rho"] = json!(rho);
     }
     if args.limits {
-        let clean = measure(case, scene, mask, None, args)?;
+        let clean = measure(case, scene, masks, None, args)?;
         let detector = limits::DetectorNoise {
             photon_peak: PHOTON_PEAK,
             read_noise_e: READ_NOISE,
@@ -1393,6 +1457,7 @@ fn main() -> Result<()> {
 
     let data = shared_data();
     let mask = cassi_io::load_frame(data.join("masks/tsa_simu_mask256.mat"), Some("mask"))?;
+    let masks = Masks::new(mask, args.mask_capture_px)?;
     let scenes = cassi_bench::cave_scenes(&data)?;
     ensure!(
         scenes.len() == 2 * TUNING_SCENES,
@@ -1415,7 +1480,7 @@ fn main() -> Result<()> {
                 cassi_io::CubeLayout::Auto,
             )?)?;
             for case in scene_cases(&args, half, si, index as u64) {
-                rows.push(run_case(&args, &case, &names[case.scene], &scene, &mask)?);
+                rows.push(run_case(&args, &case, &names[case.scene], &scene, &masks)?);
             }
         }
     }
@@ -1441,7 +1506,11 @@ fn main() -> Result<()> {
                                          the seed draws ψ (Rng::new(seed)) and the noise") },
         "instrument": { "simulator": "simulate_physical", "oversample": OVERSAMPLE,
                         "detector": DETECTOR, "photon_peak": PHOTON_PEAK, "read_noise_e": READ_NOISE,
-                        "mask": "masks/tsa_simu_mask256.mat", "wavelengths_nm": STANDARD_WAVELENGTHS_NM,
+                        "mask": "masks/tsa_simu_mask256.mat",
+                        "mask_capture": args.mask_capture_px.map(|s| json!({
+                            "instrument": "the mask file thresholded at half its maximum (a binary code), rendered crisp",
+                            "nominal": "that code blurred by a Gaussian", "sigma_px": s })),
+                        "wavelengths_nm": STANDARD_WAVELENGTHS_NM,
                         "halo": args.halo.map(|h| json!({ "share": h.share, "sigma_px": h.sigma_px })),
                         "dispersion_a2": args.dispersion_a2 },
         "kinds": {
@@ -1485,4 +1554,51 @@ fn main() -> Result<()> {
     .with_context(|| format!("writing {}", args.out.display()))?;
     eprintln!("wrote {}", args.out.display());
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Lag-1 autocorrelation along the rows.
+    fn lag1(m: &Mask) -> f64 {
+        let v = m.as_slice();
+        let mean = v.iter().map(|&x| x as f64).sum::<f64>() / v.len() as f64;
+        let (mut num, mut den) = (0.0, 0.0);
+        for r in 0..m.rows() {
+            let row = m.row(r);
+            for c in 0..m.cols() {
+                let a = row[c] as f64 - mean;
+                den += a * a;
+                if c + 1 < m.cols() {
+                    num += a * (row[c + 1] as f64 - mean);
+                }
+            }
+        }
+        num / den
+    }
+
+    /// A captured mask: the instrument's code is binary where the file is
+    /// above half its maximum, and the calibration's file is that code
+    /// blurred (smoother than the code, values within [0, 1]); without a
+    /// capture both are the file.
+    #[test]
+    fn a_captured_mask_is_a_binary_code_and_its_blurred_image() {
+        let values: Vec<f32> = (0..40 * 40)
+            .map(|i| ((i * 7919 % 101) as f32 / 100.0) * 0.8)
+            .collect();
+        let file = Mask::from_vec(40, 40, values).unwrap();
+        let same = Masks::new(file.clone(), None).unwrap();
+        assert_eq!(same.instrument.as_slice(), file.as_slice());
+        assert_eq!(same.nominal.as_slice(), file.as_slice());
+        let captured = Masks::new(file.clone(), Some(0.5)).unwrap();
+        for (&code, &v) in captured.instrument.as_slice().iter().zip(file.as_slice()) {
+            assert_eq!(code, if v >= 0.4 { 1.0 } else { 0.0 });
+        }
+        let nominal = captured.nominal.as_slice();
+        assert!(nominal.iter().all(|&v| (0.0..=1.0).contains(&v)));
+        assert!(nominal.iter().any(|&v| v > 0.05 && v < 0.95));
+        assert!(lag1(&captured.nominal) > lag1(&captured.instrument) + 0.05);
+        assert!(Masks::new(file, Some(-1.0)).is_err());
+    }
 }
