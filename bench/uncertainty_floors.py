@@ -27,7 +27,11 @@ be covered. The floors are then copied into `calib/uncertainty.rs` by hand, roun
 coverage is reported on the held-out half, never here.
 
 Several tuning runs are pooled (the scene fit's: the tuning half as it is and
-`--scene-transform flip-cols / flip-rows / transpose`, each with its own seed round).
+`--scene-transform flip-cols / flip-rows / transpose`, each with its own seed round). A run
+of the captured-mask instrument (`--mask-capture SIGMA`: a binary code rendered crisp, the
+calibration handed its blurred image) pools as regimes of its own, each held to the target,
+and its scene configurations are their own; σ's floors ignore it (σ has no exact truth
+there).
 
 --by-scene (the scene fit's floors): the standard-error floors are grown by κ ≥ 1, the
 smallest factor that makes floors derived without each scene configuration (a tuning scene
@@ -60,12 +64,19 @@ def ramp(blur):
     return min(max(t, 0.0), 1.0)
 
 
-def regime(case):
-    """The case's kind; the wide-blur row split into its aligned and random-pose halves."""
+def regime(case, instrument=""):
+    """The case's kind; the wide-blur row split into its aligned and random-pose halves;
+    a captured-mask instrument's cases a regime of their own (`instrument`)."""
     if case["kind"] != "wide_blur":
-        return case["kind"]
+        return case["kind"] + instrument
     t = case["truth"]
-    return "wide_blur aligned" if t["dx"] == 0 and t["dy"] == 0 else "wide_blur random pose"
+    return ("wide_blur aligned" if t["dx"] == 0 and t["dy"] == 0 else "wide_blur random pose") + instrument
+
+
+def captured_mask(run):
+    """The run's instrument carries a binary code and the calibration its blurred image
+    (the benchmark's `--mask-capture`)."""
+    return bool(run.get("instrument", {}).get("mask_capture"))
 
 
 def cases(run, kinds, p):
@@ -74,6 +85,13 @@ def cases(run, kinds, p):
     if isinstance(run, list):
         return [row for r in run for row in cases(r, kinds, p)]
     transform = run.get("scene_transform", "none")
+    instrument = ""
+    if captured_mask(run):
+        # σ has no exact truth there (the model's σ stands for the blur beyond the mask
+        # file's own): its floors come from the other instruments alone
+        if p == "blur_sigma_px":
+            return []
+        instrument = ", captured mask"
     out = []
     for c in run["cases"]:
         u, f = c["uncertainty"].get(p), c.get("uncertainty_floor", {}).get(p)
@@ -84,8 +102,8 @@ def cases(run, kinds, p):
                     abs(c["error"][p]),
                     s,
                     c["estimate"]["blur_sigma_px"],
-                    regime(c),
-                    f"{c['scene']} ({transform})",
+                    regime(c, instrument),
+                    f"{c['scene']} ({transform}{instrument})",
                 )
             )
     return out
@@ -274,14 +292,17 @@ def error_correlation(runs):
     """Σ eₐ·e_b / √(Σ eₐ² Σ e_b²) over every tuning case: `error_correlation` in
     calib/uncertainty.rs (the floors' covariance, from which the trade-offs are read)."""
     params = list(runs[0]["cases"][0]["error"].keys())
-    rows = [c["error"] for r in runs for c in r["cases"] if c["kind"] in HEADLINE + WIDE]
-    print(f"\nerror correlation over {len(rows)} cases")
+    # (errors, from a captured-mask run: σ's error there has no exact truth and is left out)
+    rows = [(c["error"], captured_mask(r)) for r in runs for c in r["cases"]
+            if c["kind"] in HEADLINE + WIDE]
+    print(f"\nerror correlation over {len(rows)} cases (σ's over {sum(not k for _, k in rows)})")
     print(" " * 14 + "".join(f"{q[:8]:>9}" for q in params))
     for p in params:
         cells = []
         for q in params:
-            num = sum(r[p] * r[q] for r in rows)
-            den = math.sqrt(sum(r[p] ** 2 for r in rows) * sum(r[q] ** 2 for r in rows))
+            pair = [r for r, captured in rows if not (captured and "blur_sigma_px" in (p, q))]
+            num = sum(r[p] * r[q] for r in pair)
+            den = math.sqrt(sum(r[p] ** 2 for r in pair) * sum(r[q] ** 2 for r in pair))
             cells.append(f"{num / den:+9.2f}")
         print(f"{p:<14}" + "".join(cells))
 

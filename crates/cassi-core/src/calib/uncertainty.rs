@@ -362,18 +362,31 @@ const SCENE_FINE_PASS: Floors = Floors {
 /// θ 0.0056°, α 0.0128°, σ 0.043 px; 95 % dx 0.060 px, a1 0.0032) and
 /// covered 80–100 % at 1σ held out: the ridge slides that 6 nodes cut
 /// (dx with a1, dy with α) had held them up.
+///
+/// Since stop 42 the pool also holds the captured-mask instrument (the
+/// benchmark's `--mask-capture 0.5`: a binary code rendered crisp, the
+/// calibration handed its blurred image, as a camera's mask file is; the
+/// same four configurations with the default of stop 42,
+/// `calibrate_physical_tuning_mask_capture_floors/`: 180 more sharp cases,
+/// regimes of their own, σ's floors and correlations from the other
+/// instrument alone). There the geometry errs more often (95 % of its
+/// tuning random poses' dx needed 0.082 px): the floors before it covered
+/// its held-out dx, θ and α at 95 % in 9 of 10 random poses. Its floors
+/// before (sharp dy 0.00807 px, θ 0.00302°, α 0.00992°; 95 % dx 0.0159,
+/// dy 0.0417 px, θ 0.0231°, a1 0.00228, α 0.0568°) were the standard
+/// instrument's alone.
 const SCENE_DETAIL_PASS: Floors = Floors {
     // dx, dy, θ, a1, α, blur
-    sharp: [1e-6, 0.00807, 0.00302, 1e-6, 0.00992, 0.0363],
-    wide: [1e-6, 0.0629, 0.00847, 1e-6, 0.105, 0.0561],
-    sharp_95: [0.0159, 0.0417, 0.0231, 0.00228, 0.0568, 0.0806],
-    wide_95: [0.364, 0.138, 0.0592, 0.139, 0.158, 0.132],
+    sharp: [1e-6, 0.00842, 0.00694, 1e-6, 0.00999, 0.0363],
+    wide: [1e-6, 0.0639, 0.00872, 1e-6, 0.106, 0.0561],
+    sharp_95: [0.0818, 0.0662, 0.0361, 0.00249, 0.0761, 0.0806],
+    wide_95: [0.364, 0.138, 0.0592, 0.140, 0.158, 0.132],
     correlation: [
-        [1.00, 0.11, 0.09, -0.22, -0.05, -0.12],
-        [0.11, 1.00, 0.28, 0.09, -0.89, 0.18],
-        [0.09, 0.28, 1.00, 0.04, -0.35, 0.14],
-        [-0.22, 0.09, 0.04, 1.00, -0.04, 0.13],
-        [-0.05, -0.89, -0.35, -0.04, 1.00, -0.20],
+        [1.00, 0.23, 0.13, -0.09, -0.20, -0.12],
+        [0.23, 1.00, 0.30, 0.17, -0.89, 0.18],
+        [0.13, 0.30, 1.00, 0.12, -0.32, 0.14],
+        [-0.09, 0.17, 0.12, 1.00, -0.14, 0.13],
+        [-0.20, -0.89, -0.32, -0.14, 1.00, -0.20],
         [-0.12, 0.18, 0.14, 0.13, -0.20, 1.00],
     ],
     disagreement_by_phase: true,
@@ -1063,9 +1076,11 @@ mod tests {
             // the two ridges the benchmark showed (dx–a1: −0.65 to −0.75 on
             // five tuning scenes, −0.48 and −0.47 on the scene fit's 260
             // pooled cases without and with either fine pass, −0.44 with
-            // the detail pass, −0.22 once 6 spectral nodes cut its slides)
+            // the detail pass, −0.22 once 6 spectral nodes cut its slides,
+            // −0.09 with the captured-mask instrument pooled, whose dx errs
+            // apart from a1)
             assert!(r_of(Parameter::Dy, Parameter::AlphaDeg) < -TRADE_OFF_CORRELATION);
-            assert!(r_of(Parameter::Dx, Parameter::A1) < -0.2);
+            assert!(r_of(Parameter::Dx, Parameter::A1) < -0.05);
         }
     }
 
