@@ -218,6 +218,12 @@ enum Message {
 ///         nearer the truth on blurred instruments and above all on smooth
 ///         scenes at a pose off the pixel grid, where the scene fit reads σ
 ///         about 0.07 px low; about 0.3 s on a 256×256 frame.
+///     search_rows: the rows the default preset's search stages (pose from
+///         several starts, dispersion hypotheses, their pose re-fits) run
+///         on: None keeps the preset's own (the middle 256 rows of a taller
+///         frame), an int N that many middle rows, "all" every row (the
+///         CLI's --search-rows); the texture and scene fits always use
+///         every row. An error with the paper preset.
 ///     progress: called with a dict {name, evaluations, seconds,
 ///         parameters, score} as each stage finishes.
 ///
@@ -234,7 +240,7 @@ enum Message {
 ///
 /// The GIL is released while the calibration runs.
 #[pyfunction]
-#[pyo3(signature = (y, mask, *, bands=28, stride=2.0, model=None, preset="default", dispersion_a2=0.0, blur_pass=None, progress=None))]
+#[pyo3(signature = (y, mask, *, bands=28, stride=2.0, model=None, preset="default", dispersion_a2=0.0, blur_pass=None, search_rows=None, progress=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn calibrate(
     py: Python<'_>,
@@ -246,6 +252,7 @@ pub fn calibrate(
     preset: &str,
     dispersion_a2: f64,
     blur_pass: Option<bool>,
+    search_rows: Option<Bound<'_, PyAny>>,
     progress: Option<Bound<'_, PyAny>>,
 ) -> PyResult<PyCalibration> {
     let mut preset = Preset::by_name(preset, stride)
@@ -259,6 +266,20 @@ pub fn calibrate(
                 .with_blur_pass()
                 .map_err(|e| value_error(py, format!("blur_pass: {e}")))?;
         }
+    }
+    if let Some(rows) = search_rows {
+        let rows = match rows.extract::<String>() {
+            Ok(all) if all == "all" => None,
+            _ => Some(rows.extract::<usize>().map_err(|_| {
+                value_error(
+                    py,
+                    format!("search_rows: {rows}: a number of rows above 0, or \"all\""),
+                )
+            })?),
+        };
+        preset = preset
+            .with_search_rows(rows)
+            .map_err(|e| value_error(py, format!("search_rows: {e}")))?;
     }
     let model = match model {
         Some(name) => params::model(py, name)?,

@@ -111,6 +111,23 @@ def test_the_blur_pass_refits_the_blur_alone_last(case):
         cassi.calibrate(y, mask, bands=8, preset="paper", blur_pass=True)
 
 
+def test_search_rows_puts_the_search_stages_on_a_band(case):
+    scene, mask, y = case
+    every = cassi.calibrate(y, mask, bands=8, blur_pass=False, search_rows="all")
+    default = cassi.calibrate(y, mask, bands=8, blur_pass=False)
+    # a frame no taller than 256 rows searches on every row by default
+    assert every.parameters == default.parameters
+    band = cassi.calibrate(y, mask, bands=8, blur_pass=False, search_rows=16)
+    # the search stages score the band: another score at stage 1
+    assert band.stages[1]["name"] == every.stages[1]["name"]
+    assert abs(band.stages[1]["score"] / every.stages[1]["score"] - 1) > 1e-3
+    for bad in (0, -3, "some", 2.5):
+        with pytest.raises(ValueError, match="search_rows"):
+            cassi.calibrate(y, mask, bands=8, search_rows=bad)
+    with pytest.raises(ValueError, match="search_rows"):
+        cassi.calibrate(y, mask, bands=8, preset="paper", search_rows=64)
+
+
 def test_calibrated_reconstruction_beats_the_nominal_model(case):
     scene, mask, y = case
     cal = cassi.calibrate(y, mask, bands=8, model="rounded")

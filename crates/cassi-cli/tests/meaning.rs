@@ -566,6 +566,10 @@ fn a_curved_dispersion_travels_from_the_calibration_to_the_model() {
             &["--preset", "paper", "--blur-pass"][..],
             &["--blur-pass", "paper preset"][..],
         ),
+        (
+            &["--preset", "paper", "--search-rows", "32"][..],
+            &["--search-rows", "paper preset"][..],
+        ),
     ] {
         let args = calibrate(extra);
         assert_fails(
@@ -619,4 +623,69 @@ fn the_blur_pass_is_the_default_last_stage_and_no_blur_pass_leaves_it_out() {
     // the old flag still runs (the pass was opt-in before stop 41)
     let asked = run(&["--blur-pass"], "asked.json");
     assert_eq!(asked["parameters"], record["parameters"]);
+}
+
+/// `--search-rows N` runs the search stages on N middle rows (their scores
+/// are the band's), `all` on every row (the default on a frame no taller
+/// than 256 rows): the same estimates' basin either way on this frame.
+#[test]
+fn search_rows_puts_the_search_stages_on_a_band() {
+    let d = dir("search_rows");
+    let (meas, mask) = simulated(&d);
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    let run = |extra: &[&str], name: &str| -> serde_json::Value {
+        let cal = d.join(name);
+        let mut args = vec![
+            "calibrate".to_string(),
+            s(&meas),
+            "--mask".into(),
+            s(&mask),
+            "-o".into(),
+            s(&cal),
+            "-q".into(),
+            "--no-blur-pass".into(),
+        ];
+        args.extend(extra.iter().map(|a| a.to_string()));
+        ok(&cassi(&args.iter().map(String::as_str).collect::<Vec<_>>()));
+        serde_json::from_str(&std::fs::read_to_string(&cal).unwrap()).unwrap()
+    };
+    let every = run(&["--search-rows", "all"], "all.json");
+    let default = run(&[], "default.json");
+    assert_eq!(every["parameters"], default["parameters"]);
+    let band = run(&["--search-rows", "16"], "band.json");
+    // stage 1 ("refine dx, dy, θ") scores on the band: another score
+    let score = |r: &serde_json::Value| r["stages"][1]["score"].as_f64().unwrap();
+    assert_eq!(band["stages"][1]["name"], every["stages"][1]["name"]);
+    assert!(
+        (score(&band) / score(&every) - 1.0).abs() > 1e-3,
+        "{} vs {}",
+        score(&band),
+        score(&every)
+    );
+    for k in ["dx", "dy"] {
+        let (a, b) = (
+            band["parameters"][k].as_f64().unwrap(),
+            every["parameters"][k].as_f64().unwrap(),
+        );
+        assert!((a - b).abs() < 0.1, "{k}: {a} vs {b}");
+    }
+    // no rows at all is refused by name, before any work
+    let out = d.join("none.json");
+    let refused = cassi(&[
+        "calibrate",
+        s(&meas).as_str(),
+        "--mask",
+        s(&mask).as_str(),
+        "-o",
+        s(&out).as_str(),
+        "--search-rows",
+        "0",
+    ]);
+    assert!(!refused.status.success());
+    let stderr = String::from_utf8_lossy(&refused.stderr);
+    assert!(
+        stderr.contains("--search-rows") && stderr.contains("'0'"),
+        "{stderr}"
+    );
+    assert!(!out.exists());
 }

@@ -265,6 +265,32 @@ impl Preset {
         }
     }
 
+    /// The preset with its search stages on `rows` middle rows of a taller
+    /// frame (`None`: every row; [`DefaultPreset::search_rows`]). Only the
+    /// default preset has them.
+    pub fn with_search_rows(self, rows: Option<usize>) -> crate::error::Result<Self> {
+        if rows == Some(0) {
+            return Err(crate::error::CassiError::InvalidParameter {
+                name: "search_rows",
+                value: 0.0,
+                reason: "the rows the search stages run on: 1 or more (or every row)".into(),
+            });
+        }
+        match self {
+            Self::Default(p) => Ok(Self::Default(DefaultPreset {
+                search_rows: rows,
+                ..p
+            })),
+            Self::Paper(_) => Err(crate::error::CassiError::InvalidParameter {
+                name: "search_rows",
+                value: rows.map_or(f64::INFINITY, |r| r as f64),
+                reason: "the paper preset's grids run on every row; a search band needs the \
+                         default preset"
+                    .into(),
+            }),
+        }
+    }
+
     /// The preset without its [`BlurPass`] (the default preset's last stage
     /// since stop 41): σ as the scene fit leaves it. The paper preset has
     /// none and is returned as it is.
