@@ -27,6 +27,11 @@ pub(crate) trait LeastSquares {
     fn jacobian(&self, at: &Self::Point) -> Result<Vec<Vec<f32>>>;
     /// Whether a step this size means the search has settled.
     fn settled(&self, step: &[f64]) -> bool;
+    /// Whether coordinate `i` of `at` sits on its lower bound (none by
+    /// default): a step leaves it there while the gradient pushes it below.
+    fn on_lower_bound(&self, _at: &Self::Point, _i: usize) -> bool {
+        false
+    }
 }
 
 /// Where the search stopped.
@@ -93,8 +98,16 @@ pub(crate) fn minimise<L: LeastSquares>(
     // whether `curvature` is JᵀJ afresh, not yet updated by a step
     let mut fresh = true;
     for _ in 0..max_steps {
+        // coordinates on their bound that descent would push through it stay
+        // put: the step is solved over the others (an unconstrained step
+        // there was folded back by the bound, scored worse in every
+        // backtrack, and the whole fit stopped where it started)
+        let pinned: Vec<bool> = (0..n)
+            .map(|i| gradient[i] > 0.0 && problem.on_lower_bound(&best, i))
+            .collect();
         let descent = |b: &[f64]| {
-            solve_small(b, &gradient.iter().map(|v| -v).collect::<Vec<_>>(), n)
+            let (b, g) = without_pinned(b, &gradient, &pinned);
+            solve_small(&b, &g.iter().map(|v| -v).collect::<Vec<_>>(), n)
                 .filter(|d| d.iter().zip(&gradient).map(|(a, g)| a * g).sum::<f64>() < 0.0)
         };
         let direction = match descent(&curvature) {
@@ -167,6 +180,24 @@ pub(crate) fn minimise<L: LeastSquares>(
         jacobian,
         evaluations,
     })
+}
+
+/// The curvature and gradient with each pinned coordinate's row and column
+/// replaced by the identity's and its gradient by 0: the step solved from
+/// them leaves the pinned coordinates where they are.
+fn without_pinned(curvature: &[f64], gradient: &[f64], pinned: &[bool]) -> (Vec<f64>, Vec<f64>) {
+    let n = gradient.len();
+    let mut b = curvature.to_vec();
+    let mut g = gradient.to_vec();
+    for i in (0..n).filter(|&i| pinned[i]) {
+        for j in 0..n {
+            b[i * n + j] = 0.0;
+            b[j * n + i] = 0.0;
+        }
+        b[i * n + i] = 1.0;
+        g[i] = 0.0;
+    }
+    (b, g)
 }
 
 /// Solves the n × n system `a x = b` (Gaussian elimination with partial
@@ -274,6 +305,55 @@ mod tests {
             found.evaluations,
             problem.evaluated.get() - 1 + 2 * problem.jacobians.get()
         );
+    }
+
+    /// r = (a − 1 − 0.3 s, 2 s + 1) over a and s ≥ 0, a step's s folded
+    /// to |s| (as the scene fit folds σ): from (0, 0) the free step lowers
+    /// s, comes back as |s| > 0 and scores worse at every backtrack — the
+    /// search stops where it started (score 2); with s on its bound pinned
+    /// it moves a alone to the constrained minimum (1, 0), score 1.
+    #[test]
+    fn a_coordinate_on_its_bound_stays_while_the_others_move() {
+        struct Bounded {
+            bound: bool,
+        }
+        type Point = ([f64; 2], Vec<f32>);
+        fn at(x: [f64; 2]) -> Point {
+            let r = vec![(x[0] - 1.0 - 0.3 * x[1]) as f32, (2.0 * x[1] + 1.0) as f32];
+            (x, r)
+        }
+        impl LeastSquares for Bounded {
+            type Point = Point;
+            fn coordinates(&self, at: &Point) -> Vec<f64> {
+                at.0.to_vec()
+            }
+            fn residual<'p>(&self, at: &'p Point) -> &'p [f32] {
+                &at.1
+            }
+            fn score(&self, at: &Point) -> f64 {
+                at.1.iter().map(|&v| v as f64 * v as f64).sum()
+            }
+            fn energy(&self) -> f64 {
+                1.0
+            }
+            fn step(&self, p: &Point, step: &[f64]) -> Result<Point> {
+                Ok(at([p.0[0] + step[0], (p.0[1] + step[1]).abs()]))
+            }
+            fn jacobian(&self, _: &Point) -> Result<Vec<Vec<f32>>> {
+                Ok(vec![vec![1.0, 0.0], vec![-0.3, 2.0]])
+            }
+            fn settled(&self, step: &[f64]) -> bool {
+                step.iter().all(|d| d.abs() < 1e-9)
+            }
+            fn on_lower_bound(&self, p: &Point, i: usize) -> bool {
+                self.bound && i == 1 && p.0[1] < 1e-9
+            }
+        }
+        let stuck = minimise(&Bounded { bound: false }, at([0.0, 0.0]), 20).unwrap();
+        assert_eq!(stuck.best.0, [0.0, 0.0]);
+        let found = minimise(&Bounded { bound: true }, at([0.0, 0.0]), 20).unwrap();
+        assert!((found.best.0[0] - 1.0).abs() < 1e-6, "{:?}", found.best.0);
+        assert_eq!(found.best.0[1], 0.0);
     }
 
     #[test]
