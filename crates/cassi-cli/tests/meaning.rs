@@ -580,26 +580,21 @@ fn a_curved_dispersion_travels_from_the_calibration_to_the_model() {
     }
 }
 
+/// `cassi calibrate MEAS --mask MASK -o D/NAME -q EXTRA…`, which must
+/// succeed; the record it wrote.
+fn calibrated(d: &Path, meas: &Path, mask: &Path, extra: &[&str], name: &str) -> serde_json::Value {
+    let cal = d.join(name);
+    let mut args = vec!["calibrate", s(meas), "--mask", s(mask), "-o", s(&cal), "-q"];
+    args.extend(extra);
+    ok(&cassi(&args));
+    serde_json::from_str(&std::fs::read_to_string(&cal).unwrap()).unwrap()
+}
+
 #[test]
 fn the_blur_pass_is_the_default_last_stage_and_no_blur_pass_leaves_it_out() {
     let d = dir("blur_pass");
     let (meas, mask) = simulated(&d);
-    let s = |p: &Path| p.to_str().unwrap().to_string();
-    let run = |extra: &[&str], name: &str| -> serde_json::Value {
-        let cal = d.join(name);
-        let mut args = vec![
-            "calibrate".to_string(),
-            s(&meas),
-            "--mask".into(),
-            s(&mask),
-            "-o".into(),
-            s(&cal),
-            "-q".into(),
-        ];
-        args.extend(extra.iter().map(|a| a.to_string()));
-        ok(&cassi(&args.iter().map(String::as_str).collect::<Vec<_>>()));
-        serde_json::from_str(&std::fs::read_to_string(&cal).unwrap()).unwrap()
-    };
+    let run = |extra: &[&str], name: &str| calibrated(&d, &meas, &mask, extra, name);
     let record = run(&[], "cal.json");
     let stages = record["stages"].as_array().expect("stages");
     let last = stages.last().expect("a stage");
@@ -632,22 +627,9 @@ fn the_blur_pass_is_the_default_last_stage_and_no_blur_pass_leaves_it_out() {
 fn search_rows_puts_the_search_stages_on_a_band() {
     let d = dir("search_rows");
     let (meas, mask) = simulated(&d);
-    let s = |p: &Path| p.to_str().unwrap().to_string();
-    let run = |extra: &[&str], name: &str| -> serde_json::Value {
-        let cal = d.join(name);
-        let mut args = vec![
-            "calibrate".to_string(),
-            s(&meas),
-            "--mask".into(),
-            s(&mask),
-            "-o".into(),
-            s(&cal),
-            "-q".into(),
-            "--no-blur-pass".into(),
-        ];
-        args.extend(extra.iter().map(|a| a.to_string()));
-        ok(&cassi(&args.iter().map(String::as_str).collect::<Vec<_>>()));
-        serde_json::from_str(&std::fs::read_to_string(&cal).unwrap()).unwrap()
+    let run = |extra: &[&str], name: &str| {
+        let extra: Vec<&str> = ["--no-blur-pass"].iter().chain(extra).copied().collect();
+        calibrated(&d, &meas, &mask, &extra, name)
     };
     let every = run(&["--search-rows", "all"], "all.json");
     let default = run(&[], "default.json");
@@ -673,11 +655,11 @@ fn search_rows_puts_the_search_stages_on_a_band() {
     let out = d.join("none.json");
     let refused = cassi(&[
         "calibrate",
-        s(&meas).as_str(),
+        s(&meas),
         "--mask",
-        s(&mask).as_str(),
+        s(&mask),
         "-o",
-        s(&out).as_str(),
+        s(&out),
         "--search-rows",
         "0",
     ]);
