@@ -269,14 +269,13 @@ pub fn calibrate(
     }
     if let Some(rows) = search_rows {
         let rows = match rows.extract::<String>() {
-            Ok(all) if all == "all" => None,
-            _ => Some(rows.extract::<usize>().map_err(|_| {
-                value_error(
-                    py,
-                    format!("search_rows: {rows}: a number of rows above 0, or \"all\""),
-                )
-            })?),
-        };
+            Ok(spelled) => Preset::search_rows_from_str(&spelled),
+            Err(_) => rows
+                .extract::<usize>()
+                .map(Some)
+                .map_err(|_| format!("{rows}: a number of rows above 0, or 'all'")),
+        }
+        .map_err(|e| value_error(py, format!("search_rows: {e}")))?;
         preset = preset
             .with_search_rows(rows)
             .map_err(|e| value_error(py, format!("search_rows: {e}")))?;

@@ -58,7 +58,7 @@ pub struct CalibrateArgs {
     /// The rows the default preset's search stages (pose from several
     /// starts, dispersion hypotheses, their pose re-fits) run on: N middle
     /// rows of a taller frame, or `all`. Default 256 (a 660-row snapshot's
-    /// search at 40 % of its cost; the texture and scene fits always use
+    /// search in a third of the time; the texture and scene fits always use
     /// every row). `all` where the middle rows hold little of the scene.
     #[arg(long, value_name = "N|all", value_parser = search_rows)]
     pub search_rows: Option<SearchRows>,
@@ -75,13 +75,7 @@ pub struct CalibrateArgs {
 pub struct SearchRows(Option<usize>);
 
 fn search_rows(s: &str) -> Result<SearchRows, String> {
-    if s == "all" {
-        return Ok(SearchRows(None));
-    }
-    match s.parse::<usize>() {
-        Ok(n) if n > 0 => Ok(SearchRows(Some(n))),
-        _ => Err(format!("'{s}': a number of rows above 0, or 'all'")),
-    }
+    Preset::search_rows_from_str(s).map(SearchRows)
 }
 
 pub fn run(args: &CalibrateArgs, reporter: &Reporter) -> anyhow::Result<()> {

@@ -265,6 +265,18 @@ impl Preset {
         }
     }
 
+    /// `rows` as the command line and Python spell it: a count of middle
+    /// rows, or `all` (every row) — for [`Preset::with_search_rows`].
+    pub fn search_rows_from_str(rows: &str) -> std::result::Result<Option<usize>, String> {
+        if rows == "all" {
+            return Ok(None);
+        }
+        match rows.parse::<usize>() {
+            Ok(n) if n > 0 => Ok(Some(n)),
+            _ => Err(format!("'{rows}': a number of rows above 0, or 'all'")),
+        }
+    }
+
     /// The preset with its search stages on `rows` middle rows of a taller
     /// frame (`None`: every row; [`DefaultPreset::search_rows`]). Only the
     /// default preset has them.
