@@ -109,6 +109,27 @@ pub fn relative_residual2(y: &[f64], m: &[f64]) -> f64 {
     ((yy - s * ym) / yy).max(0.0)
 }
 
+/// The minimiser of `f` on [a, b] to within `tol`, by golden section: for a
+/// one-parameter fit whose objective is unimodal there (a blur σ with
+/// everything else known).
+pub fn golden_section(f: impl Fn(f64) -> f64, (mut a, mut b): (f64, f64), tol: f64) -> f64 {
+    let g = (5f64.sqrt() - 1.0) / 2.0;
+    let (mut c, mut d) = (b - g * (b - a), a + g * (b - a));
+    let (mut fc, mut fd) = (f(c), f(d));
+    while b - a > tol {
+        if fc < fd {
+            (b, d, fd) = (d, c, fc);
+            c = b - g * (b - a);
+            fc = f(c);
+        } else {
+            (a, c, fc) = (c, d, fd);
+            d = a + g * (b - a);
+            fd = f(d);
+        }
+    }
+    0.5 * (a + b)
+}
+
 /// Where a bench writes its record: $CASSI_BENCH_OUT, else
 /// `bench/results/<name>`; its folder made before the work starts, so a
 /// bad path fails at once rather than after the run.

@@ -5,7 +5,7 @@
 //! band) and without derivatives: a measurement of what the model would
 //! gain, not an operator.
 
-use cassi_bench::relative_residual2;
+use cassi_bench::{golden_section, relative_residual2};
 use cassi_core::optics::pixel_kernel as kernel;
 use cassi_core::{Cube, Mask, Mismatch};
 
@@ -99,22 +99,7 @@ pub fn fitted_sigma(y: &[f64], mask: &Mask, scene: &Cube, truth: &Mismatch) -> f
         };
         relative_residual2(y, &forward(mask, scene, &psi))
     };
-    let (mut a, mut b) = (0.0f64, 0.9f64);
-    let g = (5f64.sqrt() - 1.0) / 2.0;
-    let (mut c, mut d) = (b - g * (b - a), a + g * (b - a));
-    let (mut fc, mut fd) = (score(c), score(d));
-    while b - a > 0.002 {
-        if fc < fd {
-            (b, d, fd) = (d, c, fc);
-            c = b - g * (b - a);
-            fc = score(c);
-        } else {
-            (a, c, fc) = (c, d, fd);
-            d = a + g * (b - a);
-            fd = score(d);
-        }
-    }
-    0.5 * (a + b)
+    golden_section(score, (0.0, 0.9), 0.002)
 }
 
 #[cfg(test)]
