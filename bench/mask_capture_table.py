@@ -12,7 +12,8 @@ parameters all within the issue's tolerances, their RMSE, σ − σ_eff before a
 pass (the stage before it, and the answer), and the 95 % intervals' coverage of all five.
 A record made since stop 43 carries the exact reference per case (`sigma_reference`: the σ the
 model fits with the true scene and geometry known); then σ is judged against it (σ_ref below),
-the approximation's distance from it is printed, and so is σ's own 95 % coverage.
+the approximation's distance from it is printed, and so is σ's own 95 % coverage. A record
+made with --recon adds GAP-TV's PSNR with the answer before the blur pass and with it.
 
     python3 bench/mask_capture_table.py RECORD.json@SIGMA_C [RECORD.json@SIGMA_C ...]
     (SIGMA_C 0 for a record of the standard instrument: σ_eff = σ_o)
@@ -78,6 +79,23 @@ def table(path, sigma_c):
             print(f"    σ's 95 % interval covers σ_ref {sigma_covered}; σ_eff − σ_ref mean "
                   f"{sum(gap) / len(gap):+.3f}, range {min(gap):+.3f} … {max(gap):+.3f}")
         print("    RMSE " + "  ".join(f"{p} {rms([c['error'][p] for c in k]):.4f}" for p in GEOMETRY))
+        recon(k)
+
+
+def recon(cases):
+    """GAP-TV's PSNR (a record made with --recon): what the blur pass buys the reconstruction."""
+    db = [c.get("psnr_db", {}) for c in cases]
+    if not db or not all("III_before_blur_pass" in d for d in db):
+        return
+    mean = lambda key: sum(d[key] for d in db) / len(db)
+    gain = [d["III_calibrated"] - d["III_before_blur_pass"] for d in db]
+    line = (f"    GAP-TV PSNR mean: II nominal {mean('II_nominal'):.2f}, III before the blur pass "
+            f"{mean('III_before_blur_pass'):.2f}, III {mean('III_calibrated'):.2f}, IV {mean('IV_true'):.2f} dB")
+    if all("IV_instrument_sigma" in d for d in db):
+        line += f" (IV at the instrument's σ {mean('IV_instrument_sigma'):.2f})"
+    print(line)
+    print(f"    the blur pass: PSNR up in {sum(g > 0 for g in gain)} of {len(gain)}, "
+          f"mean {sum(gain) / len(gain):+.3f} dB, range {min(gain):+.3f} … {max(gain):+.3f}")
 
 
 if __name__ == "__main__":

@@ -30,8 +30,8 @@ Several tuning runs are pooled (the scene fit's: the tuning half as it is and
 `--scene-transform flip-cols / flip-rows / transpose`, each with its own seed round). A run
 of the captured-mask instrument (`--mask-capture SIGMA`: a binary code rendered crisp, the
 calibration handed its blurred image) pools as regimes of its own, each held to the target,
-and its scene configurations are their own; σ's floors ignore it (σ has no exact truth
-there).
+and its scene configurations are their own; σ's floors ignore it unless its record carries
+σ's exact reference (`sigma_reference`, since stop 43; before it σ had no exact truth there).
 
 --by-scene (the scene fit's floors): the standard-error floors are grown by κ ≥ 1, the
 smallest factor that makes floors derived without each scene configuration (a tuning scene
@@ -79,6 +79,14 @@ def captured_mask(run):
     return bool(run.get("instrument", {}).get("mask_capture"))
 
 
+def sigma_without_truth(run):
+    """A captured-mask run made before σ had an exact reference there (stop 43's
+    `sigma_reference`, the σ the crisp-cell model fits with the scene known): its σ errors
+    are against the instrument's own σ, which the model's σ does not stand for."""
+    return captured_mask(run) and any(c.get("sigma_reference") is None for c in run["cases"]
+                                      if c["kind"] in HEADLINE + WIDE)
+
+
 def cases(run, kinds, p):
     """(|error|, sandwich part, fitted blur, regime, scene configuration) of the cases of
     `kinds` with a stated σ; the configuration is the scene and its `--scene-transform`."""
@@ -87,9 +95,10 @@ def cases(run, kinds, p):
     transform = run.get("scene_transform", "none")
     instrument = ""
     if captured_mask(run):
-        # σ has no exact truth there (the model's σ stands for the blur beyond the mask
-        # file's own): its floors come from the other instruments alone
-        if p == "blur_sigma_px":
+        # in a record without σ's exact reference σ has no truth there (the model's σ
+        # stands for the blur beyond the mask file's own): its floors come from the
+        # other records alone
+        if p == "blur_sigma_px" and sigma_without_truth(run):
             return []
         instrument = ", captured mask"
     out = []
@@ -292,8 +301,9 @@ def error_correlation(runs):
     """Σ eₐ·e_b / √(Σ eₐ² Σ e_b²) over every tuning case: `error_correlation` in
     calib/uncertainty.rs (the floors' covariance, from which the trade-offs are read)."""
     params = list(runs[0]["cases"][0]["error"].keys())
-    # (errors, from a captured-mask run: σ's error there has no exact truth and is left out)
-    rows = [(c["error"], captured_mask(r)) for r in runs for c in r["cases"]
+    # (errors, from a captured-mask run without σ's reference: σ's error there has no
+    # exact truth and is left out)
+    rows = [(c["error"], sigma_without_truth(r)) for r in runs for c in r["cases"]
             if c["kind"] in HEADLINE + WIDE]
     print(f"\nerror correlation over {len(rows)} cases (σ's over {sum(not k for _, k in rows)})")
     print(" " * 14 + "".join(f"{q[:8]:>9}" for q in params))
