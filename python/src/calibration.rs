@@ -221,7 +221,8 @@ enum Message {
 ///     search_rows: the rows the default preset's search stages (pose from
 ///         several starts, dispersion hypotheses, their pose re-fits) run
 ///         on: None keeps the preset's own (the middle 256 rows of a taller
-///         frame), an int N that many middle rows, "all" every row (the
+///         frame, or its most detailed 256 where those hold more than twice
+///         the middle's detail), an int N that many rows, "all" every row (the
 ///         CLI's --search-rows); the texture and scene fits always use
 ///         every row. An error with the paper preset.
 ///     progress: called with a dict {name, evaluations, seconds,

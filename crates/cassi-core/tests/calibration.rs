@@ -89,6 +89,43 @@ fn the_search_stages_run_on_a_band_of_a_tall_frame() {
     }
 }
 
+/// A tall frame whose middle rows are dark: the search band moves to the
+/// rows that hold the scene (`RowWindow::centred_unless_blind`), and the
+/// search finds the pose's basin there, where the middle band, seeing
+/// nothing, cannot.
+#[test]
+fn the_search_band_leaves_a_dark_middle() {
+    let truth = Mismatch {
+        dx: 1.3,
+        dy: -0.8,
+        theta_deg: 0.35,
+        ..Mismatch::nominal(2.0)
+    };
+    let model = DispersionModel::Rounded;
+    let (y, mask) = setup(96, 8, truth, model);
+    let (rows, cols) = y.shape();
+    // rows 24..96 dark: the scene lies in the top quarter
+    let dark: Vec<f32> = y
+        .as_slice()
+        .iter()
+        .enumerate()
+        .map(|(i, &v)| if i / cols < 24 { v } else { 0.0 })
+        .collect();
+    let y = cassi_core::Measurement::from_vec(rows, cols, dark).unwrap();
+    let p = CalibrationProblem::nominal(&y, &mask, 8, 2.0, model).unwrap();
+    let preset = DefaultPreset {
+        search_rows: Some(16),
+        ..DefaultPreset::default()
+    };
+    let cal = calibrate_default(&p, &preset, &mut |_| {}).unwrap();
+    let searched = &cal.stages[3];
+    assert_eq!(searched.name, "re-fit pose per dispersion");
+    let s = searched.parameters;
+    assert!((s.dx - truth.dx).abs() < 0.2, "{s:?}");
+    assert!((s.dy - truth.dy).abs() < 0.2, "{s:?}");
+    assert!((s.theta_deg - truth.theta_deg).abs() < 0.2, "{s:?}");
+}
+
 #[test]
 fn the_score_is_minimal_at_the_truth_without_noise() {
     let truth = Mismatch {

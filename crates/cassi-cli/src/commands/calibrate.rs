@@ -57,9 +57,10 @@ pub struct CalibrateArgs {
     pub blur_pass: bool,
     /// The rows the default preset's search stages (pose from several
     /// starts, dispersion hypotheses, their pose re-fits) run on: N middle
-    /// rows of a taller frame, or `all`. Default 256 (a 660-row snapshot's
-    /// search in a third of the time; the texture and scene fits always use
-    /// every row). `all` where the middle rows hold little of the scene.
+    /// rows of a taller frame (the most detailed N where those hold more
+    /// than twice the middle's pixel-scale detail), or `all`. Default 256
+    /// (a 660-row snapshot's search in a third of the time; the texture and
+    /// scene fits always use every row).
     #[arg(long, value_name = "N|all", value_parser = search_rows)]
     pub search_rows: Option<SearchRows>,
     /// Output calibration JSON (for `cassi reconstruct --calibration`).

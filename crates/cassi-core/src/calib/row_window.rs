@@ -56,6 +56,52 @@ impl RowWindow {
         })
     }
 
+    /// [`RowWindow::centred`]'s band, moved to where `y`'s rows hold the
+    /// scene when the middle ones hold little of it: to the band of as many
+    /// rows with the most pixel-scale detail (squared differences between
+    /// neighbouring pixels — the code's imprint, which a dark or flat
+    /// region lacks) when that band holds more than
+    /// [`MIDDLE_DETAIL_SHORTFALL`] times the middle one's. A frame whose
+    /// middle holds its share keeps the middle (the real snapshots do: the
+    /// band only moves for a frame the middle would leave blind).
+    pub fn centred_unless_blind(
+        kept: usize,
+        y: &Measurement,
+        bands: usize,
+        at: &Mismatch,
+        high_pass_px: f64,
+    ) -> Option<Self> {
+        let (rows, cols) = y.shape();
+        let middle = Self::centred(kept, rows, cols, bands, at, high_pass_px)?;
+        let detail = row_detail(y);
+        // prefix sums: the detail of the kept rows of the band starting at `first`
+        let mut below = vec![0.0f64; rows + 1];
+        for (r, d) in detail.iter().enumerate() {
+            below[r + 1] = below[r] + d;
+        }
+        let kept_detail =
+            |first: usize| below[first + middle.margin + kept] - below[first + middle.margin];
+        let span = middle.end - middle.first;
+        let centre = middle.first;
+        let best = (0..=rows - span)
+            .max_by(|&a, &b| {
+                kept_detail(a)
+                    .total_cmp(&kept_detail(b))
+                    // ties to the band nearer the middle
+                    .then(b.abs_diff(centre).cmp(&a.abs_diff(centre)))
+            })
+            .unwrap_or(centre);
+        if kept_detail(best) > MIDDLE_DETAIL_SHORTFALL * kept_detail(centre) {
+            Some(Self {
+                first: best,
+                end: best + span,
+                margin: middle.margin,
+            })
+        } else {
+            Some(middle)
+        }
+    }
+
     /// Rows the band's centre lies below the frame's.
     pub fn centre_below(&self, rows: usize) -> f64 {
         (self.first + self.end) as f64 / 2.0 - rows as f64 / 2.0
@@ -65,6 +111,33 @@ impl RowWindow {
     pub fn kept(&self) -> (usize, usize) {
         (self.margin, self.end - self.first - self.margin)
     }
+}
+
+/// How much more pixel-scale detail another band must hold than the middle
+/// one before [`RowWindow::centred_unless_blind`] moves there: a safety net
+/// for a frame whose middle is dark or flat, not a search for the best band
+/// (the search stages were tuned on middle bands).
+pub(crate) const MIDDLE_DETAIL_SHORTFALL: f64 = 2.0;
+
+/// Each row's squared differences to its right and lower neighbours.
+fn row_detail(y: &Measurement) -> Vec<f64> {
+    let (rows, cols) = y.shape();
+    let v = y.as_slice();
+    (0..rows)
+        .map(|r| {
+            let row = &v[r * cols..(r + 1) * cols];
+            let along: f64 = row.windows(2).map(|p| f64::from(p[1] - p[0]).powi(2)).sum();
+            let across: f64 = if r + 1 < rows {
+                row.iter()
+                    .zip(&v[(r + 1) * cols..(r + 2) * cols])
+                    .map(|(a, b)| f64::from(b - a).powi(2))
+                    .sum()
+            } else {
+                0.0
+            };
+            along + across
+        })
+        .collect()
 }
 
 /// A problem's rows `window` cut out: its measurement and its nominal
@@ -133,6 +206,53 @@ mod tests {
         );
         // a window that with its margin would cover the frame is the frame
         assert_eq!(RowWindow::centred(250, 256, 310, 28, &aligned, 0.5), None);
+    }
+
+    /// The band stays in the middle of a frame whose rows all hold the
+    /// code's detail, and moves to the detail when the middle is dark.
+    #[test]
+    fn the_band_leaves_a_dark_middle_for_the_rows_that_hold_the_scene() {
+        let (rows, cols) = (200, 60);
+        let code = |r: usize, c: usize| ((r * 31 + c * 17) % 7) as f32 / 6.0;
+        let textured = Measurement::from_vec(
+            rows,
+            cols,
+            (0..rows * cols).map(|i| code(i / cols, i % cols)).collect(),
+        )
+        .unwrap();
+        let at = Mismatch::nominal(2.0);
+        let middle = RowWindow::centred(40, rows, cols, 8, &at, 0.0).unwrap();
+        assert_eq!(
+            RowWindow::centred_unless_blind(40, &textured, 8, &at, 0.0),
+            Some(middle)
+        );
+        // the scene only in the top 60 rows: the middle band sees nothing
+        let top = Measurement::from_vec(
+            rows,
+            cols,
+            (0..rows * cols)
+                .map(|i| {
+                    if i / cols < 60 {
+                        code(i / cols, i % cols)
+                    } else {
+                        0.0
+                    }
+                })
+                .collect(),
+        )
+        .unwrap();
+        let moved = RowWindow::centred_unless_blind(40, &top, 8, &at, 0.0).unwrap();
+        let (first, end) = (moved.first + moved.margin, moved.end - moved.margin);
+        assert!(end <= 61 && end - first == 40, "{moved:?}");
+        assert_eq!(
+            (moved.margin, moved.end - moved.first),
+            (middle.margin, middle.end - middle.first)
+        );
+        // a frame the band and its margin would cover is the frame
+        assert_eq!(
+            RowWindow::centred_unless_blind(197, &top, 8, &at, 0.0),
+            None
+        );
     }
 
     /// Seen from a band and back is the frame's own ψ, and a band off the
