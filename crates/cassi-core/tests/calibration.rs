@@ -40,11 +40,14 @@ fn setup(
     (y, mask)
 }
 
-/// On a frame taller than `search_rows` the search stages run on its
-/// middle rows: their scores are the band's (not the frame's), and they
-/// still find the basin of a pose turned about the frame's centre.
-#[test]
-fn the_search_stages_run_on_a_band_of_a_tall_frame() {
+/// The search band's tests: a pose turned about the centre of a 96-row
+/// frame (8 bands, the rounded model) and its measurement.
+fn turned_pose_on_a_tall_frame() -> (
+    Mismatch,
+    DispersionModel,
+    cassi_core::Measurement,
+    cassi_core::Mask,
+) {
     let truth = Mismatch {
         dx: 1.3,
         dy: -0.8,
@@ -53,6 +56,15 @@ fn the_search_stages_run_on_a_band_of_a_tall_frame() {
     };
     let model = DispersionModel::Rounded;
     let (y, mask) = setup(96, 8, truth, model);
+    (truth, model, y, mask)
+}
+
+/// On a frame taller than `search_rows` the search stages run on its
+/// middle rows: their scores are the band's (not the frame's), and they
+/// still find the basin of a pose turned about the frame's centre.
+#[test]
+fn the_search_stages_run_on_a_band_of_a_tall_frame() {
+    let (truth, model, y, mask) = turned_pose_on_a_tall_frame();
     let p = CalibrationProblem::nominal(&y, &mask, 8, 2.0, model).unwrap();
     let run = |search_rows| {
         let preset = DefaultPreset {
@@ -95,14 +107,7 @@ fn the_search_stages_run_on_a_band_of_a_tall_frame() {
 /// nothing, cannot.
 #[test]
 fn the_search_band_leaves_a_dark_middle() {
-    let truth = Mismatch {
-        dx: 1.3,
-        dy: -0.8,
-        theta_deg: 0.35,
-        ..Mismatch::nominal(2.0)
-    };
-    let model = DispersionModel::Rounded;
-    let (y, mask) = setup(96, 8, truth, model);
+    let (truth, model, y, mask) = turned_pose_on_a_tall_frame();
     let (rows, cols) = y.shape();
     // rows 24..96 dark: the scene lies in the top quarter
     let dark: Vec<f32> = y
