@@ -269,14 +269,10 @@ pub fn calibrate(
         }
     }
     if let Some(rows) = search_rows {
-        let rows = match rows.extract::<String>() {
-            Ok(spelled) => Preset::search_rows_from_str(&spelled),
-            Err(_) => rows
-                .extract::<usize>()
-                .map(Some)
-                .map_err(|_| format!("{rows}: a number of rows above 0, or 'all'")),
-        }
-        .map_err(|e| value_error(py, format!("search_rows: {e}")))?;
+        // an int or a string, read by the CLI's one parser as Python
+        // writes it (str(16) = "16"; -3, 2.5 and "some" are refused there)
+        let rows = Preset::search_rows_from_str(&rows.str()?.to_string())
+            .map_err(|e| value_error(py, format!("search_rows: {e}")))?;
         preset = preset
             .with_search_rows(rows)
             .map_err(|e| value_error(py, format!("search_rows: {e}")))?;

@@ -1087,10 +1087,17 @@ fn run_case(args: &Args, case: &Case, name: &str, scene: &Cube, masks: &Masks) -
     };
     // with a captured mask, σ is judged against the σ the model family
     // fits with the scene and the geometry known (`sigma_reference`)
-    let references = match (args.mask_capture_px, case.kind) {
-        (Some(_), Kind::Random | Kind::AlignedBlur | Kind::WideBlur) => {
-            let clean = measure(case, scene, masks, None, args)?;
-            let fit = |model| sigma_reference(&clean, mask, scene, &physical, model);
+    let physical_kind = matches!(case.kind, Kind::Random | Kind::AlignedBlur | Kind::WideBlur);
+    // the noise-free measurement, simulated once for the σ reference and
+    // the limits when either needs it
+    let clean = if args.limits || (args.mask_capture_px.is_some() && physical_kind) {
+        Some(measure(case, scene, masks, None, args)?)
+    } else {
+        None
+    };
+    let references = match (&clean, args.mask_capture_px) {
+        (Some(clean), Some(_)) if physical_kind => {
+            let fit = |model| sigma_reference(clean, mask, scene, &physical, model);
             Some((
                 fit(DispersionModel::CrispCells),
                 fit(DispersionModel::DispersedMask),
@@ -1203,15 +1210,14 @@ fn run_case(args: &Args, case: &Case, name: &str, scene: &Cube, masks: &Masks) -
             record["psnr_db"]["IV_instrument_sigma"] = json!(db);
         }
     }
-    if args.limits {
-        let clean = measure(case, scene, masks, None, args)?;
+    if let (true, Some(clean)) = (args.limits, &clean) {
         let detector = limits::DetectorNoise {
             photon_peak: PHOTON_PEAK,
             read_noise_e: READ_NOISE,
         };
         let mut lim = limits::measure(
             &y,
-            &clean,
+            clean,
             scene,
             mask,
             &est,
