@@ -83,14 +83,25 @@ def table(path, sigma_c):
 
 
 def recon(cases):
-    """GAP-TV's PSNR (a record made with --recon): what the blur pass buys the reconstruction."""
+    """GAP-TV's PSNR (a record made with --recon): what the blur pass's σ buys the reconstruction.
+    Records from stop 44 on reconstruct III with the model's own σ and hold the pass's in
+    III_blur_pass_sigma; earlier ones reconstructed with the pass's and held III_before_blur_pass."""
     db = [c.get("psnr_db", {}) for c in cases]
-    if not db or not all("III_before_blur_pass" in d for d in db):
+    if not db:
+        return
+    if all("III_blur_pass_sigma" in d for d in db):
+        model_sigma = [d["III_calibrated"] for d in db]
+        pass_sigma = [d["III_blur_pass_sigma"] for d in db]
+    elif all("III_before_blur_pass" in d for d in db):
+        model_sigma = [d["III_before_blur_pass"] for d in db]
+        pass_sigma = [d["III_calibrated"] for d in db]
+    else:
         return
     mean = lambda key: sum(d[key] for d in db) / len(db)
-    gain = [d["III_calibrated"] - d["III_before_blur_pass"] for d in db]
-    line = (f"    GAP-TV PSNR mean: II nominal {mean('II_nominal'):.2f}, III before the blur pass "
-            f"{mean('III_before_blur_pass'):.2f}, III {mean('III_calibrated'):.2f}, IV {mean('IV_true'):.2f} dB")
+    gain = [p - m for p, m in zip(pass_sigma, model_sigma)]
+    line = (f"    GAP-TV PSNR mean: II nominal {mean('II_nominal'):.2f}, III with the model's own σ "
+            f"{sum(model_sigma) / len(db):.2f}, with the blur pass's {sum(pass_sigma) / len(db):.2f}, "
+            f"IV {mean('IV_true'):.2f} dB")
     if all("IV_instrument_sigma" in d for d in db):
         line += f" (IV at the instrument's σ {mean('IV_instrument_sigma'):.2f})"
     print(line)

@@ -66,6 +66,15 @@ impl PyCalibration {
         params::to_dict(py, &self.inner.parameters)
     }
 
+    /// The parameters `reconstruct(..., calibration=cal)` uses: `parameters`
+    /// with blur_sigma_px the calibrated model's own fit where the default's
+    /// blur pass read the reported one on the crisp-cell model (the
+    /// instrument's blur); otherwise `parameters` themselves.
+    #[getter]
+    fn reconstruction_parameters<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        params::to_dict(py, &self.inner.reconstruction_parameters())
+    }
+
     /// The standard error of each parameter (same keys and units), None
     /// where it was not estimated.
     #[getter]

@@ -386,7 +386,7 @@ fn assumed(
                     ),
                 ));
             }
-            Ok((cal.parameters, cal.model))
+            Ok((cal.reconstruction_parameters(), cal.model))
         }
         None => Ok((
             params::mismatch(py, stride, mismatch, params)?,

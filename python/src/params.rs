@@ -75,7 +75,8 @@ pub fn mismatch(
                 }
             };
         } else if let Ok(cal) = obj.cast::<PyCalibration>() {
-            m = cal.get().inner.parameters;
+            // the calibrated model's operator: σ its own fit where it has one
+            m = cal.get().inner.reconstruction_parameters();
         } else if let Ok(map) = obj.cast::<PyMapping>() {
             for item in map.items()?.iter() {
                 let (k, v): (Bound<'_, PyAny>, Bound<'_, PyAny>) = item.extract()?;

@@ -101,6 +101,9 @@ def test_the_blur_pass_refits_the_blur_alone_last(case):
     assert without.stages[-1]["name"] == before["name"], without.stages[-1]
     assert without.parameters == before["parameters"]
     assert cal.parameters == last["parameters"]
+    # the dispersed-mask operator reconstructs with its own fit's σ
+    assert cal.reconstruction_parameters == before["parameters"]
+    assert without.reconstruction_parameters == without.parameters
     for k in ["dx", "dy", "theta_deg", "a1", "alpha_deg"]:
         assert last["parameters"][k] == before["parameters"][k], k
     # on the crisp-cell model's own data it moves σ toward the truth
@@ -144,7 +147,7 @@ def test_calibrated_reconstruction_beats_the_nominal_model(case):
         cassi.reconstruct(y, mask, bands=8, calibration=cal, model="subpixel")
     # an Operator of the calibration takes its model too, never silently another
     op = cassi.Operator(mask, bands=8, mismatch=cal)
-    assert (op.model, op.mismatch) == (cal.model, cal.parameters)
+    assert (op.model, op.mismatch) == (cal.model, cal.reconstruction_parameters)
     with pytest.raises(ValueError, match="differs from the calibration's model 'rounded'"):
         cassi.Operator(mask, bands=8, mismatch=cal, model="subpixel")
 

@@ -527,7 +527,17 @@ fn calibrate_recovers_the_simulated_mismatch_and_feeds_reconstruct() {
     );
     let report: serde_json::Value =
         serde_json::from_slice(&std::fs::read(dir.join("cube.json")).unwrap()).unwrap();
-    assert_eq!(report["model_parameters"], cal["parameters"]);
+    // the calibrated model's operator: the reported parameters, σ the
+    // model's own fit (the default's blur pass reads the reported σ on
+    // the crisp-cell model)
+    let mut expected = cal["parameters"].clone();
+    let own = cal["model_blur_sigma_px"].as_f64();
+    assert!(
+        own.is_some(),
+        "the default's blur pass reads σ on another model"
+    );
+    expected["blur_sigma_px"] = serde_json::json!(own);
+    assert_eq!(report["model_parameters"], expected);
 }
 
 /// Sharded runs merged give the study one process makes: every score and

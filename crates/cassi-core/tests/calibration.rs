@@ -463,6 +463,9 @@ fn the_blur_bootstrap_moves_the_blur_alone() {
     };
     let cal = calibrate_default(&p, &preset, &mut |_| {}).unwrap();
     let (before, was, now) = blur_moved_alone_last(&cal, BLUR_BOOTSTRAP_STAGE, &truth);
+    // no blur pass: the operator reconstructs with the reported σ
+    assert_eq!(cal.model_blur_sigma_px, None);
+    assert_eq!(cal.reconstruction_parameters(), cal.parameters);
     eprintln!("σ error: scene fit {was:+.4}, bootstrapped {now:+.4}");
     assert!(was.abs() > 0.02, "the scene fit's own error {was:+.4}");
     assert!(now.abs() <= 0.5 * was.abs(), "{was:+.4} -> {now:+.4}");
@@ -504,8 +507,12 @@ fn the_blur_pass_moves_the_blur_alone() {
         ..DefaultPreset::default()
     };
     let cal = calibrate_default(&p, &preset, &mut |_| {}).unwrap();
-    let (_, was, now) = blur_moved_alone_last(&cal, BLUR_PASS_STAGE, &truth);
+    let (before, was, now) = blur_moved_alone_last(&cal, BLUR_PASS_STAGE, &truth);
     eprintln!("σ error: scene fit {was:+.4}, blur pass {now:+.4}");
+    // the pass reads σ on another model: the calibrated model's operator
+    // keeps its own fit's σ to reconstruct with, the report the pass's
+    assert_eq!(cal.model_blur_sigma_px, Some(before.blur_sigma_px));
+    assert_eq!(cal.reconstruction_parameters(), before);
     assert!(was.abs() > 0.02, "the scene fit's own error {was:+.4}");
     assert!(now.abs() <= 0.5 * was.abs(), "{was:+.4} -> {now:+.4}");
     // a pass without GAP-TV iterations is refused by its own name, before any stage

@@ -257,7 +257,7 @@ pub fn run_scenario(
         Scenario::Assumed => (&prepared.measurement, nominal, study.instrument),
         Scenario::Corrected => (
             &prepared.measurement,
-            prepared.calibration.parameters,
+            prepared.calibration.reconstruction_parameters(),
             study.instrument,
         ),
         Scenario::Oracle => (&prepared.measurement, study.mismatch, study.instrument),

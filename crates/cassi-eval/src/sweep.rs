@@ -103,13 +103,13 @@ pub fn ablation(
             })?;
             calib_secs += prepared.calibration.seconds;
             let search = search_only(&prepared.calibration.stages, preset)
-                .unwrap_or(prepared.calibration.parameters);
+                .unwrap_or(prepared.calibration.reconstruction_parameters());
             for (mi, method) in study.methods.iter().enumerate() {
                 for (vi, variant) in AblationVariant::ALL.iter().enumerate() {
                     let params = match variant {
                         AblationVariant::Nominal => Mismatch::nominal(study.stride),
                         AblationVariant::SearchOnly => search,
-                        AblationVariant::Full => prepared.calibration.parameters,
+                        AblationVariant::Full => prepared.calibration.reconstruction_parameters(),
                         AblationVariant::Oracle => study.mismatch,
                     };
                     let assumed =

@@ -170,7 +170,21 @@ fn uncertainty_lines(cal: &Calibration) -> String {
     {
         out += &format!("  {line}\n");
     }
-    out + &trade_off_lines(cal) + &wide_blur_note(cal) + &a1_tilt_note(cal)
+    out + &model_blur_line(cal) + &trade_off_lines(cal) + &wide_blur_note(cal) + &a1_tilt_note(cal)
+}
+
+/// The σ `cassi reconstruct --calibration` uses, where it is the model's own
+/// fit rather than the reported one (the blur pass's, on another model).
+pub(crate) fn model_blur_line(cal: &Calibration) -> String {
+    match cal.model_blur_sigma_px {
+        Some(sigma) => format!(
+            "  blur σ to reconstruct with: {sigma:.3} px, the {} model's own fit (the σ above is \
+             the blur pass's, read on the crisp-cell model: the instrument's; README: the blur \
+             pass)\n",
+            cal.model.name()
+        ),
+        None => String::new(),
+    }
 }
 
 /// A note when the fitted tilt is one at which the texture fit's a1
@@ -269,6 +283,7 @@ mod tests {
             interval_95: stated(0.0606),
             trade_offs: Vec::new(),
             uncertainty_fit: Some(Fit::Texture),
+            model_blur_sigma_px: None,
             stages: Vec::new(),
             seconds: 0.0,
             evaluations: 0,

@@ -171,6 +171,11 @@ fn parameter_table(truth: &Mismatch, cal: &Calibration, model: DispersionModel) 
             out += &format!(" {w:>9.4}");
         }
     }
+    let model_blur = super::calibrate::model_blur_line(cal);
+    if !model_blur.is_empty() {
+        out += "\n";
+        out += model_blur.trim_end();
+    }
     let trade_offs = super::calibrate::trade_off_lines(cal);
     if !trade_offs.is_empty() {
         out += "\n";

@@ -258,6 +258,8 @@ pub fn calibrate_default(
     if problem.model() == DispersionModel::Rounded || proxy_refines_dispersion {
         best = joint_refinement(&mut run, &scores, best);
     }
+    // σ as the model itself fits it, where the blur pass reads it on another
+    let mut model_blur_sigma_px = None;
     let u = if texture {
         let estimate = SceneEstimate::Proxy { at: best };
         let (found, u) = texture_stage(&mut run, problem, preset, &best, estimate)?;
@@ -269,6 +271,9 @@ pub fn calibrate_default(
                     found = nominal_a1_restart(&mut run, problem, preset, settings, &posed, found)?;
                 }
                 if let (Some(pass), true) = (preset.blur_pass, preset.fit_blur) {
+                    if pass.model != problem.model() {
+                        model_blur_sigma_px = Some(found.0.blur_sigma_px);
+                    }
                     found.0 = blur_pass_stage(&mut run, problem, preset, settings, pass, found.0)?;
                 }
                 if let (Some(bootstrap), true) = (preset.blur_bootstrap, preset.fit_blur)
@@ -310,6 +315,7 @@ pub fn calibrate_default(
         interval_95: u.interval_95,
         trade_offs: u.trade_offs,
         uncertainty_fit: u.fit,
+        model_blur_sigma_px,
         stages: run.into_reports(),
         seconds,
         evaluations,

@@ -89,6 +89,11 @@ pub fn read_model_file(path: &Path) -> anyhow::Result<(Mismatch, Option<Dispersi
             let field = "\"parameters\"";
             let m = named_at(&v["parameters"], field)?;
             let cal = file.parse::<Calibration>()?.record;
+            // σ the model's own fit where the calibration has one
+            let m = Mismatch {
+                blur_sigma_px: cal.reconstruction_parameters().blur_sigma_px,
+                ..m
+            };
             (m, Some(cal.model), field)
         }
         Some(SimulationRecord::FORMAT) => {
