@@ -57,7 +57,7 @@
 //! [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene]
 //! [--fine-pass-free pose-and-slope|geometry|all] [--scene-cell PX] [--scene-nodes N]
 //! [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv ITERATIONS] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N]]
-//! [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--out PATH] [--scene-transform none|flip-cols|flip-rows|transpose] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--model-a2 A2] [--mask-capture SIGMA_PX] [--detail-cold-above PX|none] [--blur-bootstrap crisp-cells|dispersed-mask [--blur-bootstrap-noise] [--blur-bootstrap-residual] [--blur-bootstrap-min PX]] [--verbose]`
+//! [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--out PATH] [--scene-transform none|flip-cols|flip-rows|transpose] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--model-a2 A2] [--mask-capture SIGMA_PX [--mask-sharpen V]] [--detail-cold-above PX|none] [--blur-bootstrap crisp-cells|dispersed-mask [--blur-bootstrap-noise] [--blur-bootstrap-residual] [--blur-bootstrap-min PX]] [--verbose]`
 //! (`--no-texture`: the default preset without its texture fit, as it was
 //! before issue #14 — the "before" row; `--no-scene-fit`: without its
 //! scene fit, ending in the texture fit as the records `*_texture.json`
@@ -223,6 +223,9 @@ struct Args {
     /// calibration handed that code blurred by a Gaussian of SIGMA_PX
     /// ([`Masks`]).
     mask_capture_px: Option<f64>,
+    /// `--mask-sharpen V` (with `--mask-capture`): the handed file
+    /// sharpened ([`sharpen_separable`]).
+    mask_sharpen: Option<f64>,
 }
 
 /// The masks of a run: the one the simulated instrument carries and the
@@ -242,7 +245,8 @@ impl Masks {
     /// (`bench/mask_crispness.py`: 33–40 % of their values between 10 and
     /// 90 % of the maximum), so rendering the file's values as crisp cells
     /// makes the crisp-cell model right by construction.
-    fn new(file: Mask, capture_px: Option<f64>) -> Result<Self> {
+    /// `sharpen`: the handed file then sharpened ([`sharpen_separable`]).
+    fn new(file: Mask, capture_px: Option<f64>, sharpen: Option<f64>) -> Result<Self> {
         let Some(sigma) = capture_px else {
             return Ok(Self {
                 instrument: file.clone(),
@@ -260,10 +264,41 @@ impl Masks {
             .with_context(|| format!("--mask-capture {sigma}"))?;
         let mut captured = vec![0.0; rows * cols];
         blur.apply(&code, &mut captured, &mut vec![0.0; rows * cols]);
+        if let Some(v) = sharpen {
+            sharpen_separable(&mut captured, rows, cols, v as f32);
+        }
         Ok(Self {
             instrument: Mask::from_vec(rows, cols, code)?,
             nominal: Mask::from_vec(rows, cols, captured)?,
         })
+    }
+}
+
+/// `--mask-sharpen V` (a probe, stop 44): the handed file sharpened by the
+/// first-order inverse of a Gaussian of variance V px², [−V/2, 1 + V,
+/// −V/2] along the rows and then the columns, clamped to [0, 1]: what a
+/// model whose file may be blurrier than the instrument would do, measured
+/// before such a model is built (README: captured mask).
+fn sharpen_separable(frame: &mut [f32], rows: usize, cols: usize, v: f32) {
+    let at = |a: &[f32], k: isize, n: usize, step: usize, i: usize| {
+        a[k.clamp(0, n as isize - 1) as usize * step + i]
+    };
+    let tap = |a: &[f32], k: usize, n: usize, step: usize, i: usize| {
+        let k = k as isize;
+        (1.0 + v) * at(a, k, n, step, i)
+            - 0.5 * v * (at(a, k - 1, n, step, i) + at(a, k + 1, n, step, i))
+    };
+    let mut rowwise = vec![0.0f32; rows * cols];
+    for r in 0..rows {
+        let row = &frame[r * cols..(r + 1) * cols];
+        for c in 0..cols {
+            rowwise[r * cols + c] = tap(row, c, cols, 1, 0);
+        }
+    }
+    for r in 0..rows {
+        for c in 0..cols {
+            frame[r * cols + c] = tap(&rowwise, r, rows, cols, c).clamp(0.0, 1.0);
+        }
     }
 }
 
@@ -327,7 +362,7 @@ impl SceneTransform {
 const USAGE: &str = "calibrate [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] \
                      [--no-aligned] [--no-inverse-crime] [--no-wide-blur] [--model rounded|subpixel|dispersed-mask|crisp-cells] \
                      [--preset NAME] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all] [--scene-cell PX] [--scene-nodes N] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv N] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N]] [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--out PATH] \
-                     [--scene-transform none|flip-cols|flip-rows|transpose] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--mask-capture SIGMA_PX] [--verbose]";
+                     [--scene-transform none|flip-cols|flip-rows|transpose] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--mask-capture SIGMA_PX [--mask-sharpen V]] [--verbose]";
 
 fn parse_args(argv: &[String]) -> Result<Args> {
     let mut half_name = "held-out".to_string();
@@ -356,6 +391,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
     let mut halo = None;
     let mut dispersion_a2 = 0.0;
     let mut mask_capture_px = None;
+    let mut mask_sharpen = None;
     let mut model_a2: Option<f64> = None;
     let mut detail_cold_above: Option<Option<f64>> = None;
     let mut blur_bootstrap: Option<DispersionModel> = None;
@@ -532,6 +568,15 @@ fn parse_args(argv: &[String]) -> Result<Args> {
                     "--mask-capture {v}: the capture's blur σ in pixels, above 0"
                 );
                 mask_capture_px = Some(sigma);
+            }
+            "--mask-sharpen" => {
+                let v = value()?;
+                let var: f64 = v.parse().with_context(|| format!("--mask-sharpen {v}"))?;
+                ensure!(
+                    var.is_finite() && var > 0.0 && var <= 0.5,
+                    "--mask-sharpen {v}: the variance (px²) the handed file is sharpened by, in (0, 0.5]"
+                );
+                mask_sharpen = Some(var);
             }
             "--model-a2" => {
                 let v = value()?;
@@ -797,6 +842,10 @@ fn parse_args(argv: &[String]) -> Result<Args> {
         limits || limits_gap_tv.is_none(),
         "--limits-gap-tv: the limits are off (--no-limits)"
     );
+    ensure!(
+        mask_capture_px.is_some() || mask_sharpen.is_none(),
+        "--mask-sharpen sharpens the captured file: it needs --mask-capture"
+    );
     Ok(Args {
         halves,
         half_name,
@@ -819,6 +868,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
         halo,
         dispersion_a2,
         mask_capture_px,
+        mask_sharpen,
     })
 }
 
@@ -1560,7 +1610,7 @@ fn main() -> Result<()> {
 
     let data = shared_data();
     let mask = cassi_io::load_frame(data.join("masks/tsa_simu_mask256.mat"), Some("mask"))?;
-    let masks = Masks::new(mask, args.mask_capture_px)?;
+    let masks = Masks::new(mask, args.mask_capture_px, args.mask_sharpen)?;
     let scenes = cassi_bench::cave_scenes(&data)?;
     ensure!(
         scenes.len() == 2 * TUNING_SCENES,
@@ -1613,6 +1663,7 @@ fn main() -> Result<()> {
                         "mask_capture": args.mask_capture_px.map(|s| json!({
                             "instrument": "the mask file thresholded at half its maximum (a binary code), rendered crisp",
                             "nominal": "that code blurred by a Gaussian", "sigma_px": s,
+                            "sharpened_by_variance_px2": args.mask_sharpen,
                             "blur_sigma_px_truth": "sigma_reference: the sigma the crisp-cell model fits to the clean measurement with the true scene, the handed mask and the true geometry (golden section): the blur beyond the file's own; the dispersed-mask model's in sigma_reference_dispersed_mask, the instrument's sigma in instrument_blur_sigma_px" })),
                         "wavelengths_nm": STANDARD_WAVELENGTHS_NM,
                         "halo": args.halo.map(|h| json!({ "share": h.share, "sigma_px": h.sigma_px })),
@@ -1692,10 +1743,10 @@ mod tests {
             .map(|i| ((i * 7919 % 101) as f32 / 100.0) * 0.8)
             .collect();
         let file = Mask::from_vec(40, 40, values).unwrap();
-        let same = Masks::new(file.clone(), None).unwrap();
+        let same = Masks::new(file.clone(), None, None).unwrap();
         assert_eq!(same.instrument.as_slice(), file.as_slice());
         assert_eq!(same.nominal.as_slice(), file.as_slice());
-        let captured = Masks::new(file.clone(), Some(0.5)).unwrap();
+        let captured = Masks::new(file.clone(), Some(0.5), None).unwrap();
         for (&code, &v) in captured.instrument.as_slice().iter().zip(file.as_slice()) {
             assert_eq!(code, if v >= 0.4 { 1.0 } else { 0.0 });
         }
@@ -1703,7 +1754,33 @@ mod tests {
         assert!(nominal.iter().all(|&v| (0.0..=1.0).contains(&v)));
         assert!(nominal.iter().any(|&v| v > 0.05 && v < 0.95));
         assert!(lag1(&captured.nominal) > lag1(&captured.instrument) + 0.05);
-        assert!(Masks::new(file, Some(-1.0)).is_err());
+        assert!(Masks::new(file, Some(-1.0), None).is_err());
+    }
+
+    /// `--mask-sharpen`: the captured file sharpened by the first-order
+    /// inverse of its own blur comes nearer the binary code than the file
+    /// (and a flat frame stays flat: the taps sum to one).
+    #[test]
+    fn sharpening_a_captured_file_brings_it_nearer_the_code() {
+        let values: Vec<f32> = (0..40 * 40)
+            .map(|i| ((i * 7919 % 101) as f32 / 100.0) * 0.8)
+            .collect();
+        let file = Mask::from_vec(40, 40, values).unwrap();
+        let distance = |m: &Masks| {
+            let (a, b) = (m.nominal.as_slice(), m.instrument.as_slice());
+            a.iter().zip(b).map(|(x, y)| (x - y).powi(2)).sum::<f32>()
+        };
+        let blurred = Masks::new(file.clone(), Some(0.5), None).unwrap();
+        let sharpened = Masks::new(file, Some(0.5), Some(0.25)).unwrap();
+        assert_eq!(
+            sharpened.instrument.as_slice(),
+            blurred.instrument.as_slice()
+        );
+        let (was, now) = (distance(&blurred), distance(&sharpened));
+        assert!(now < 0.8 * was, "{was} -> {now}");
+        let mut flat = vec![0.5f32; 12 * 9];
+        sharpen_separable(&mut flat, 12, 9, 0.25);
+        assert!(flat.iter().all(|&v| (v - 0.5).abs() < 1e-6));
     }
 
     /// The σ reference: with the file as the instrument's mask (no capture)
@@ -1736,7 +1813,7 @@ mod tests {
                 blur_sigma_px: sigma,
                 ..PhysicalSpec::default()
             };
-            let masks = Masks::new(file.clone(), capture).unwrap();
+            let masks = Masks::new(file.clone(), capture, None).unwrap();
             let clean = simulate_physical(
                 &scene,
                 &masks.instrument,
