@@ -223,8 +223,8 @@ struct Args {
     /// calibration handed that code blurred by a Gaussian of SIGMA_PX
     /// ([`Masks`]).
     mask_capture_px: Option<f64>,
-    /// `--mask-sharpen V` (with `--mask-capture`): the handed file
-    /// sharpened ([`sharpen_separable`]).
+    /// `--mask-sharpen V`: the handed file (the captured one with
+    /// `--mask-capture`) sharpened ([`sharpen_separable`]).
     mask_sharpen: Option<f64>,
 }
 
@@ -248,9 +248,14 @@ impl Masks {
     /// `sharpen`: the handed file then sharpened ([`sharpen_separable`]).
     fn new(file: Mask, capture_px: Option<f64>, sharpen: Option<f64>) -> Result<Self> {
         let Some(sigma) = capture_px else {
+            let (rows, cols) = file.shape();
+            let mut handed = file.as_slice().to_vec();
+            if let Some(v) = sharpen {
+                sharpen_separable(&mut handed, rows, cols, v as f32);
+            }
             return Ok(Self {
-                instrument: file.clone(),
-                nominal: file,
+                nominal: Mask::from_vec(rows, cols, handed)?,
+                instrument: file,
             });
         };
         let (rows, cols) = file.shape();
@@ -841,10 +846,6 @@ fn parse_args(argv: &[String]) -> Result<Args> {
     ensure!(
         limits || limits_gap_tv.is_none(),
         "--limits-gap-tv: the limits are off (--no-limits)"
-    );
-    ensure!(
-        mask_capture_px.is_some() || mask_sharpen.is_none(),
-        "--mask-sharpen sharpens the captured file: it needs --mask-capture"
     );
     Ok(Args {
         halves,
@@ -1663,8 +1664,9 @@ fn main() -> Result<()> {
                         "mask_capture": args.mask_capture_px.map(|s| json!({
                             "instrument": "the mask file thresholded at half its maximum (a binary code), rendered crisp",
                             "nominal": "that code blurred by a Gaussian", "sigma_px": s,
-                            "sharpened_by_variance_px2": args.mask_sharpen,
                             "blur_sigma_px_truth": "sigma_reference: the sigma the crisp-cell model fits to the clean measurement with the true scene, the handed mask and the true geometry (golden section): the blur beyond the file's own; the dispersed-mask model's in sigma_reference_dispersed_mask, the instrument's sigma in instrument_blur_sigma_px" })),
+                        // `--mask-sharpen`: the handed file (captured or not) sharpened
+                        "mask_sharpen_variance_px2": args.mask_sharpen,
                         "wavelengths_nm": STANDARD_WAVELENGTHS_NM,
                         "halo": args.halo.map(|h| json!({ "share": h.share, "sigma_px": h.sigma_px })),
                         "dispersion_a2": args.dispersion_a2 },
@@ -1759,7 +1761,8 @@ mod tests {
 
     /// `--mask-sharpen`: the captured file sharpened by the first-order
     /// inverse of its own blur comes nearer the binary code than the file
-    /// (and a flat frame stays flat: the taps sum to one).
+    /// (and a flat frame stays flat: the taps sum to one); without a
+    /// capture the handed file alone is sharpened.
     #[test]
     fn sharpening_a_captured_file_brings_it_nearer_the_code() {
         let values: Vec<f32> = (0..40 * 40)
@@ -1778,6 +1781,13 @@ mod tests {
         );
         let (was, now) = (distance(&blurred), distance(&sharpened));
         assert!(now < 0.8 * was, "{was} -> {now}");
+        // without a capture the instrument keeps the file, the calibration
+        // is handed it sharpened
+        let values = blurred.nominal.as_slice().to_vec();
+        let smooth = Mask::from_vec(40, 40, values).unwrap();
+        let handed = Masks::new(smooth.clone(), None, Some(0.25)).unwrap();
+        assert_eq!(handed.instrument.as_slice(), smooth.as_slice());
+        assert_eq!(handed.nominal.as_slice(), sharpened.nominal.as_slice());
         let mut flat = vec![0.5f32; 12 * 9];
         sharpen_separable(&mut flat, 12, 9, 0.25);
         assert!(flat.iter().all(|&v| (v - 0.5).abs() < 1e-6));
