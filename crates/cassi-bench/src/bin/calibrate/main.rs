@@ -1735,16 +1735,21 @@ mod tests {
         num / den
     }
 
+    /// A 40×40 mask file of scattered values in [0, 0.8].
+    fn a_mask_file() -> Mask {
+        let values: Vec<f32> = (0..40 * 40)
+            .map(|i| ((i * 7919 % 101) as f32 / 100.0) * 0.8)
+            .collect();
+        Mask::from_vec(40, 40, values).unwrap()
+    }
+
     /// A captured mask: the instrument's code is binary where the file is
     /// above half its maximum, and the calibration's file is that code
     /// blurred (smoother than the code, values within [0, 1]); without a
     /// capture both are the file.
     #[test]
     fn a_captured_mask_is_a_binary_code_and_its_blurred_image() {
-        let values: Vec<f32> = (0..40 * 40)
-            .map(|i| ((i * 7919 % 101) as f32 / 100.0) * 0.8)
-            .collect();
-        let file = Mask::from_vec(40, 40, values).unwrap();
+        let file = a_mask_file();
         let same = Masks::new(file.clone(), None, None).unwrap();
         assert_eq!(same.instrument.as_slice(), file.as_slice());
         assert_eq!(same.nominal.as_slice(), file.as_slice());
@@ -1765,10 +1770,7 @@ mod tests {
     /// capture the handed file alone is sharpened.
     #[test]
     fn sharpening_a_captured_file_brings_it_nearer_the_code() {
-        let values: Vec<f32> = (0..40 * 40)
-            .map(|i| ((i * 7919 % 101) as f32 / 100.0) * 0.8)
-            .collect();
-        let file = Mask::from_vec(40, 40, values).unwrap();
+        let file = a_mask_file();
         let distance = |m: &Masks| {
             let (a, b) = (m.nominal.as_slice(), m.instrument.as_slice());
             a.iter().zip(b).map(|(x, y)| (x - y).powi(2)).sum::<f32>()
