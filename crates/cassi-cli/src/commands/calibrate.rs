@@ -179,8 +179,7 @@ pub(crate) fn model_blur_line(cal: &Calibration) -> String {
     match cal.model_blur_sigma_px {
         Some(sigma) => format!(
             "  blur σ to reconstruct with: {sigma:.3} px, the {} model's own fit (the σ above is \
-             the blur pass's, read on the crisp-cell model: the instrument's; README: the blur \
-             pass)\n",
+             the blur pass's, read on another model: the instrument's; README: the blur pass)\n",
             cal.model.name()
         ),
         None => String::new(),
