@@ -636,7 +636,6 @@ fn parse_args(argv: &[String]) -> Result<Args> {
             "--out" => out = Some(PathBuf::from(value()?)),
             "--scene-transform" => transform = SceneTransform::parse(&value()?)?,
             "--verbose" => verbose = true,
-            "-h" | "--help" => bail!("usage: {USAGE}"),
             other => bail!("unknown argument '{other}'\nusage: {USAGE}"),
         }
     }
@@ -1600,6 +1599,10 @@ fn print_summary(summary: &[Value]) {
 
 fn main() -> Result<()> {
     let argv: Vec<String> = std::env::args().skip(1).collect();
+    if argv.iter().any(|a| a == "-h" || a == "--help") {
+        println!("usage: {USAGE}");
+        return Ok(());
+    }
     let args = parse_args(&argv)?;
     let out_dir = args
         .out
