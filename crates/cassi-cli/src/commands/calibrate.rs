@@ -176,14 +176,20 @@ fn uncertainty_lines(cal: &Calibration) -> String {
 /// The σ `cassi reconstruct --calibration` uses, where it is the model's own
 /// fit rather than the reported one (the blur pass's, on another model).
 pub(crate) fn model_blur_line(cal: &Calibration) -> String {
-    match cal.model_blur_sigma_px {
-        Some(sigma) => format!(
-            "  blur σ to reconstruct with: {sigma:.3} px, the {} model's own fit (the σ above is \
-             the blur pass's, read on another model: the instrument's; README: the blur pass)\n",
-            cal.model.name()
-        ),
-        None => String::new(),
-    }
+    let Some(sigma) = cal.model_blur_sigma_px else {
+        return String::new();
+    };
+    // the two printed alike (the demo's 0.4753 and 0.4751) read as a contradiction
+    let pass = if (sigma - cal.parameters.blur_sigma_px).abs() < 5e-4 {
+        "the blur pass, read on another model, agrees to 0.001 px"
+    } else {
+        "the σ above is the blur pass's, read on another model: the instrument's"
+    };
+    format!(
+        "  blur σ to reconstruct with: {sigma:.3} px, the {} model's own fit ({pass}; README: the \
+         blur pass)\n",
+        cal.model.name()
+    )
 }
 
 /// A note when the fitted tilt is one at which the texture fit's a1
@@ -311,5 +317,26 @@ mod tests {
         let mut scene = calibration(-0.45, 0.5);
         scene.uncertainty_fit = Some(Fit::Scene);
         assert!(!uncertainty_lines(&scene).contains("ran short"));
+    }
+
+    /// The reconstruction-σ line: absent without a blur pass, naming the
+    /// instrument's σ when the two differ, their agreement when they print alike.
+    #[test]
+    fn the_reconstruction_blur_line_says_whether_the_pass_moved_sigma() {
+        let mut cal = calibration(0.0, 0.4753);
+        assert_eq!(model_blur_line(&cal), "");
+        cal.model_blur_sigma_px = Some(0.4751);
+        let alike = model_blur_line(&cal);
+        assert!(
+            alike.contains("0.475 px") && alike.contains("agrees"),
+            "{alike}"
+        );
+        cal.model_blur_sigma_px = Some(0.5);
+        let apart = model_blur_line(&cal);
+        assert!(
+            apart.contains("0.500 px") && apart.contains("the instrument's"),
+            "{apart}"
+        );
+        assert!(!apart.contains("agrees"), "{apart}");
     }
 }
