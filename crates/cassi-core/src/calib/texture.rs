@@ -228,13 +228,14 @@ mod tests {
     use super::*;
     use crate::optics::{DispersionModel, NoiseModel, PhysicalSpec, simulate_physical};
     use crate::synth::{SceneSpec, random_binary_mask, synthetic_scene};
+    use crate::{Cube, Mask, Measurement};
 
-    /// On a blurred, sharp-edged physical instrument the texture score is
-    /// lowest at the true shift and blur, where the proxy residual was not.
-    #[test]
-    fn the_true_shift_and_blur_score_best_on_a_blurred_physical_instrument() {
-        let (rows, cols, bands) = (64, 64, 8);
-        let wl: Vec<f64> = (0..bands).map(|k| 450.0 + 25.0 * k as f64).collect();
+    /// The synthetic 64² scene with `bands` bands `step_nm` apart, a random
+    /// binary mask, and their measurement by the 4× oversampled simulator
+    /// (blur 0.5 px, 2·10⁴ e⁻ peak, 3 e⁻ read noise) at `truth`.
+    fn measured(bands: usize, step_nm: f64, truth: &Mismatch) -> (Cube, Measurement, Mask) {
+        let (rows, cols) = (64, 64);
+        let wl: Vec<f64> = (0..bands).map(|k| 450.0 + step_nm * k as f64).collect();
         let scene = synthetic_scene(&SceneSpec {
             rows,
             cols,
@@ -243,12 +244,6 @@ mod tests {
         })
         .unwrap();
         let mask = random_binary_mask(rows, cols, 0.5, 11).unwrap();
-        let truth = Mismatch {
-            dx: 0.3,
-            dy: -0.2,
-            blur_sigma_px: 0.5,
-            ..Mismatch::nominal(2.0)
-        };
         let spec = PhysicalSpec {
             oversample: 4,
             blur_sigma_px: 0.5,
@@ -259,7 +254,22 @@ mod tests {
             read_noise: 3.0,
             seed: 2,
         };
-        let y = simulate_physical(&scene, &mask, &wl, &truth, &spec, Some(&noise)).unwrap();
+        let y = simulate_physical(&scene, &mask, &wl, truth, &spec, Some(&noise)).unwrap();
+        (scene, y, mask)
+    }
+
+    /// On a blurred, sharp-edged physical instrument the texture score is
+    /// lowest at the true shift and blur, where the proxy residual was not.
+    #[test]
+    fn the_true_shift_and_blur_score_best_on_a_blurred_physical_instrument() {
+        let bands = 8;
+        let truth = Mismatch {
+            dx: 0.3,
+            dy: -0.2,
+            blur_sigma_px: 0.5,
+            ..Mismatch::nominal(2.0)
+        };
+        let (_, y, mask) = measured(bands, 25.0, &truth);
         let problem =
             CalibrationProblem::nominal(&y, &mask, bands, 2.0, DispersionModel::Subpixel).unwrap();
         // x̃ from a candidate half a pixel off: it must not pull the fit there
@@ -297,33 +307,14 @@ mod tests {
     /// through `texture_fit` is the calibration's own texture stage.
     #[test]
     fn the_texture_fit_with_the_true_scene_recovers_the_pose_and_blur() {
-        let (rows, cols, bands) = (64, 64, 16);
-        let wl: Vec<f64> = (0..bands).map(|k| 450.0 + 15.0 * k as f64).collect();
-        let scene = synthetic_scene(&SceneSpec {
-            rows,
-            cols,
-            wavelengths_nm: wl.clone(),
-            seed: 5,
-        })
-        .unwrap();
-        let mask = random_binary_mask(rows, cols, 0.5, 11).unwrap();
+        let bands = 16;
         let truth = Mismatch {
             dx: 0.6,
             dy: -0.4,
             blur_sigma_px: 0.5,
             ..Mismatch::nominal(2.0)
         };
-        let spec = PhysicalSpec {
-            oversample: 4,
-            blur_sigma_px: 0.5,
-            ..PhysicalSpec::default()
-        };
-        let noise = NoiseModel {
-            photon_peak: Some(2e4),
-            read_noise: 3.0,
-            seed: 2,
-        };
-        let y = simulate_physical(&scene, &mask, &wl, &truth, &spec, Some(&noise)).unwrap();
+        let (scene, y, mask) = measured(bands, 15.0, &truth);
         let problem =
             CalibrationProblem::nominal(&y, &mask, bands, 2.0, DispersionModel::Subpixel).unwrap();
         let preset = crate::calib::DefaultPreset::default();
