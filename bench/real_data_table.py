@@ -33,18 +33,21 @@ print("errors are heavy-tailed); both have their coverage checked on the physica
 print("held-out half; none where the fit's Hessian was not positive definite. The default preset")
 print("ends in the scene fit (the coarse scene solved for each candidate), its detail pass (the")
 print("geometry refitted on that scene times the scene's texture) and its fine pass (dx, dy, θ, a1")
-print("and α on a finer scene) after the texture fit (a smoothed scene estimate held); its errors are")
+print("and α on a finer scene) after the texture fit (a smoothed scene estimate held), then the blur")
+print("pass (σ alone refitted on the crisp-cell model, the geometry held): the table's blur σ is the")
+print("pass's, the instrument's; the calibrated preview is reconstructed with the dispersed-mask")
+print("model's own σ (`model_blur_sigma_px`, the column \"σ reconstructed with\"). Its errors are")
 print("its block sandwich, the disagreement of the scene fit's detail pass with the texture fit (half")
 print("its outer product, weighted by how far the mask lands from whole pixels: off the grid, as")
 print("every snapshot here is, in full) and a model-error floor. On simulated instruments the")
 print("two fits agree to within the 95 % half-width in 58–65 of 65 tuning cases per parameter;")
-print("here they disagree on the blur by 0.6–0.9 px (the texture fit's stage in each calibration")
-print("file: 1.3–1.6 px there, 0.4–0.7 px in the scene fit, which weighs the pixel-scale code), so")
+print("here they disagree on the blur by 0.8–1.2 px (the texture fit's stage in each calibration")
+print("file: 1.2–1.6 px there, 0.4–0.7 px in the scene fit, which weighs the pixel-scale code), so")
 print("the blur's ± is wide: one Gaussian width does not describe this camera's blur at every scale,")
 print("and nothing below pins it better than that. At a fitted blur above 1 px the floors are the")
 print("ones measured on simulated instruments blurred 1.0–1.5 px (the benchmark's `wide_blur` row).")
 print("Where the fits agree, a1's ± is the scene fit's, set on simulated instruments: on this camera")
-print("it runs short (two snapshots' 95 % intervals miss each other; README).\n")
+print("it runs short (two snapshots' 95 % intervals miss each other; README: real snapshots).\n")
 print("The two residuals are printed for completeness and are **not** evidence between a sharp")
 print("and a blurred model. Score = residual per measurement pixel of the proxy reconstruction")
 print("(the proxy favours operators it can fit with a smooth cube, and it is not the objective of")
@@ -52,8 +55,9 @@ print("the final fits). GAP-TV residual = ‖y − A x̂‖/‖y‖ after 100 GA
 print("sharp nominal operator's range holds any image, so GAP-TV fits y to a fraction of a")
 print("percent, noise included, while a blurred operator cannot reproduce pixel-scale noise.\n")
 print("| scene | " + " | ".join(h for _, h, _ in PARAMS)
-      + " | score nominal → calibrated | GAP-TV residual nominal → calibrated | time (s) | previews |")
-print("|---|" + "---|" * (len(PARAMS) + 4))
+      + " | σ reconstructed with (px) | score nominal → calibrated | GAP-TV residual nominal → calibrated"
+      " | time (s) | previews |")
+print("|---|" + "---|" * (len(PARAMS) + 5))
 values = {k: [] for k, _, _ in PARAMS}
 trade = []
 for calib in sorted(out.glob(f"*.{preset}.calib.json")):
@@ -69,8 +73,10 @@ for calib in sorted(out.glob(f"*.{preset}.calib.json")):
     for t in c.get("trade_offs", []):
         trade.append(f"{name}: {t['a']} and {t['b']} ({t['correlation']:+.2f})")
     cells = " | ".join(cell(p.get(k), u.get(k), w.get(k), d) for k, _, d in PARAMS)
+    model_sigma = c.get("model_blur_sigma_px")  # absent: the reported σ is the model's own
+    recon_sigma = f"{model_sigma if model_sigma is not None else p['blur_sigma_px']:.3f}"
     print(
-        f"| {name} | {cells} | {c['nominal_score']:.3e} → {c['score']:.3e} ({change:+.0f} %) "
+        f"| {name} | {cells} | {recon_sigma} | {c['nominal_score']:.3e} → {c['score']:.3e} ({change:+.0f} %) "
         f"| {nom['relative_residual']:.4f} → {cal['relative_residual']:.4f} | {c['seconds']:.1f} "
         f"| [nominal]({name}.nominal.png) · [calibrated]({name}.{preset}.calibrated.png) |"
     )
