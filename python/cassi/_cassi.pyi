@@ -176,12 +176,15 @@ def calibrate(
     preset: Literal["default", "paper"] = "default",
     dispersion_a2: float = 0.0,
     blur_pass: bool | None = None,
+    search_rows: int | Literal["all"] | None = None,
     progress: Optional[Callable[[Dict[str, Any]], object]] = None,
 ) -> Calibration:
     """Self-calibration from the measurement and the nominal mask alone;
     `blur_pass`: None keeps the preset's own last stage (the default preset's
     blur pass: σ refitted on the crisp-cell model); False leaves it out; True asks
-    for it (an error with the paper preset)."""
+    for it (an error with the paper preset). `search_rows`: the rows the search
+    stages run on (None: the preset's own, the middle 256 of a taller frame; N;
+    "all"); an error with the paper preset."""
 
 @overload
 def reconstruct(
