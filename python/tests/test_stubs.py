@@ -60,3 +60,15 @@ def test_the_stubs_name_every_parameter_in_order():
             assert {p for got in stubs[name] for p in got} == set(want), f"{name}: {stubs[name]}"
         checked += 1
     assert checked >= 10, checked
+
+
+def test_the_stubs_list_every_public_member_of_the_classes():
+    tree = ast.parse(STUBS.read_text())
+    classes = [n for n in tree.body if isinstance(n, ast.ClassDef)]
+    classes = [n for n in classes if n.name in ("Operator", "Calibration")]
+    assert len(classes) == 2, [n.name for n in classes]
+    for node in classes:
+        stubbed = {i.name for i in node.body if isinstance(i, ast.FunctionDef)}
+        stubbed = {n for n in stubbed if not n.startswith("_")}
+        runtime = {n for n in dir(getattr(native, node.name)) if not n.startswith("_")}
+        assert stubbed == runtime, f"{node.name}: stubs {sorted(stubbed)} vs binary {sorted(runtime)}"
