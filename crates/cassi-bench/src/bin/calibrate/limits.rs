@@ -35,7 +35,8 @@ use cassi_core::calib::{
     CalibrationProblem, DefaultPreset, SCENE_SMOOTH_PX, SceneEstimate, SceneFitSettings,
     gap_tv_reconstruction, nelder_mead, scene_fit_score, texture_fit,
 };
-use cassi_core::optics::DispersionModel;
+use cassi_core::linop::LinearOperator;
+use cassi_core::optics::{DispersionModel, GaussianBlur, ModelOperator};
 use cassi_core::{Cube, Mask, Measurement, Mismatch, Parameter};
 use serde_json::{Value, json};
 
@@ -291,9 +292,17 @@ pub fn gap_tv_scene_fits(
     let y = problem.measurement;
     let (rows, cols) = y.shape();
     let mut out = serde_json::Map::new();
-    for (key, at) in [("at_truth", truth), ("at_estimate", blind)] {
+    let keys = [
+        ("at_truth", truth, false),
+        ("at_estimate", blind, false),
+        ("at_estimate_without_imprint", blind, true),
+    ];
+    for (key, at, unprinted) in keys {
         let t = Instant::now();
-        let scene = gap_tv_reconstruction(problem, at, gap_iterations)?;
+        let mut scene = gap_tv_reconstruction(problem, at, gap_iterations)?;
+        if unprinted {
+            remove_imprint(problem, at, &mut scene)?;
+        }
         let gap_seconds = t.elapsed().as_secs_f64();
         let known = SceneKnown {
             mask,
@@ -311,6 +320,52 @@ pub fn gap_tv_scene_fits(
         "gap_tv_iterations": gap_iterations,
         "fits": out,
     }))
+}
+
+/// Scale of the local means the imprint is measured against, pixels.
+const IMPRINT_SMOOTH_PX: f64 = 3.0;
+
+/// A probe (stop 45): GAP-TV's scene at `at` with the code's imprint at
+/// `at` regressed out of each band. A reconstruction carries the code it
+/// was made with (x̂ = Aᵀ(…) multiplies each band by its back-projected
+/// code), which pulls any fit on it back to `at`; the scene's own texture
+/// is uncorrelated with the code. Band k's template is (Aᵀ𝟙)_k, the code
+/// as the band sees it (pose, dispersion and blur at `at`); its relative
+/// texture c = t / G∗t − 1 is regressed out of the band's, r = x / G∗x − 1:
+/// x ← x − β G∗x · c, β = ⟨r, c⟩ / ⟨c, c⟩.
+fn remove_imprint(
+    problem: &CalibrationProblem<'_>,
+    at: &Mismatch,
+    scene: &mut Cube,
+) -> anyhow::Result<()> {
+    let op = ModelOperator::new(problem.nominal_mask(), problem.bands(), at, problem.model())?;
+    let mut template = vec![0.0f32; op.domain_len()];
+    op.adjoint(&vec![1.0f32; op.range_len()], &mut template);
+    let (bands, rows, cols) = scene.shape();
+    anyhow::ensure!(template.len() == bands * rows * cols, "template size");
+    let blur = GaussianBlur::new(IMPRINT_SMOOTH_PX, rows, cols)?;
+    let n = rows * cols;
+    let (mut local, mut tmp) = (vec![0.0f32; n], vec![0.0f32; n]);
+    let mut code_local = vec![0.0f32; n];
+    let x = scene.as_mut_slice();
+    for k in 0..bands {
+        let (band, code) = (&mut x[k * n..(k + 1) * n], &template[k * n..(k + 1) * n]);
+        blur.apply(band, &mut local, &mut tmp);
+        blur.apply(code, &mut code_local, &mut tmp);
+        let relative = |v: f32, m: f32| if m > 1e-6 { v / m - 1.0 } else { 0.0 };
+        let (mut rc, mut cc) = (0.0f64, 0.0f64);
+        for i in 0..n {
+            let c = relative(code[i], code_local[i]) as f64;
+            rc += relative(band[i], local[i]) as f64 * c;
+            cc += c * c;
+        }
+        let beta = if cc > 0.0 { rc / cc } else { 0.0 };
+        for i in 0..n {
+            let c = relative(code[i], code_local[i]) as f64;
+            band[i] -= (beta * local[i] as f64 * c) as f32;
+        }
+    }
+    Ok(())
 }
 
 /// The error budget's steps: key and the scene estimate, given the truth.
