@@ -332,7 +332,7 @@ const IMPRINT_SMOOTH_PX: f64 = 3.0;
 /// is uncorrelated with the code. Band k's template is (Aᵀ𝟙)_k, the code
 /// as the band sees it (pose, dispersion and blur at `at`); its relative
 /// texture c = t / G∗t − 1 is regressed out of the band's, r = x / G∗x − 1:
-/// x ← x − β G∗x · c, β = ⟨r, c⟩ / ⟨c, c⟩.
+/// x ← x − β G∗x · c, β = ⟨r, c⟩ / ⟨c, c⟩ over the frame less a margin.
 fn remove_imprint(
     problem: &CalibrationProblem<'_>,
     at: &Mismatch,
@@ -347,6 +347,12 @@ fn remove_imprint(
     let n = rows * cols;
     let (mut local, mut tmp) = (vec![0.0f32; n], vec![0.0f32; n]);
     let mut code_local = vec![0.0f32; n];
+    // β from pixels the local means' zero padding does not reach
+    let margin = (3.0 * IMPRINT_SMOOTH_PX).ceil() as usize;
+    let interior = |r: usize, c: usize| {
+        (margin..rows.saturating_sub(margin)).contains(&r)
+            && (margin..cols.saturating_sub(margin)).contains(&c)
+    };
     let x = scene.as_mut_slice();
     for k in 0..bands {
         let (band, code) = (&mut x[k * n..(k + 1) * n], &template[k * n..(k + 1) * n]);
@@ -354,7 +360,7 @@ fn remove_imprint(
         blur.apply(code, &mut code_local, &mut tmp);
         let relative = |v: f32, m: f32| if m > 1e-6 { v / m - 1.0 } else { 0.0 };
         let (mut rc, mut cc) = (0.0f64, 0.0f64);
-        for i in 0..n {
+        for i in (0..n).filter(|&i| interior(i / cols, i % cols)) {
             let c = relative(code[i], code_local[i]) as f64;
             rc += relative(band[i], local[i]) as f64 * c;
             cc += c * c;
@@ -617,4 +623,68 @@ pub fn print(limits: &Value) {
                 .as_f64()
                 .unwrap_or(f64::NAN)
     );
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use cassi_core::synth::random_binary_mask;
+
+    /// A scene that is a smooth field times the code each band sees loses
+    /// the code (it comes out near the field times the code's local mean);
+    /// the smooth field alone, uncorrelated with the code, is left as it was.
+    #[test]
+    fn removing_the_imprint_takes_the_code_out_and_leaves_the_scene() {
+        let (rows, cols, bands) = (48, 48, 4);
+        let mask = random_binary_mask(rows, cols, 0.5, 3).unwrap();
+        let y = Measurement::zeros(rows, cols + 2 * (bands - 1));
+        let problem =
+            CalibrationProblem::nominal(&y, &mask, bands, 2.0, DispersionModel::DispersedMask)
+                .unwrap();
+        let at = Mismatch {
+            dx: 0.3,
+            blur_sigma_px: 0.3,
+            ..Mismatch::nominal(2.0)
+        };
+        let op = ModelOperator::new(&mask, bands, &at, problem.model()).unwrap();
+        let mut code = vec![0.0f32; op.domain_len()];
+        op.adjoint(&vec![1.0f32; op.range_len()], &mut code);
+        let field: Vec<f32> = (0..bands * rows * cols)
+            .map(|i| {
+                let (k, r, c) = (i / (rows * cols), (i / cols) % rows, i % cols);
+                1.0 + 0.3 * k as f32 + 0.01 * r as f32 + 0.005 * c as f32
+            })
+            .collect();
+        let mean_code = code.iter().sum::<f32>() / code.len() as f32;
+        // the field times the code: off the field (times the code's mean) by the code
+        let printed: Vec<f32> = field.iter().zip(&code).map(|(f, t)| f * t).collect();
+        let off = |x: &[f32]| -> f64 {
+            let interior = |i: &usize| {
+                let (r, c) = ((i / cols) % rows, i % cols);
+                (6..rows - 6).contains(&r) && (6..cols - 6).contains(&c)
+            };
+            let (mut e, mut n) = (0.0, 0.0);
+            for i in (0..x.len()).filter(interior) {
+                e += (x[i] as f64 - (field[i] * mean_code) as f64).powi(2);
+                n += ((field[i] * mean_code) as f64).powi(2);
+            }
+            (e / n).sqrt()
+        };
+        let mut scene = Cube::from_vec(bands, rows, cols, printed).unwrap();
+        let before = off(scene.as_slice());
+        remove_imprint(&problem, &at, &mut scene).unwrap();
+        let after = off(scene.as_slice());
+        assert!(before > 0.3 && after < 0.25 * before, "{before} -> {after}");
+        // no code in it: nothing to remove
+        let mut smooth = Cube::from_vec(bands, rows, cols, field.clone()).unwrap();
+        remove_imprint(&problem, &at, &mut smooth).unwrap();
+        let moved = smooth
+            .as_slice()
+            .iter()
+            .zip(&field)
+            .map(|(a, b)| ((a - b) / b).abs())
+            .fold(0.0f32, f32::max);
+        eprintln!("imprint off the field {before:.3} -> {after:.3}; field moved {moved:.4}");
+        assert!(moved < 0.02, "{moved}");
+    }
 }
