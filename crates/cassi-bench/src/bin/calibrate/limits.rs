@@ -333,6 +333,8 @@ const IMPRINT_SMOOTH_PX: f64 = 3.0;
 /// as the band sees it (pose, dispersion and blur at `at`); its relative
 /// texture c = t / G∗t − 1 is regressed out of the band's, r = x / G∗x − 1:
 /// x ← x − β G∗x · c, β = ⟨r, c⟩ / ⟨c, c⟩ over the frame less a margin.
+/// Measured: it does not release the fit (tuning half, 10 random poses:
+/// geometry within 8 of 10 with the imprint, 6 without; notebook, stop 45).
 fn remove_imprint(
     problem: &CalibrationProblem<'_>,
     at: &Mismatch,
