@@ -10,9 +10,14 @@ With --before-blur-pass, a case run with the blur pass counts with the answer of
 before it (the pass changes σ alone and states no new errors): the default's answer before stop
 41, which made the pass the default's last stage (`--no-blur-pass` runs the default without it).
 
-    python3 bench/held_out_pool.py RECORD.json [RECORD.json ...] [--no-coverage] [--before-blur-pass]
+With --per-parameter, the pool's figures per kind follow: each parameter's count within its
+tolerance and RMSE, the geometry (all but σ) within, and the worst case (largest error over its
+tolerance) — the README's table is these.
+
+    python3 bench/held_out_pool.py RECORD.json [RECORD.json ...] [--no-coverage] [--before-blur-pass] [--per-parameter]
 """
 import json
+import math
 import os
 import sys
 
@@ -40,9 +45,29 @@ def cases(path, default_answer=False):
     out = {}
     for c in record["cases"]:
         if c["kind"] in KINDS:
-            out[(c["scene"], c["seed"], c["kind"])] = (
-                before_blur_pass(c, record["tolerances"]) if default_answer else c)
+            case = before_blur_pass(c, record["tolerances"]) if default_answer else c
+            out[(c["scene"], c["seed"], c["kind"])] = dict(case, tolerances=record["tolerances"])
     return out
+
+
+def per_parameter(pool):
+    """Per kind: each parameter within tolerance and its RMSE, the geometry within, the worst case."""
+    lines = []
+    for kind in KINDS:
+        group = [c for c in pool.values() if c["kind"] == kind]
+        if not group:
+            continue
+        n = len(group)
+        within = lambda c, p: abs(c["error"][p]) <= c["tolerances"][p]
+        lines.append(f"  {kind} ({n}): within " + ", ".join(
+            f"{p} {sum(within(c, p) for c in group)}" for p in PARAMS)
+            + f"; geometry (all but σ) {sum(all(within(c, p) for p in PARAMS[:5]) for c in group)}")
+        lines.append("    RMSE " + ", ".join(
+            f"{p} {math.sqrt(sum(c['error'][p] ** 2 for c in group) / n):.4f}" for p in PARAMS))
+        worst = max(group, key=lambda c: max(abs(c["error"][p]) / c["tolerances"][p] for p in PARAMS))
+        lines.append(f"    worst {worst['scene']} seed {worst['seed']}: " + ", ".join(
+            f"{p} {worst['error'][p]:+.3f}" for p in PARAMS))
+    return "\n".join(lines)
 
 
 def summary(pool, coverage):
@@ -68,13 +93,16 @@ def summary(pool, coverage):
 def main(args):
     coverage = "--no-coverage" not in args
     default_answer = "--before-blur-pass" in args
-    paths = [a for a in args if a not in ("--no-coverage", "--before-blur-pass")]
+    flags = ("--no-coverage", "--before-blur-pass", "--per-parameter")
+    paths = [a for a in args if a not in flags]
     pool = {}
     for path in paths:
         own = cases(path, default_answer)
         print(f"{os.path.basename(path)}: {summary(own, coverage)}")
         pool.update(own)
     print(f"pooled: {summary(pool, coverage)}")
+    if "--per-parameter" in args:
+        print(per_parameter(pool))
 
 
 if __name__ == "__main__":
