@@ -130,6 +130,32 @@ pub fn golden_section(f: impl Fn(f64) -> f64, (mut a, mut b): (f64, f64), tol: f
     0.5 * (a + b)
 }
 
+/// A bench's command line checked before any work: `--help` or `-h` prints
+/// `usage` and ends the process (exit 0); a `--flag` not in `flags` — or,
+/// for a bench that takes none, any argument — is an error naming it with
+/// the usage (the benches that took no arguments used to ignore them and
+/// start their whole run on `--help`).
+pub fn check_arguments(usage: &str, flags: &[&str]) -> anyhow::Result<()> {
+    let argv: Vec<String> = std::env::args().skip(1).collect();
+    if help_asked(&argv, usage, flags)? {
+        println!("usage: {usage}");
+        std::process::exit(0);
+    }
+    Ok(())
+}
+
+/// [`check_arguments`] on `argv`: whether help was asked, or the error.
+fn help_asked(argv: &[String], usage: &str, flags: &[&str]) -> anyhow::Result<bool> {
+    if argv.iter().any(|a| a == "-h" || a == "--help") {
+        return Ok(true);
+    }
+    for a in argv {
+        let known = !flags.is_empty() && (flags.contains(&a.as_str()) || !a.starts_with("--"));
+        anyhow::ensure!(known, "unknown argument '{a}'\nusage: {usage}");
+    }
+    Ok(false)
+}
+
 /// Where a bench writes its record: $CASSI_BENCH_OUT, else
 /// `bench/results/<name>`; its folder made before the work starts, so a
 /// bad path fails at once rather than after the run.
@@ -159,6 +185,7 @@ pub struct ModelStudy {
 /// The inputs of the model study `name`, from its command line (`[--scenes
 /// N]`, `default_scenes` without it); the record's folder made first.
 pub fn model_study(name: &str, default_scenes: usize) -> anyhow::Result<ModelStudy> {
+    check_arguments(&format!("{name} [--scenes N]"), &["--scenes"])?;
     let argv: Vec<String> = std::env::args().skip(1).collect();
     let wanted: usize = match argv.as_slice() {
         [] => default_scenes,
@@ -173,4 +200,29 @@ pub fn model_study(name: &str, default_scenes: usize) -> anyhow::Result<ModelStu
         .take(wanted.min(5))
         .collect();
     Ok(ModelStudy { out, mask, scenes })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn argv(a: &[&str]) -> Vec<String> {
+        a.iter().map(|s| s.to_string()).collect()
+    }
+
+    /// Help anywhere wins; a bench without flags refuses any argument; one
+    /// with flags refuses an unknown flag by name and lets values through.
+    #[test]
+    fn a_bench_command_line_is_checked_before_the_work() {
+        assert!(help_asked(&argv(&["--help"]), "u", &[]).unwrap());
+        assert!(help_asked(&argv(&["--limit", "3", "-h"]), "u", &["--limit"]).unwrap());
+        assert!(!help_asked(&argv(&[]), "u", &[]).unwrap());
+        assert!(!help_asked(&argv(&["--limit", "3"]), "u", &["--limit"]).unwrap());
+        let e = help_asked(&argv(&["3"]), "u x", &[])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("'3'") && e.contains("usage: u x"), "{e}");
+        let e = help_asked(&argv(&["--limt", "3"]), "u", &["--limit"]).unwrap_err();
+        assert!(e.to_string().contains("'--limt'"), "{e}");
+    }
 }

@@ -22,6 +22,19 @@ use cassi_eval::machine::Machine;
 use cassi_eval::protocol::ParameterErrors;
 
 fn main() -> anyhow::Result<()> {
+    cassi_bench::check_arguments(
+        "calibrate_discrete [--model rounded|subpixel] [--limit N] [--random SEED | --scale S] \
+         [--only SCENE] [--preset default|paper] [--verbose]",
+        &[
+            "--model",
+            "--limit",
+            "--random",
+            "--only",
+            "--scale",
+            "--preset",
+            "--verbose",
+        ],
+    )?;
     let args: Vec<String> = std::env::args().collect();
     let opt = |name: &str| {
         args.iter()
@@ -48,6 +61,16 @@ fn main() -> anyhow::Result<()> {
         random.is_none() || scale.is_none(),
         "--random and --scale are exclusive"
     );
+    let suffix = match (random, scale) {
+        (Some(seed), _) => format!("_random{seed}"),
+        (None, Some(s)) => format!("_scale{s}"),
+        (None, None) => String::new(),
+    };
+    // the record's path, its folder made before the work
+    let path = cassi_bench::bench_out(&format!(
+        "calibrate_{preset_name}_{}{suffix}.json",
+        model.name()
+    ))?;
     let mut rng = cassi_core::Rng::new(random.unwrap_or(0));
     let mut rows = Vec::new();
     let mut sq = [0.0f64; Parameter::CALIBRATED.len()];
@@ -194,18 +217,11 @@ fn main() -> anyhow::Result<()> {
         "recovered": n_recovered, "recovered_rule": RECOVERED_RULE,
         "median_seconds": median(secs), "scenes": rows,
     });
-    let suffix = match (random, scale) {
-        (Some(seed), _) => format!("_random{seed}"),
-        (None, Some(s)) => format!("_scale{s}"),
-        (None, None) => String::new(),
-    };
-    let path = format!(
-        "{}/../../bench/results/calibrate_{preset_name}_{}{suffix}.json",
-        env!("CARGO_MANIFEST_DIR"),
-        model.name()
-    );
     if only.is_none() {
-        std::fs::write(&path, serde_json::to_string_pretty(&out)? + "\n")?;
+        cassi_io::write_atomic(
+            &path,
+            (serde_json::to_string_pretty(&out)? + "\n").as_bytes(),
+        )?;
     }
     Ok(())
 }

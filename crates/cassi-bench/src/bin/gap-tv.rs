@@ -100,12 +100,19 @@ fn rust_scenes(scenes: &[PathBuf], mask_path: &Path) -> anyhow::Result<serde_jso
 }
 
 fn main() -> anyhow::Result<()> {
+    cassi_bench::check_arguments(
+        "gap-tv [--skip-reference] (writes bench/results/gap_tv.json or $CASSI_BENCH_OUT; \
+         --one-size N is its own child run)",
+        &["--skip-reference", "--one-size"],
+    )?;
     let args: Vec<String> = std::env::args().collect();
     if let Some(i) = args.iter().position(|a| a == "--one-size") {
         let size: usize = args.get(i + 1).context("--one-size N")?.parse()?;
         println!("{}", one_size(size)?);
         return Ok(());
     }
+    // the record's path, its folder made before the work
+    let path = cassi_bench::bench_out("gap_tv.json")?;
     let data = shared_data();
     let mask_path = data.join("masks/tsa_simu_mask256.mat");
     let scenes = cassi_bench::cave_scenes(&data)?;
@@ -180,14 +187,10 @@ fn main() -> anyhow::Result<()> {
         "sizes": sizes,
         "time_ratio_660_vs_256": sizes_ratio,
     });
-    let path = std::env::var("CASSI_BENCH_OUT").unwrap_or_else(|_| {
-        concat!(
-            env!("CARGO_MANIFEST_DIR"),
-            "/../../bench/results/gap_tv.json"
-        )
-        .into()
-    });
-    std::fs::write(&path, serde_json::to_string_pretty(&out)? + "\n")?;
+    cassi_io::write_atomic(
+        &path,
+        (serde_json::to_string_pretty(&out)? + "\n").as_bytes(),
+    )?;
     eprintln!(
         "{}\nwrote {path}",
         serde_json::to_string_pretty(&out["comparison"])?

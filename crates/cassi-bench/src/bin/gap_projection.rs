@@ -50,6 +50,12 @@ fn mean(v: &[f64]) -> f64 {
 }
 
 fn main() -> anyhow::Result<()> {
+    cassi_bench::check_arguments(
+        "gap_projection (no arguments: writes bench/results/gap_projection.json or $CASSI_BENCH_OUT)",
+        &[],
+    )?;
+    // the record's path, its folder made before the work
+    let path = cassi_bench::bench_out("gap_projection.json")?;
     let data = shared_data();
     let mask = cassi_io::load_frame(data.join("masks/tsa_simu_mask256.mat"), Some("mask"))?;
     let scenes = cassi_bench::cave_scenes(&data)?;
@@ -234,14 +240,10 @@ fn main() -> anyhow::Result<()> {
         "seconds": t0.elapsed().as_secs_f64(),
         "machine": Machine::this(),
     });
-    let path = std::env::var("CASSI_BENCH_OUT").unwrap_or_else(|_| {
-        concat!(
-            env!("CARGO_MANIFEST_DIR"),
-            "/../../bench/results/gap_projection.json"
-        )
-        .into()
-    });
-    std::fs::write(&path, serde_json::to_string_pretty(&out)? + "\n")?;
+    cassi_io::write_atomic(
+        &path,
+        (serde_json::to_string_pretty(&out)? + "\n").as_bytes(),
+    )?;
     eprintln!(
         "tune: {}\nheld out: {}\n{decision}\nwrote {path}",
         serde_json::to_string(&out["tune_mean_psnr"])?,

@@ -429,6 +429,12 @@ fn study(
 }
 
 fn main() -> anyhow::Result<()> {
+    cassi_bench::check_arguments(
+        "gap_tv_lambda (no arguments: writes bench/results/gap_tv_lambda.json or $CASSI_BENCH_OUT)",
+        &[],
+    )?;
+    // the record's path, its folder made before the work
+    let path = cassi_bench::bench_out("gap_tv_lambda.json")?;
     let data = shared_data();
     let mask = cassi_io::load_frame(data.join("masks/tsa_simu_mask256.mat"), Some("mask"))?;
     let scenes = cave_scenes(&data)?;
@@ -475,13 +481,6 @@ fn main() -> anyhow::Result<()> {
         },
         "machine": Machine::this(),
         "seconds": t0.elapsed().as_secs_f64(),
-    });
-    let path = std::env::var("CASSI_BENCH_OUT").unwrap_or_else(|_| {
-        concat!(
-            env!("CARGO_MANIFEST_DIR"),
-            "/../../bench/results/gap_tv_lambda.json"
-        )
-        .into()
     });
     cassi_io::write_atomic(
         &path,

@@ -70,6 +70,12 @@ fn mean(v: &[f64]) -> f64 {
 }
 
 fn main() -> anyhow::Result<()> {
+    cassi_bench::check_arguments(
+        "physical_model (no arguments: writes bench/results/physical_model.json or $CASSI_BENCH_OUT)",
+        &[],
+    )?;
+    // the record's path, its folder made before the work
+    let path = cassi_bench::bench_out("physical_model.json")?;
     let data = shared_data();
     let mask = cassi_io::load_frame(data.join("masks/tsa_simu_mask256.mat"), Some("mask"))?;
     let scenes = cassi_bench::cave_scenes(&data)?;
@@ -181,13 +187,6 @@ fn main() -> anyhow::Result<()> {
         "seconds": t0.elapsed().as_secs_f64(),
         "summary": summary,
         "scenes": rows,
-    });
-    let path = std::env::var("CASSI_BENCH_OUT").unwrap_or_else(|_| {
-        concat!(
-            env!("CARGO_MANIFEST_DIR"),
-            "/../../bench/results/physical_model.json"
-        )
-        .into()
     });
     cassi_io::write_atomic(
         &path,
