@@ -3389,6 +3389,21 @@ fn print_table(ctx: &Ctx, elapsed: f64) {
 }
 
 fn main() -> anyhow::Result<()> {
+    cassi_bench::check_arguments(
+        "hostile --cassi target/release/cassi [--seeds DIR] [--count N] [--out FILE] [--work DIR] \
+         [--keep] [--seed S] [--interrupts N] [--mem-cap-mib M] (crates/cassi-bench/HOSTILE.md)",
+        &[
+            "--cassi",
+            "--seeds",
+            "--count",
+            "--out",
+            "--work",
+            "--keep",
+            "--seed",
+            "--interrupts",
+            "--mem-cap-mib",
+        ],
+    )?;
     let args: Vec<String> = std::env::args().collect();
     let opt = |name: &str| {
         args.iter()

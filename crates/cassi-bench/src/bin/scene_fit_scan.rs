@@ -182,8 +182,12 @@ fn measure(
 
 fn main() -> anyhow::Result<()> {
     let t0 = Instant::now();
-    let argv: Vec<String> = std::env::args().skip(1).collect();
     const USAGE: &str = "usage: scene_fit_scan [--parameter KEY] [--sigma 0.3|0.5|0.7] [--weighted WINDOW_PX,FLOOR_QUANTILE]";
+    cassi_bench::check_arguments(
+        USAGE.trim_start_matches("usage: "),
+        &["--parameter", "--sigma", "--weighted"],
+    )?;
+    let argv: Vec<String> = std::env::args().skip(1).collect();
     let (mut parameter, mut aligned) = (Parameter::Dx, DEFAULT_SLOT);
     let mut weighting: Option<ResidualWeighting> = None;
     let mut args = argv.iter();
