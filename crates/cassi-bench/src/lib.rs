@@ -130,30 +130,46 @@ pub fn golden_section(f: impl Fn(f64) -> f64, (mut a, mut b): (f64, f64), tol: f
     0.5 * (a + b)
 }
 
-/// A bench's command line checked before any work: `--help` or `-h` prints
-/// `usage` and ends the process (exit 0); a `--flag` not in `flags` — or,
-/// for a bench that takes none, any argument — is an error naming it with
-/// the usage (the benches that took no arguments used to ignore them and
-/// start their whole run on `--help`).
-pub fn check_arguments(usage: &str, flags: &[&str]) -> anyhow::Result<()> {
-    let argv: Vec<String> = std::env::args().skip(1).collect();
-    if help_asked(&argv, usage, flags)? {
+/// `--help` or `-h` anywhere on the command line prints `usage` and ends
+/// the process (exit 0), before any work; for a bench whose own parser
+/// refuses unknown arguments.
+pub fn exit_on_help(usage: &str) {
+    if std::env::args().skip(1).any(|a| a == "-h" || a == "--help") {
         println!("usage: {usage}");
         std::process::exit(0);
     }
-    Ok(())
 }
 
-/// [`check_arguments`] on `argv`: whether help was asked, or the error.
-fn help_asked(argv: &[String], usage: &str, flags: &[&str]) -> anyhow::Result<bool> {
-    if argv.iter().any(|a| a == "-h" || a == "--help") {
-        return Ok(true);
-    }
+/// A bench's command line checked before any work, for a bench without a
+/// parser of its own: [`exit_on_help`], then a `--flag` not in `flags` —
+/// or, for a bench that takes none, any argument — is an error naming it
+/// with the usage (the benches that took no arguments used to ignore them
+/// and start their whole run on `--help`).
+pub fn check_arguments(usage: &str, flags: &[&str]) -> anyhow::Result<()> {
+    exit_on_help(usage);
+    let argv: Vec<String> = std::env::args().skip(1).collect();
+    unknown_arguments(&argv, usage, flags)
+}
+
+/// [`check_arguments`]'s refusal on `argv` (help already handled).
+fn unknown_arguments(argv: &[String], usage: &str, flags: &[&str]) -> anyhow::Result<()> {
     for a in argv {
         let known = !flags.is_empty() && (flags.contains(&a.as_str()) || !a.starts_with("--"));
         anyhow::ensure!(known, "unknown argument '{a}'\nusage: {usage}");
     }
-    Ok(false)
+    Ok(())
+}
+
+/// A bench's record written atomically (pretty JSON, one trailing newline).
+pub fn write_record(
+    path: impl AsRef<std::path::Path>,
+    record: &serde_json::Value,
+) -> anyhow::Result<()> {
+    cassi_io::write_atomic(
+        path,
+        (serde_json::to_string_pretty(record)? + "\n").as_bytes(),
+    )?;
+    Ok(())
 }
 
 /// Where a bench writes its record: $CASSI_BENCH_OUT, else
@@ -210,19 +226,17 @@ mod tests {
         a.iter().map(|s| s.to_string()).collect()
     }
 
-    /// Help anywhere wins; a bench without flags refuses any argument; one
-    /// with flags refuses an unknown flag by name and lets values through.
+    /// A bench without flags refuses any argument; one with flags refuses
+    /// an unknown flag by name and lets values through.
     #[test]
     fn a_bench_command_line_is_checked_before_the_work() {
-        assert!(help_asked(&argv(&["--help"]), "u", &[]).unwrap());
-        assert!(help_asked(&argv(&["--limit", "3", "-h"]), "u", &["--limit"]).unwrap());
-        assert!(!help_asked(&argv(&[]), "u", &[]).unwrap());
-        assert!(!help_asked(&argv(&["--limit", "3"]), "u", &["--limit"]).unwrap());
-        let e = help_asked(&argv(&["3"]), "u x", &[])
+        assert!(unknown_arguments(&argv(&[]), "u", &[]).is_ok());
+        assert!(unknown_arguments(&argv(&["--limit", "3"]), "u", &["--limit"]).is_ok());
+        let e = unknown_arguments(&argv(&["3"]), "u x", &[])
             .unwrap_err()
             .to_string();
         assert!(e.contains("'3'") && e.contains("usage: u x"), "{e}");
-        let e = help_asked(&argv(&["--limt", "3"]), "u", &["--limit"]).unwrap_err();
+        let e = unknown_arguments(&argv(&["--limt", "3"]), "u", &["--limit"]).unwrap_err();
         assert!(e.to_string().contains("'--limt'"), "{e}");
     }
 }

@@ -218,10 +218,7 @@ fn main() -> anyhow::Result<()> {
         "median_seconds": median(secs), "scenes": rows,
     });
     if only.is_none() {
-        cassi_io::write_atomic(
-            &path,
-            (serde_json::to_string_pretty(&out)? + "\n").as_bytes(),
-        )?;
+        cassi_bench::write_record(&path, &out)?;
     }
     Ok(())
 }

@@ -103,11 +103,10 @@ fn truth_of(path: &std::path::Path) -> Result<serde_json::Value> {
 }
 
 fn main() -> Result<()> {
-    cassi_bench::check_arguments(
+    cassi_bench::exit_on_help(
         "calibrate_real_regions [--regions whole|halves|thirds] [--scene NAME]… [--measurements DIR \
          [--label NAME]]",
-        &["--regions", "--scene", "--measurements", "--label"],
-    )?;
+    );
     let argv: Vec<String> = std::env::args().skip(1).collect();
     let mut regions = Regions::Halves;
     let mut only: Vec<String> = Vec::new();

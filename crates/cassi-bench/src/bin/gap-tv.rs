@@ -187,10 +187,7 @@ fn main() -> anyhow::Result<()> {
         "sizes": sizes,
         "time_ratio_660_vs_256": sizes_ratio,
     });
-    cassi_io::write_atomic(
-        &path,
-        (serde_json::to_string_pretty(&out)? + "\n").as_bytes(),
-    )?;
+    cassi_bench::write_record(&path, &out)?;
     eprintln!(
         "{}\nwrote {path}",
         serde_json::to_string_pretty(&out["comparison"])?

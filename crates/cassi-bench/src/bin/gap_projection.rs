@@ -240,10 +240,7 @@ fn main() -> anyhow::Result<()> {
         "seconds": t0.elapsed().as_secs_f64(),
         "machine": Machine::this(),
     });
-    cassi_io::write_atomic(
-        &path,
-        (serde_json::to_string_pretty(&out)? + "\n").as_bytes(),
-    )?;
+    cassi_bench::write_record(&path, &out)?;
     eprintln!(
         "tune: {}\nheld out: {}\n{decision}\nwrote {path}",
         serde_json::to_string(&out["tune_mean_psnr"])?,

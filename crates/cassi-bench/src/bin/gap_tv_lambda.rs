@@ -482,10 +482,7 @@ fn main() -> anyhow::Result<()> {
         "machine": Machine::this(),
         "seconds": t0.elapsed().as_secs_f64(),
     });
-    cassi_io::write_atomic(
-        &path,
-        (serde_json::to_string_pretty(&out)? + "\n").as_bytes(),
-    )?;
+    cassi_bench::write_record(&path, &out)?;
     eprintln!("wrote {path}");
     Ok(())
 }

@@ -164,10 +164,7 @@ fn main() -> Result<()> {
         "cases": cases,
         "timing_256x256x28": timings,
     });
-    cassi_io::write_atomic(
-        &out,
-        (serde_json::to_string_pretty(&record)? + "\n").as_bytes(),
-    )?;
+    cassi_bench::write_record(&out, &record)?;
     eprintln!("wrote {out}");
     Ok(())
 }

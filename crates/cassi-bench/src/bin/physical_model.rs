@@ -188,10 +188,7 @@ fn main() -> anyhow::Result<()> {
         "summary": summary,
         "scenes": rows,
     });
-    cassi_io::write_atomic(
-        &path,
-        (serde_json::to_string_pretty(&out)? + "\n").as_bytes(),
-    )?;
+    cassi_bench::write_record(&path, &out)?;
     eprintln!("wrote {path}");
     Ok(())
 }

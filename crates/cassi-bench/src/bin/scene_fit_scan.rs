@@ -183,10 +183,7 @@ fn measure(
 fn main() -> anyhow::Result<()> {
     let t0 = Instant::now();
     const USAGE: &str = "usage: scene_fit_scan [--parameter KEY] [--sigma 0.3|0.5|0.7] [--weighted WINDOW_PX,FLOOR_QUANTILE]";
-    cassi_bench::check_arguments(
-        USAGE.trim_start_matches("usage: "),
-        &["--parameter", "--sigma", "--weighted"],
-    )?;
+    cassi_bench::exit_on_help(USAGE.trim_start_matches("usage: "));
     let argv: Vec<String> = std::env::args().skip(1).collect();
     let (mut parameter, mut aligned) = (Parameter::Dx, DEFAULT_SLOT);
     let mut weighting: Option<ResidualWeighting> = None;
@@ -352,10 +349,7 @@ fn main() -> anyhow::Result<()> {
         "seconds": t0.elapsed().as_secs_f64(),
         "rows": rows,
     });
-    cassi_io::write_atomic(
-        &path,
-        (serde_json::to_string_pretty(&out)? + "\n").as_bytes(),
-    )?;
+    cassi_bench::write_record(&path, &out)?;
     eprintln!("wrote {path}");
     Ok(())
 }

@@ -225,10 +225,7 @@ fn main() -> Result<()> {
         "detector": DETECTOR,
         "cases": cases,
     });
-    cassi_io::write_atomic(
-        &out,
-        (serde_json::to_string_pretty(&record)? + "\n").as_bytes(),
-    )?;
+    cassi_bench::write_record(&out, &record)?;
     eprintln!("wrote {out}");
     Ok(())
 }

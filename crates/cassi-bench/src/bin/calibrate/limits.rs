@@ -349,6 +349,7 @@ fn remove_imprint(
     let n = rows * cols;
     let (mut local, mut tmp) = (vec![0.0f32; n], vec![0.0f32; n]);
     let mut code_local = vec![0.0f32; n];
+    let mut code_texture = vec![0.0f64; n];
     // β from pixels the local means' zero padding does not reach
     let margin = (3.0 * IMPRINT_SMOOTH_PX).ceil() as usize;
     let interior = |r: usize, c: usize| {
@@ -361,16 +362,18 @@ fn remove_imprint(
         blur.apply(band, &mut local, &mut tmp);
         blur.apply(code, &mut code_local, &mut tmp);
         let relative = |v: f32, m: f32| if m > 1e-6 { v / m - 1.0 } else { 0.0 };
+        for i in 0..n {
+            code_texture[i] = relative(code[i], code_local[i]) as f64;
+        }
         let (mut rc, mut cc) = (0.0f64, 0.0f64);
         for i in (0..n).filter(|&i| interior(i / cols, i % cols)) {
-            let c = relative(code[i], code_local[i]) as f64;
+            let c = code_texture[i];
             rc += relative(band[i], local[i]) as f64 * c;
             cc += c * c;
         }
         let beta = if cc > 0.0 { rc / cc } else { 0.0 };
         for i in 0..n {
-            let c = relative(code[i], code_local[i]) as f64;
-            band[i] -= (beta * local[i] as f64 * c) as f32;
+            band[i] -= (beta * local[i] as f64 * code_texture[i]) as f32;
         }
     }
     Ok(())

@@ -1598,11 +1598,8 @@ fn print_summary(summary: &[Value]) {
 // ---------------------------------------------------------------- main
 
 fn main() -> Result<()> {
+    cassi_bench::exit_on_help(USAGE);
     let argv: Vec<String> = std::env::args().skip(1).collect();
-    if argv.iter().any(|a| a == "-h" || a == "--help") {
-        println!("usage: {USAGE}");
-        return Ok(());
-    }
     let args = parse_args(&argv)?;
     let out_dir = args
         .out
@@ -1707,11 +1704,8 @@ fn main() -> Result<()> {
         "summary": summary,
         "cases": rows,
     });
-    cassi_io::write_atomic(
-        &args.out,
-        (serde_json::to_string_pretty(&out)? + "\n").as_bytes(),
-    )
-    .with_context(|| format!("writing {}", args.out.display()))?;
+    cassi_bench::write_record(&args.out, &out)
+        .with_context(|| format!("writing {}", args.out.display()))?;
     eprintln!("wrote {}", args.out.display());
     Ok(())
 }
