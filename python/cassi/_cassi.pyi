@@ -122,6 +122,10 @@ class Calibration:
     def seconds(self) -> float: ...
     @property
     def evaluations(self) -> int: ...
+    @property
+    def snapshots(self) -> Optional[Dict[str, Any]]:
+        """Where this combines several snapshots (`combine_calibrations`): each
+        snapshot's parameters and, per parameter, whether they agree; else None."""
     def to_json(self) -> str: ...
     @staticmethod
     def from_json(text: str) -> "Calibration":
@@ -185,6 +189,11 @@ def calibrate(
     for it (an error with the paper preset). `search_rows`: the rows the search
     stages run on (None: the preset's own, the middle 256 of a taller frame; N;
     "all"); an error with the paper preset."""
+
+def combine_calibrations(calibrations: List[Calibration]) -> Calibration:
+    """Several snapshots' calibrations of one instrument combined: each parameter
+    the snapshots' mean, its error the larger of their stated errors combined and
+    their scatter (Student's t); `snapshots` on the result says where they agree."""
 
 @overload
 def reconstruct(

@@ -140,6 +140,37 @@ impl PyCalibration {
         self.inner.evaluations
     }
 
+    /// Where this calibration combines several snapshots
+    /// (`combine_calibrations`): {"parameters": [each snapshot's dict],
+    /// "consistency": [{parameter, chi_squared, dof, p_value, spread,
+    /// disagree} per parameter]}; None for a single snapshot's.
+    #[getter]
+    fn snapshots<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
+        let Some(spread) = &self.inner.snapshots else {
+            return Ok(None);
+        };
+        let d = PyDict::new(py);
+        let answers = spread
+            .parameters
+            .iter()
+            .map(|m| params::to_dict(py, m))
+            .collect::<PyResult<Vec<_>>>()?;
+        d.set_item("parameters", answers)?;
+        let consistency = PyList::empty(py);
+        for c in &spread.consistency {
+            let e = PyDict::new(py);
+            e.set_item("parameter", c.parameter.key())?;
+            e.set_item("chi_squared", c.chi_squared)?;
+            e.set_item("dof", c.dof)?;
+            e.set_item("p_value", c.p_value)?;
+            e.set_item("spread", c.spread)?;
+            e.set_item("disagree", c.disagree)?;
+            consistency.append(e)?;
+        }
+        d.set_item("consistency", consistency)?;
+        Ok(Some(d))
+    }
+
     /// The library's JSON form of the result (what `from_json` reads).
     fn to_json(&self) -> PyResult<String> {
         serde_json::to_string_pretty(&self.inner)
@@ -189,6 +220,34 @@ fn per_parameter<'py>(py: Python<'py>, u: &Uncertainty) -> PyResult<Bound<'py, P
 
 fn value_error_here(msg: String) -> PyErr {
     Python::attach(|py| value_error(py, msg))
+}
+
+/// Several snapshots' calibrations of one instrument (the same mask, stride
+/// and model; different scenes) combined into one: each parameter the
+/// snapshots' mean, its standard error and 95 % half-width the larger of
+/// the snapshots' stated errors combined as independent and their scatter
+/// (Student's t at K − 1 dof). The result's `snapshots` holds the answers
+/// and, per parameter, whether they agree within their error bars.
+///
+/// Args:
+///     calibrations: two or more Calibration (from `calibrate`, or
+///         `Calibration.from_json` of `cassi calibrate -o` files).
+///
+/// Returns:
+///     Calibration: usable wherever one is (`reconstruct(calibration=)`).
+///
+/// Raises:
+///     InputError (a ValueError): fewer than two, or calibrations of
+///         different models or held curvatures (named by position).
+#[pyfunction]
+pub fn combine_calibrations(
+    py: Python<'_>,
+    calibrations: Vec<Bound<'_, PyCalibration>>,
+) -> PyResult<PyCalibration> {
+    let refs: Vec<&calib::Calibration> = calibrations.iter().map(|c| &c.get().inner).collect();
+    calib::combine_snapshots(&refs, &calib::CombineParams::default())
+        .map(|inner| PyCalibration { inner })
+        .map_err(|e| value_error(py, e.to_string()))
 }
 
 enum Message {

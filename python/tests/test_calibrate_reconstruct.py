@@ -1,6 +1,7 @@
 """Calibration recovers a known mismatch; the result drives reconstruction;
 progress callbacks and the GIL."""
 
+import json
 import threading
 import time
 
@@ -87,6 +88,42 @@ def test_default_calibration_reports_trade_offs_and_blur(case):
         cassi.calibrate(y, mask, bands=8, dispersion_a2=0.9)
     for a, b, corr in cal.trade_offs:
         assert a in cassi.PARAMETERS and b in cassi.PARAMETERS and abs(corr) >= 0.8
+
+
+def test_snapshots_of_one_instrument_combine_into_one_calibration(case):
+    """Two snapshots (two scenes, one instrument) combined: the mean of their
+    answers, wider errors where they disagree, usable for reconstruction."""
+    scene, mask, _ = case
+    other = cassi.synthetic_scene(96, 96, 8, seed=9)
+    cals = [
+        cassi.calibrate(cassi.simulate(s, mask, TRUTH, model="rounded", noise=False), mask, bands=8, model="rounded")
+        for s in (scene, other)
+    ]
+    both = cassi.combine_calibrations(cals)
+    assert both.model == "rounded" and cals[0].snapshots is None
+    for k in ["dx", "dy", "theta_deg"]:
+        mean = 0.5 * (cals[0].parameters[k] + cals[1].parameters[k])
+        assert abs(both.parameters[k] - mean) < 1e-12, k
+        assert abs(both.parameters[k] - TRUTH[k]) < 0.15, both.parameters
+        # never tighter than the snapshots' stated errors combined as independent
+        alone = np.hypot(cals[0].standard_errors[k], cals[1].standard_errors[k]) / 2
+        assert both.standard_errors[k] >= alone - 1e-12
+    spread = both.snapshots
+    assert spread["parameters"] == [c.parameters for c in cals]
+    assert {c["parameter"] for c in spread["consistency"]} <= set(cassi.CALIBRATED_PARAMETERS)
+    assert [s["name"] for s in both.stages] == ["snapshot 0", "snapshot 1"]
+    again = cassi.Calibration.from_json(both.to_json())
+    assert again.snapshots == spread
+    y = cassi.simulate(scene, mask, TRUTH, model="rounded", noise=False)
+    x = cassi.reconstruct(y, mask, calibration=both, bands=8, iterations=5)
+    assert x.shape == (8, 96, 96)
+    with pytest.raises(cassi.InputError, match="two or more"):
+        cassi.combine_calibrations(cals[:1])
+    as_json = json.loads(cals[1].to_json())
+    as_json["model"] = "subpixel"
+    sub = cassi.Calibration.from_json(json.dumps(as_json))
+    with pytest.raises(cassi.InputError, match="snapshot 1"):
+        cassi.combine_calibrations([cals[0], sub])
 
 
 def test_the_blur_pass_refits_the_blur_alone_last(case):

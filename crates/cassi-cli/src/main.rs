@@ -45,6 +45,8 @@ enum Command {
     Simulate(Box<commands::simulate::SimulateArgs>),
     /// Self-calibrate: estimate the mask misalignment and dispersion drift from one measurement.
     Calibrate(Box<commands::calibrate::CalibrateArgs>),
+    /// Combine several snapshots' calibrations of one instrument into one, and say whether they agree.
+    Combine(commands::combine::CombineArgs),
     /// Reconstruct a spectral cube from a measurement (GAP-TV, ADMM-TV, PnP-TV).
     Reconstruct(Box<commands::reconstruct::ReconstructArgs>),
     /// The four-scenario study (Ideal, Assumed, Corrected, Oracle) over a set of scenes, with a report.
@@ -63,6 +65,7 @@ fn main() -> ExitCode {
     let result = match &cli.command {
         Command::Simulate(args) => commands::simulate::run(args, &reporter),
         Command::Calibrate(args) => commands::calibrate::run(args, &reporter),
+        Command::Combine(args) => commands::combine::run(args, &reporter),
         Command::Reconstruct(args) => commands::reconstruct::run(args, &reporter),
         Command::Eval(args) => commands::eval::run(args, &reporter),
         Command::Info(args) => commands::info::run(args, &reporter),

@@ -540,6 +540,107 @@ fn calibrate_recovers_the_simulated_mismatch_and_feeds_reconstruct() {
     assert_eq!(report["model_parameters"], expected);
 }
 
+/// `cassi combine`: two snapshots' calibration files → their mean, the
+/// snapshots and their agreement, read back by `reconstruct`; a file that
+/// is a combination, no calibration, or the output itself is refused by
+/// name, nothing written.
+#[test]
+fn combine_averages_snapshots_and_refuses_what_is_not_one() {
+    let dir = scratch("combine");
+    let (meas, mask) = (dir.join("meas.npy"), dir.join("mask.npy"));
+    let sim = [
+        "simulate",
+        "--synthetic",
+        "--size",
+        "64",
+        "--bands",
+        "8",
+        "--random-mask",
+        "--dx",
+        "0.7",
+        "--no-noise",
+        "-o",
+        s(&meas),
+        "--quiet",
+    ];
+    ok(&cassi(&sim));
+    cassi_io::save_frame(&mask, &random_binary_mask(64, 64, 0.5, 1).unwrap(), "mask").unwrap();
+    let first = dir.join("first.json");
+    ok(&cassi(&[
+        "calibrate",
+        s(&meas),
+        "--mask",
+        s(&mask),
+        "--model",
+        "rounded",
+        "-o",
+        s(&first),
+        "--quiet",
+    ]));
+    // a second snapshot's answer: the first's, dx 0.2 px further
+    let mut other: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&first).unwrap()).unwrap();
+    let dx = other["parameters"]["dx"].as_f64().unwrap();
+    other["parameters"]["dx"] = serde_json::json!(dx + 0.2);
+    let second = dir.join("second.json");
+    std::fs::write(&second, serde_json::to_vec(&other).unwrap()).unwrap();
+    let both = dir.join("both.json");
+    let out = cassi(&["combine", s(&first), s(&second), "-o", s(&both)]);
+    ok(&out);
+    let text =
+        String::from_utf8_lossy(&out.stderr).to_string() + &String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains("combined (2 snapshots)"), "{text}");
+    let cal: serde_json::Value = serde_json::from_slice(&std::fs::read(&both).unwrap()).unwrap();
+    assert_eq!(cal["format"], "cassi-calibration");
+    assert!((cal["parameters"]["dx"].as_f64().unwrap() - (dx + 0.1)).abs() < 1e-12);
+    assert_eq!(cal["snapshots"]["parameters"].as_array().unwrap().len(), 2);
+    assert_eq!(cal["stages"].as_array().unwrap().len(), 2);
+    let cube = dir.join("cube.npy");
+    ok(&cassi(&[
+        "reconstruct",
+        s(&meas),
+        "--mask",
+        s(&mask),
+        "--calibration",
+        s(&both),
+        "--iterations",
+        "3",
+        "-o",
+        s(&cube),
+        "--quiet",
+    ]));
+    let refused = dir.join("refused.json");
+    assert_fails(
+        &["combine", s(&first), s(&both), "-o", s(&refused)],
+        &["both.json", "is itself a combination"],
+        &refused,
+    );
+    assert_fails(
+        &[
+            "combine",
+            s(&first),
+            s(&dir.join("meas.json")),
+            "-o",
+            s(&refused),
+        ],
+        &["meas.json", "not a cassi-calibration"],
+        &refused,
+    );
+    let before = std::fs::read(&second).unwrap();
+    let out = cassi(&["combine", s(&first), s(&second), "-o", s(&second)]);
+    assert_eq!(
+        out.status.code(),
+        Some(1),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert_eq!(
+        std::fs::read(&second).unwrap(),
+        before,
+        "the input was overwritten"
+    );
+}
+
 /// Sharded runs merged give the study one process makes: every score and
 /// parameter the same (only timings differ), the report and figures
 /// written; a merge before every shard has finished names the missing one.

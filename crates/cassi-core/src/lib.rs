@@ -23,6 +23,7 @@ pub mod rng;
 mod scratch;
 mod simd;
 pub mod solvers;
+pub mod stats;
 pub mod synth;
 
 pub use cube::{Cube, Frame, Mask, Measurement};

@@ -4,6 +4,7 @@
 use serde::{Deserialize, Serialize};
 
 use cassi_core::Parameter;
+use cassi_core::stats::median;
 
 use crate::protocol::{ParameterErrors, Scenario, SceneResult};
 
@@ -56,19 +57,6 @@ pub struct Summary {
 fn mean(v: impl Iterator<Item = f64>) -> f64 {
     let (s, n) = v.fold((0.0, 0usize), |(s, n), x| (s + x, n + 1));
     if n == 0 { f64::NAN } else { s / n as f64 }
-}
-
-pub fn median(mut v: Vec<f64>) -> f64 {
-    if v.is_empty() {
-        return f64::NAN;
-    }
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        0.5 * (v[n / 2 - 1] + v[n / 2])
-    }
 }
 
 /// Summarises `results` (scenes in the order given).
@@ -134,7 +122,7 @@ pub fn summarize(results: &[SceneResult]) -> Summary {
         scenes: results.iter().map(|r| r.scene.clone()).collect(),
         methods,
         parameter_rmse: ParameterErrors::from_fn(rmse),
-        calibration_seconds_median: median(calib_secs.clone()),
+        calibration_seconds_median: median(&calib_secs),
         calibration_seconds_mean: mean(calib_secs.into_iter()),
         total_seconds: results.iter().map(|r| r.seconds).sum(),
     }

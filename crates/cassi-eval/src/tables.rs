@@ -137,8 +137,13 @@ pub fn stage_table(results: &[SceneResult]) -> String {
             .iter()
             .flat_map(|r| r.calibration.stages.iter().filter(|st| st.name == name))
             .collect();
-        let t = crate::summary::median(stages.iter().map(|st| st.seconds).collect());
-        let e = crate::summary::median(stages.iter().map(|st| st.evaluations as f64).collect());
+        let t = cassi_core::stats::median(&stages.iter().map(|st| st.seconds).collect::<Vec<_>>());
+        let e = cassi_core::stats::median(
+            &stages
+                .iter()
+                .map(|st| st.evaluations as f64)
+                .collect::<Vec<_>>(),
+        );
         let _ = writeln!(s, "| {name} | {t:.2} | {e:.0} |");
     }
     s

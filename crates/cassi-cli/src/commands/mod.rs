@@ -1,4 +1,5 @@
 pub mod calibrate;
+pub mod combine;
 pub mod demo;
 pub mod eval;
 pub mod info;

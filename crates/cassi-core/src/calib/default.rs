@@ -316,6 +316,7 @@ pub fn calibrate_default(
         trade_offs: u.trade_offs,
         uncertainty_fit: u.fit,
         model_blur_sigma_px,
+        snapshots: None,
         stages: run.into_reports(),
         seconds,
         evaluations,

@@ -28,6 +28,7 @@ mod row_window;
 mod scene_fit;
 pub(crate) mod score;
 pub(crate) mod smooth;
+mod snapshots;
 mod stages;
 mod subpixel_tilt;
 mod texture;
@@ -59,6 +60,7 @@ pub use scene_fit::{
     reweighted_scene_fit_scores, scene_fit_score,
 };
 pub use score::{CalibrationProblem, ProxyParams, gap_tv_reconstruction};
+pub use snapshots::{Centre, CombineParams, Consistency, SnapshotSpread, combine_snapshots};
 pub use texture::{SCENE_SMOOTH_PX, SceneEstimate};
 
 use crate::optics::DispersionModel;
@@ -155,6 +157,11 @@ pub struct Calibration {
     /// `parameters` as they are. See [`Calibration::reconstruction_parameters`].
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub model_blur_sigma_px: Option<f64>,
+    /// Set where this calibration combines several snapshots' of one
+    /// instrument ([`combine_snapshots`]): their answers and whether they
+    /// agree; `stages` are then the snapshots' answers.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub snapshots: Option<SnapshotSpread>,
     pub stages: Vec<StageReport>,
     pub seconds: f64,
     pub evaluations: usize,

@@ -178,6 +178,7 @@ pub fn calibrate_paper(
         trade_offs: Vec::new(),
         uncertainty_fit: None,
         model_blur_sigma_px: None,
+        snapshots: None,
         stages: run.into_reports(),
         seconds,
         evaluations,

@@ -57,7 +57,7 @@
 //! [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene]
 //! [--fine-pass-free pose-and-slope|geometry|all] [--scene-cell PX] [--scene-nodes N]
 //! [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv ITERATIONS] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N]]
-//! [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--out PATH] [--scene-transform none|flip-cols|flip-rows|transpose] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--model-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--detail-cold-above PX|none] [--blur-bootstrap crisp-cells|dispersed-mask [--blur-bootstrap-noise] [--blur-bootstrap-residual] [--blur-bootstrap-min PX]] [--verbose]`
+//! [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--out PATH] [--scene-transform none|flip-cols|flip-rows|transpose] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--model-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--detail-cold-above PX|none] [--blur-bootstrap crisp-cells|dispersed-mask [--blur-bootstrap-noise] [--blur-bootstrap-residual] [--blur-bootstrap-min PX]] [--snapshots N] [--verbose]`
 //! (`--no-texture`: the default preset without its texture fit, as it was
 //! before issue #14 — the "before" row; `--no-scene-fit`: without its
 //! scene fit, ending in the texture fit as the records `*_texture.json`
@@ -89,6 +89,12 @@
 //! mask file is an image of its code (`Masks`), σ then judged against
 //! the σ the model fits with the scene and the geometry known
 //! (`sigma_reference`; the instrument's own in `instrument_blur_sigma_px`);
+//! `--snapshots N`: N random instruments (and the three aligned ones
+//! unless `--no-aligned`), each imaging every scene of the half, each
+//! snapshot calibrated alone and the instrument's snapshots combined
+//! (`calib::combine_snapshots`; [`snapshots`]): the record's `snapshots`
+//! holds each combination and their summary (`--cases`, `--wide-blur` and
+//! `--inverse-crime` do not apply);
 //! `--scene-transform`: every scene flipped or transposed — the
 //! tuning scenes in three more configurations against the mask, with their
 //! own `--seed-round`, for the uncertainty floors); without flags it
@@ -108,9 +114,9 @@ use cassi_bench::{
     relative_residual2, scene_name, shared_data,
 };
 use cassi_core::calib::{
-    BlurBootstrap, BlurPass, CalibrationProblem, DefaultPreset, DetailPass, DetailSource, FinePass,
-    FinePassFree, PRESET_NAMES, Preset, SCENE_FIT_STAGE, SceneFitSettings, calibrate, grid_phase,
-    model_error_floor,
+    BlurBootstrap, BlurPass, Calibration, CalibrationProblem, CombineParams, DefaultPreset,
+    DetailPass, DetailSource, FinePass, FinePassFree, PRESET_NAMES, Preset, SCENE_FIT_STAGE,
+    SceneFitSettings, calibrate, grid_phase, model_error_floor,
 };
 use cassi_core::metrics::psnr;
 use cassi_core::optics::blur::GaussianBlur;
@@ -124,6 +130,7 @@ use cassi_eval::machine::Machine;
 use serde_json::{Value, json};
 
 mod limits;
+mod snapshots;
 
 /// Scenes (sorted by name) in the tuning half; the rest are held out.
 const TUNING_SCENES: usize = 5;
@@ -226,6 +233,10 @@ struct Args {
     /// `--mask-sharpen V`: the handed file (the captured one with
     /// `--mask-capture`) sharpened ([`sharpen_separable`]).
     mask_sharpen: Option<f64>,
+    /// `--snapshots N`: N random instruments (and the aligned ones), each
+    /// measuring every scene of the half, their snapshots combined
+    /// ([`snapshots`]).
+    snapshots: Option<usize>,
 }
 
 /// The masks of a run: the one the simulated instrument carries and the
@@ -367,7 +378,7 @@ impl SceneTransform {
 const USAGE: &str = "calibrate [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] \
                      [--no-aligned] [--no-inverse-crime] [--no-wide-blur] [--model rounded|subpixel|dispersed-mask|crisp-cells] \
                      [--preset NAME] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all] [--scene-cell PX] [--scene-nodes N] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv N] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N]] [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--out PATH] \
-                     [--scene-transform none|flip-cols|flip-rows|transpose] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--verbose]";
+                     [--scene-transform none|flip-cols|flip-rows|transpose] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--snapshots N] [--verbose]";
 
 fn parse_args(argv: &[String]) -> Result<Args> {
     let mut half_name = "held-out".to_string();
@@ -408,6 +419,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
     let mut blur_bootstrap_noise = false;
     let mut blur_bootstrap_residual = false;
     let mut blur_bootstrap_min: Option<f64> = None;
+    let mut snapshots_n: Option<usize> = None;
     let mut it = argv.iter();
     while let Some(flag) = it.next() {
         let mut value = || {
@@ -636,6 +648,16 @@ fn parse_args(argv: &[String]) -> Result<Args> {
             "--out" => out = Some(PathBuf::from(value()?)),
             "--scene-transform" => transform = SceneTransform::parse(&value()?)?,
             "--verbose" => verbose = true,
+            "--snapshots" => {
+                let v = value()?;
+                let n: usize = v.parse().with_context(|| format!("--snapshots {v}"))?;
+                ensure!(
+                    n <= snapshots::MAX_INSTRUMENTS,
+                    "--snapshots {n}: at most {} random instruments per half",
+                    snapshots::MAX_INSTRUMENTS
+                );
+                snapshots_n = Some(n);
+            }
             other => bail!("unknown argument '{other}'\nusage: {USAGE}"),
         }
     }
@@ -869,6 +891,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
         dispersion_a2,
         mask_capture_px,
         mask_sharpen,
+        snapshots: snapshots_n,
     })
 }
 
@@ -912,6 +935,8 @@ struct Case {
     kind: Kind,
     seed: u64,
     truth: Mismatch,
+    /// `--snapshots`: the instrument this snapshot is one of (its ψ's seed).
+    instrument_seed: Option<u64>,
 }
 
 /// The first seed of `half` in the run's seed round.
@@ -932,6 +957,7 @@ fn scene_cases(args: &Args, half: Half, scene: usize, index: u64) -> Vec<Case> {
             kind,
             seed,
             truth,
+            instrument_seed: None,
         };
         cases.push(case(Kind::Random, truth));
         if args.inverse_crime {
@@ -949,6 +975,7 @@ fn scene_cases(args: &Args, half: Half, scene: usize, index: u64) -> Vec<Case> {
                     blur_sigma_px: sigma,
                     ..Mismatch::nominal(STRIDE)
                 },
+                instrument_seed: None,
             });
         }
     }
@@ -970,6 +997,7 @@ fn scene_cases(args: &Args, half: Half, scene: usize, index: u64) -> Vec<Case> {
                         blur_sigma_px: sigma,
                         ..pose
                     },
+                    instrument_seed: None,
                 });
             }
         }
@@ -1109,7 +1137,14 @@ fn scene_fit_settings<'p>(preset: &'p mut Preset, flag: &str) -> Result<&'p mut 
     }
 }
 
-fn run_case(args: &Args, case: &Case, name: &str, scene: &Cube, masks: &Masks) -> Result<Value> {
+/// One case's record, and its calibration.
+fn run_case(
+    args: &Args,
+    case: &Case,
+    name: &str,
+    scene: &Cube,
+    masks: &Masks,
+) -> Result<(Value, Calibration)> {
     let y = measure(case, scene, masks, Some(&noise(case.seed)), args)?;
     let mask = &masks.nominal;
     let problem = CalibrationProblem::nominal(&y, mask, scene.bands(), 2.0, args.model)?;
@@ -1187,6 +1222,7 @@ fn run_case(args: &Args, case: &Case, name: &str, scene: &Cube, masks: &Masks) -
         "inverse_crime": case.kind == Kind::InverseCrime,
         "headline": case.kind.headline(),
         "seed": case.seed,
+        "instrument_seed": case.instrument_seed,
         // the errors are against `truth`: the simulated instrument's ψ,
         // σ replaced by `sigma_reference` where there is one
         "truth": per_parameter(|p| json!(p.get(&truth))),
@@ -1333,7 +1369,7 @@ fn run_case(args: &Args, case: &Case, name: &str, scene: &Cube, masks: &Masks) -
         }
         record["limits"] = lim;
     }
-    Ok(record)
+    Ok((record, cal))
 }
 
 /// The default preset when the run ends in its texture fit (subpixel
@@ -1623,6 +1659,7 @@ fn main() -> Result<()> {
 
     let t0 = Instant::now();
     let mut rows = Vec::new();
+    let mut cals = Vec::new();
     for &half in &args.halves {
         for (index, si) in half_scenes(half, scenes.len(), args.scenes)
             .into_iter()
@@ -1633,13 +1670,36 @@ fn main() -> Result<()> {
                 None,
                 cassi_io::CubeLayout::Auto,
             )?)?;
-            for case in scene_cases(&args, half, si, index as u64) {
-                rows.push(run_case(&args, &case, &names[case.scene], &scene, &masks)?);
+            let cases = match args.snapshots {
+                Some(n) => snapshots::scene_cases(&args, half, si, index as u64, n),
+                None => scene_cases(&args, half, si, index as u64),
+            };
+            for case in cases {
+                let (row, cal) = run_case(&args, &case, &names[case.scene], &scene, &masks)?;
+                rows.push(row);
+                // only the combinations need them
+                if args.snapshots.is_some() {
+                    cals.push(cal);
+                }
             }
         }
     }
     let summary = summaries(&rows, &args.halves);
     print_summary(&summary);
+    let combined = match args.snapshots {
+        Some(_) => {
+            let groups = snapshots::groups(&rows, &cals)?;
+            let summary = snapshots::summarise(&groups);
+            eprintln!(
+                "snapshots combined: {}",
+                serde_json::to_string_pretty(&summary)?
+            );
+            Some(
+                json!({ "rule": CombineParams::default(), "summary": summary, "instruments": groups }),
+            )
+        }
+        None => None,
+    };
 
     let split = |h: Half| {
         json!({ "scenes": half_scenes(h, names.len(), None).iter().map(|&i| &names[i]).collect::<Vec<_>>(),
@@ -1702,6 +1762,8 @@ fn main() -> Result<()> {
         })),
         "seconds": t0.elapsed().as_secs_f64(),
         "summary": summary,
+        // `--snapshots`: each instrument's snapshots combined
+        "snapshots": combined,
         "cases": rows,
     });
     cassi_bench::write_record(&args.out, &out)

@@ -1,0 +1,138 @@
+//! `cassi combine`: several snapshots' calibrations of one instrument →
+//! one calibration, with whether the snapshots agree.
+
+use std::path::PathBuf;
+
+use cassi_core::Parameter;
+use cassi_core::calib::{Calibration, CombineParams, combine_snapshots};
+use cassi_eval::records::read_record;
+use clap::Args;
+
+use cassi_io::OutputSet;
+
+use super::calibrate::{check_output_json, estimate_lines};
+use crate::report::Reporter;
+
+#[derive(Args)]
+pub struct CombineArgs {
+    /// Two or more calibration files (`cassi calibrate -o`), each of one
+    /// snapshot of the same instrument — the same mask file, stride and
+    /// model; the scenes should differ: a scene's bias is what combining
+    /// averages.
+    #[arg(required = true, num_args = 2..)]
+    pub calibrations: Vec<PathBuf>,
+    /// Output calibration JSON (for `cassi reconstruct --calibration`): the
+    /// combined answer, the snapshots' answers and their agreement.
+    #[arg(long, short)]
+    pub output: PathBuf,
+}
+
+pub fn run(args: &CombineArgs, reporter: &Reporter) -> anyhow::Result<()> {
+    check_output_json(&args.output)?;
+    let mut set = OutputSet::new();
+    for p in &args.calibrations {
+        set.input("calibration", p);
+    }
+    set.output("-o", &args.output);
+    let checked = set.check()?;
+    let snapshots = args
+        .calibrations
+        .iter()
+        .map(|p| Ok(read_record::<Calibration>(p)?))
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    for (p, c) in args.calibrations.iter().zip(&snapshots) {
+        if c.snapshots.is_some() {
+            anyhow::bail!(
+                "{} is itself a combination; combine the snapshots' own calibrations",
+                p.display()
+            );
+        }
+    }
+    let refs: Vec<&Calibration> = snapshots.iter().collect();
+    let combined = combine_snapshots(&refs, &CombineParams::default()).map_err(|e| {
+        anyhow::anyhow!(
+            "{e} (snapshot i is the i-th file: {})",
+            args.calibrations
+                .iter()
+                .map(|p| p.display().to_string())
+                .collect::<Vec<_>>()
+                .join(", ")
+        )
+    })?;
+    let staging = checked.begin()?;
+    cassi_eval::records::write_record(&args.output, &combined)?;
+    staging.commit()?;
+    let mut text = String::new();
+    for (p, c) in args.calibrations.iter().zip(&snapshots) {
+        text += &format!(
+            "  {}  {}\n",
+            Parameter::format_all(&c.parameters),
+            p.display()
+        );
+    }
+    text += &format!(
+        "combined ({} snapshots): {}\n",
+        snapshots.len(),
+        Parameter::format_all(&combined.parameters)
+    );
+    text += &combined_lines(&combined);
+    text += &format!("→ {}", args.output.display());
+    reporter.say(&text);
+    reporter.emit(&serde_json::to_value(&combined)?);
+    Ok(())
+}
+
+/// The combined errors, then where the snapshots disagree beyond their
+/// own error bars (the combined ± is then their scatter's).
+fn combined_lines(cal: &Calibration) -> String {
+    let mut out = estimate_lines(cal);
+    let Some(spread) = &cal.snapshots else {
+        return out;
+    };
+    let disagree: Vec<_> = spread.consistency.iter().filter(|c| c.disagree).collect();
+    if disagree.is_empty() {
+        out += "  the snapshots agree within their error bars on every parameter\n";
+    }
+    for c in disagree {
+        let p = c.parameter;
+        let prec = p.decimals();
+        out += &format!(
+            "  {}: the snapshots disagree beyond their error bars (spread {:.prec$} {}, χ² {:.1} on \
+             {} dof, p {:.1e}): each snapshot's scene biases it differently; the combined ± is \
+             their scatter's\n",
+            p.name(),
+            c.spread,
+            p.unit(),
+            c.chi_squared,
+            c.dof,
+            c.p_value
+        );
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn snapshot(dx: f64) -> Calibration {
+        let mut c = super::super::calibrate::tests::calibration(0.0, 0.0);
+        c.parameters.dx = dx;
+        c
+    }
+
+    /// Disagreeing snapshots are named per parameter; agreeing ones say so.
+    #[test]
+    fn the_lines_name_the_parameters_the_snapshots_disagree_on() {
+        let apart = [snapshot(0.0), snapshot(0.5), snapshot(1.0)];
+        let refs: Vec<&Calibration> = apart.iter().collect();
+        let c = combine_snapshots(&refs, &CombineParams::default()).unwrap();
+        let text = combined_lines(&c);
+        assert!(text.contains("dx: the snapshots disagree"), "{text}");
+        assert!(!text.contains("dy: the snapshots disagree"), "{text}");
+        let alike = [snapshot(0.0), snapshot(0.001)];
+        let refs: Vec<&Calibration> = alike.iter().collect();
+        let c = combine_snapshots(&refs, &CombineParams::default()).unwrap();
+        assert!(combined_lines(&c).contains("agree within their error bars on every parameter"));
+    }
+}

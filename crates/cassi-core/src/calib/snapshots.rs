@@ -1,0 +1,491 @@
+//! Several snapshots of one instrument, each calibrated alone, combined
+//! into one answer. The single-snapshot errors are mostly the scene's
+//! (a red scene pins the red bands' positions, a textured one misplaces the
+//! mask along the dx–a1 ridge), so different scenes err differently and
+//! their mean averages the bias a single snapshot cannot see; their scatter
+//! measures it. The result is a [`Calibration`] (readable wherever one is)
+//! whose [`SnapshotSpread`] holds the snapshots' answers and whether they
+//! agree within their own error bars.
+
+use serde::{Deserialize, Serialize};
+
+use super::{Calibration, StageReport, TradeOff, Uncertainty};
+use crate::error::CassiError;
+use crate::params::{Mismatch, Parameter};
+use crate::stats::{chi_squared_sf, median, student_t_two_sided};
+
+/// Where the combination centres each parameter.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Centre {
+    /// The snapshots' plain mean.
+    Mean,
+    /// The mean weighted by each snapshot's stated 1/σ².
+    InverseVariance,
+    /// The snapshots' median.
+    Median,
+}
+
+/// How [`combine_snapshots`] combines.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct CombineParams {
+    pub centre: Centre,
+    /// The correlation assumed between two snapshots' errors when their
+    /// stated errors are combined: part of a snapshot's error is the
+    /// instrument's (the model's bias at that ψ), common to every scene,
+    /// which no scatter shows and no average removes. 0.5, set on the
+    /// physical benchmark's tuning half (`bench/snapshot_rules.py`): with
+    /// independent errors (0) the combined 1σ covered θ and dy in 8 and 7 of
+    /// 13 instruments.
+    pub snapshot_correlation: f64,
+    /// The p-value of the snapshots' χ² (their scatter against their stated
+    /// errors) below which a parameter is reported as disagreeing.
+    pub disagree_below_p: f64,
+}
+
+impl Default for CombineParams {
+    fn default() -> Self {
+        Self {
+            centre: Centre::Mean,
+            snapshot_correlation: 0.5,
+            disagree_below_p: 0.01,
+        }
+    }
+}
+
+/// Whether the snapshots agree on one parameter within their stated errors.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Consistency {
+    pub parameter: Parameter,
+    /// Σ (xᵢ − x̄_w)² / σᵢ², x̄_w the inverse-variance mean.
+    pub chi_squared: f64,
+    /// Snapshots − 1.
+    pub dof: usize,
+    /// P(χ²_dof ≥ `chi_squared`): small when the snapshots scatter more than
+    /// their error bars say.
+    pub p_value: f64,
+    /// The snapshots' standard deviation.
+    pub spread: f64,
+    /// `p_value` < [`CombineParams::disagree_below_p`].
+    pub disagree: bool,
+}
+
+/// What a combined calibration was combined from.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SnapshotSpread {
+    pub params: CombineParams,
+    /// Each snapshot's answer, in the order given.
+    pub parameters: Vec<Mismatch>,
+    /// Per calibrated parameter whose errors every snapshot stated.
+    pub consistency: Vec<Consistency>,
+}
+
+/// One parameter's combination: centre, standard error, 95 % half-width.
+struct Combined {
+    value: f64,
+    standard: f64,
+    interval_95: f64,
+}
+
+/// `calibrations` (two or more, of one instrument: the same model and held
+/// curvature) combined into one [`Calibration`]: each calibrated parameter
+/// centred as `params` says, with the larger of two error bars — the
+/// snapshots' stated errors combined as independent (σ/√K for the mean)
+/// and their scatter (s/√K for the mean, s their standard deviation, scaled
+/// by Student's t at K − 1 degrees of freedom for 68.27 % and 95 %). The
+/// stages are the snapshots' answers ("snapshot i"); σ to reconstruct with
+/// is the mean of theirs; the pairs named are those at least half the
+/// snapshots named. Scores are the snapshots' means (each on its own
+/// measurement, so not comparable with a single calibration's).
+pub fn combine_snapshots(
+    calibrations: &[&Calibration],
+    params: &CombineParams,
+) -> Result<Calibration, CassiError> {
+    let k = calibrations.len();
+    if k < 2 {
+        return Err(CassiError::Meaningless {
+            what: "combining snapshots".into(),
+            reason: format!("{k} calibration given; combining needs two or more"),
+        });
+    }
+    let first = calibrations[0];
+    for (i, c) in calibrations.iter().enumerate() {
+        if c.model != first.model {
+            return Err(CassiError::Meaningless {
+                what: format!("snapshot {i}'s calibration"),
+                reason: format!(
+                    "model {:?}, snapshot 0's {:?}: one instrument, one model",
+                    c.model, first.model
+                ),
+            });
+        }
+        if c.parameters.a2 != first.parameters.a2 {
+            return Err(CassiError::Meaningless {
+                what: format!("snapshot {i}'s calibration"),
+                reason: format!(
+                    "held curvature a2 {}, snapshot 0's {}: one instrument, one curvature",
+                    c.parameters.a2, first.parameters.a2
+                ),
+            });
+        }
+    }
+    let mut parameters = first.parameters;
+    let mut standard = Uncertainty::default();
+    let mut interval_95 = Uncertainty::default();
+    let mut consistency = Vec::new();
+    for p in Parameter::CALIBRATED {
+        let values: Vec<f64> = calibrations.iter().map(|c| p.get(&c.parameters)).collect();
+        let sigmas: Option<Vec<f64>> = calibrations.iter().map(|c| c.uncertainty.get(p)).collect();
+        let halves: Option<Vec<f64>> = calibrations.iter().map(|c| c.interval_95.get(p)).collect();
+        let combined = combine(&values, sigmas.as_deref(), halves.as_deref(), params);
+        p.set(&mut parameters, combined.value);
+        standard.0.insert(p, Some(combined.standard));
+        interval_95.0.insert(p, Some(combined.interval_95));
+        if let Some(s) = sigmas.as_deref().filter(|s| s.iter().all(|&s| s > 0.0)) {
+            consistency.push(agreement(p, &values, s, params.disagree_below_p));
+        }
+    }
+    parameters.blur_sigma_px = parameters.blur_sigma_px.abs();
+    let reconstruction: Vec<f64> = calibrations
+        .iter()
+        .map(|c| c.reconstruction_parameters().blur_sigma_px)
+        .collect();
+    let model_blur_sigma_px = calibrations
+        .iter()
+        .any(|c| c.model_blur_sigma_px.is_some())
+        .then(|| mean(&reconstruction));
+    let stages = calibrations
+        .iter()
+        .enumerate()
+        .map(|(i, c)| StageReport {
+            name: format!("snapshot {i}"),
+            evaluations: c.evaluations,
+            seconds: c.seconds,
+            parameters: c.parameters,
+            score: c.score,
+            passed_over: None,
+        })
+        .collect();
+    Ok(Calibration {
+        preset: first.preset.clone(),
+        model: first.model,
+        parameters,
+        score: mean(&calibrations.iter().map(|c| c.score).collect::<Vec<_>>()),
+        nominal_score: mean(
+            &calibrations
+                .iter()
+                .map(|c| c.nominal_score)
+                .collect::<Vec<_>>(),
+        ),
+        uncertainty: standard,
+        interval_95,
+        trade_offs: named_by_half(calibrations),
+        uncertainty_fit: None,
+        model_blur_sigma_px,
+        stages,
+        seconds: calibrations.iter().map(|c| c.seconds).sum(),
+        evaluations: calibrations.iter().map(|c| c.evaluations).sum(),
+        snapshots: Some(SnapshotSpread {
+            params: *params,
+            parameters: calibrations.iter().map(|c| c.parameters).collect(),
+            consistency,
+        }),
+    })
+}
+
+/// One parameter over the snapshots: `values`, their stated standard
+/// errors and 95 % half-widths where every snapshot has one.
+fn combine(
+    values: &[f64],
+    sigmas: Option<&[f64]>,
+    halves: Option<&[f64]>,
+    params: &CombineParams,
+) -> Combined {
+    let k = values.len() as f64;
+    let dof = k - 1.0;
+    let positive = sigmas.filter(|s| s.iter().all(|&s| s > 0.0));
+    // the centre as a weighted mean (the median: the mean's weights, its
+    // errors √(π/2) the mean's for normal errors)
+    let (weights, value, factor) = match (params.centre, positive) {
+        (Centre::InverseVariance, Some(s)) => {
+            let w: Vec<f64> = s.iter().map(|s| 1.0 / (s * s)).collect();
+            let sum: f64 = w.iter().sum();
+            let a: Vec<f64> = w.iter().map(|w| w / sum).collect();
+            let value = values.iter().zip(&a).map(|(x, a)| x * a).sum();
+            (a, value, 1.0)
+        }
+        (Centre::Median, _) => (
+            vec![1.0 / k; values.len()],
+            median(values),
+            std::f64::consts::FRAC_PI_2.sqrt(),
+        ),
+        _ => (vec![1.0 / k; values.len()], mean(values), 1.0),
+    };
+    let rho = params.snapshot_correlation;
+    // Var Σ aᵢeᵢ for errors of standard deviations `s` correlated at ρ
+    let formal = |s: &[f64]| {
+        let own: f64 = weights.iter().zip(s).map(|(a, s)| (a * s).powi(2)).sum();
+        let all: f64 = weights.iter().zip(s).map(|(a, s)| a * s).sum();
+        factor * (own + rho * (all * all - own)).max(0.0).sqrt()
+    };
+    // the scatter about the weighted mean, as its standard error:
+    // √(Σ aᵢ (xᵢ − x̄)² / (K − 1)) — s/√K for equal weights, the formal
+    // error times the Birge ratio √(χ²/(K − 1)) for inverse-variance ones
+    let scatter = {
+        let centre: f64 = values.iter().zip(&weights).map(|(x, a)| x * a).sum();
+        let ss: f64 = values
+            .iter()
+            .zip(&weights)
+            .map(|(x, a)| a * (x - centre).powi(2))
+            .sum();
+        factor * (ss / dof).sqrt()
+    };
+    let t68 = student_t_two_sided(ONE_SIGMA, dof);
+    let t95 = student_t_two_sided(0.95, dof);
+    let formal_1 = sigmas.map_or(0.0, formal);
+    Combined {
+        value,
+        standard: formal_1.max(t68 * scatter),
+        interval_95: halves.map_or(2.0 * formal_1, formal).max(t95 * scatter),
+    }
+}
+
+/// The coverage of ±1σ of a normal distribution.
+const ONE_SIGMA: f64 = 0.682_689_492_137_086;
+
+fn agreement(p: Parameter, values: &[f64], sigmas: &[f64], below_p: f64) -> Consistency {
+    let w: Vec<f64> = sigmas.iter().map(|s| 1.0 / (s * s)).collect();
+    let centre = values.iter().zip(&w).map(|(x, w)| x * w).sum::<f64>() / w.iter().sum::<f64>();
+    let chi_squared: f64 = values
+        .iter()
+        .zip(&w)
+        .map(|(x, w)| w * (x - centre).powi(2))
+        .sum();
+    let dof = values.len() - 1;
+    let p_value = chi_squared_sf(chi_squared, dof as f64);
+    Consistency {
+        parameter: p,
+        chi_squared,
+        dof,
+        p_value,
+        spread: sd(values),
+        disagree: p_value < below_p,
+    }
+}
+
+/// The trade-offs at least half the snapshots named, their correlation
+/// averaged over those that did.
+fn named_by_half(calibrations: &[&Calibration]) -> Vec<TradeOff> {
+    let mut out: Vec<TradeOff> = Vec::new();
+    let mut counts: Vec<usize> = Vec::new();
+    for t in calibrations.iter().flat_map(|c| &c.trade_offs) {
+        match out.iter().position(|o| o.a == t.a && o.b == t.b) {
+            Some(i) => {
+                out[i].correlation += t.correlation;
+                counts[i] += 1;
+            }
+            None => {
+                out.push(*t);
+                counts.push(1);
+            }
+        }
+    }
+    out.into_iter()
+        .zip(counts)
+        .filter(|&(_, n)| 2 * n >= calibrations.len())
+        .map(|(t, n)| TradeOff {
+            correlation: t.correlation / n as f64,
+            ..t
+        })
+        .collect()
+}
+
+fn mean(v: &[f64]) -> f64 {
+    v.iter().sum::<f64>() / v.len() as f64
+}
+
+/// The sample standard deviation (K − 1 in the denominator).
+fn sd(v: &[f64]) -> f64 {
+    let m = mean(v);
+    (v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (v.len() as f64 - 1.0)).sqrt()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::optics::DispersionModel;
+    use crate::rng::Rng;
+
+    /// A calibration answering `dx` (the rest nominal) with the stated 1σ
+    /// `sigma` and 95 % half-width 2σ on every parameter.
+    fn snapshot(dx: f64, sigma: f64) -> Calibration {
+        let stated = |v: f64| {
+            Uncertainty(
+                Parameter::CALIBRATED
+                    .iter()
+                    .map(|&p| (p, Some(v)))
+                    .collect(),
+            )
+        };
+        Calibration {
+            preset: "default".into(),
+            model: DispersionModel::DispersedMask,
+            parameters: Mismatch {
+                dx,
+                blur_sigma_px: 0.5,
+                ..Mismatch::nominal(2.0)
+            },
+            score: 1.0,
+            nominal_score: 2.0,
+            uncertainty: stated(sigma),
+            interval_95: stated(2.0 * sigma),
+            trade_offs: Vec::new(),
+            uncertainty_fit: None,
+            model_blur_sigma_px: None,
+            snapshots: None,
+            stages: Vec::new(),
+            seconds: 1.0,
+            evaluations: 10,
+        }
+    }
+
+    fn combined(dx: &[f64], sigma: f64, centre: Centre) -> Calibration {
+        let cals: Vec<Calibration> = dx.iter().map(|&d| snapshot(d, sigma)).collect();
+        let refs: Vec<&Calibration> = cals.iter().collect();
+        let params = CombineParams {
+            centre,
+            ..CombineParams::default()
+        };
+        combine_snapshots(&refs, &params).unwrap()
+    }
+
+    /// The centres, and the error bar: the stated errors' (σ/√K for the
+    /// mean) where the snapshots agree, the scatter's (t · s/√K) where they
+    /// do not.
+    #[test]
+    fn the_mean_and_its_error_bar_come_from_the_snapshots() {
+        let dx = [0.1, 0.2, 0.3, 0.4, 1.0];
+        let c = combined(&dx, 0.01, Centre::Mean);
+        assert!((c.parameters.dx - 0.4).abs() < 1e-12);
+        let sd = (dx.iter().map(|x| (x - 0.4f64).powi(2)).sum::<f64>() / 4.0).sqrt();
+        let s = c.uncertainty.get(Parameter::Dx).unwrap();
+        assert!((s - 1.1417 * sd / 5f64.sqrt()).abs() < 1e-3 * s, "{s}");
+        let h = c.interval_95.get(Parameter::Dx).unwrap();
+        assert!((h - 2.7764 * sd / 5f64.sqrt()).abs() < 1e-3 * h, "{h}");
+        // agreeing snapshots: every dy is nominal, the stated errors rule,
+        // correlated at ρ: σ √((1 + ρ(K − 1))/K)
+        let shrink = |rho: f64| ((1.0 + rho * 4.0) / 5.0f64).sqrt();
+        let rho = CombineParams::default().snapshot_correlation;
+        assert!((c.uncertainty.get(Parameter::Dy).unwrap() - 0.01 * shrink(rho)).abs() < 1e-12);
+        assert!((c.interval_95.get(Parameter::Dy).unwrap() - 0.02 * shrink(rho)).abs() < 1e-12);
+        // independent errors: σ/√K; wholly common ones: σ, no gain
+        for rho in [0.0, 1.0] {
+            let cals: Vec<Calibration> = dx.iter().map(|&d| snapshot(d, 0.01)).collect();
+            let refs: Vec<&Calibration> = cals.iter().collect();
+            let params = CombineParams {
+                snapshot_correlation: rho,
+                ..CombineParams::default()
+            };
+            let c = combine_snapshots(&refs, &params).unwrap();
+            let dy = c.uncertainty.get(Parameter::Dy).unwrap();
+            assert!((dy - 0.01 * shrink(rho)).abs() < 1e-12, "ρ {rho}: {dy}");
+        }
+        // the median, and the inverse-variance mean (equal σ: the mean)
+        assert!((combined(&dx, 0.01, Centre::Median).parameters.dx - 0.3).abs() < 1e-12);
+        assert!((combined(&dx, 0.01, Centre::InverseVariance).parameters.dx - 0.4).abs() < 1e-12);
+        // dx disagrees far beyond ±0.01, dy agrees
+        let spread = c.snapshots.as_ref().unwrap();
+        let of = |p| {
+            spread
+                .consistency
+                .iter()
+                .find(|c| c.parameter == p)
+                .unwrap()
+        };
+        assert!(of(Parameter::Dx).disagree && of(Parameter::Dx).p_value < 1e-6);
+        assert!(!of(Parameter::Dy).disagree);
+        assert_eq!(spread.parameters.len(), 5);
+        assert_eq!(c.stages.len(), 5);
+        assert_eq!(c.evaluations, 50);
+    }
+
+    /// Snapshots whose stated errors are 10× too small: the scatter term
+    /// makes the 95 % interval cover about 95 % and the 1σ about 68 %
+    /// (Student's t at K − 1 dof); honest stated errors are flagged as
+    /// disagreeing about as often as the test's level says.
+    #[test]
+    fn the_combined_intervals_cover_when_the_stated_errors_do_not() {
+        let mut rng = Rng::new(7);
+        let trials = 4000;
+        let (mut in_95, mut in_1, mut flagged) = (0, 0, 0);
+        for _ in 0..trials {
+            let dx: Vec<f64> = (0..5).map(|_| 0.1 * rng.normal()).collect();
+            let c = combined(&dx, 0.01, Centre::Mean);
+            let e = c.parameters.dx.abs();
+            in_95 += usize::from(e <= c.interval_95.get(Parameter::Dx).unwrap());
+            in_1 += usize::from(e <= c.uncertainty.get(Parameter::Dx).unwrap());
+            let honest = combined(&dx, 0.1, Centre::Mean);
+            let spread = honest.snapshots.unwrap();
+            let dx = spread
+                .consistency
+                .iter()
+                .find(|c| c.parameter == Parameter::Dx);
+            flagged += usize::from(dx.unwrap().disagree);
+        }
+        let share = |n: usize| n as f64 / trials as f64;
+        assert!(
+            (share(in_95) - 0.95).abs() < 0.015,
+            "95 %: {}",
+            share(in_95)
+        );
+        assert!((share(in_1) - 0.683).abs() < 0.03, "1σ: {}", share(in_1));
+        assert!(share(flagged) < 0.02, "flagged {}", share(flagged));
+    }
+
+    #[test]
+    fn combining_refuses_one_snapshot_and_mixed_instruments() {
+        let a = snapshot(0.0, 0.01);
+        assert!(combine_snapshots(&[&a], &CombineParams::default()).is_err());
+        let mut b = snapshot(0.1, 0.01);
+        b.model = DispersionModel::Subpixel;
+        let e = combine_snapshots(&[&a, &b], &CombineParams::default()).unwrap_err();
+        assert!(e.to_string().contains("snapshot 1"), "{e}");
+        let mut c = snapshot(0.1, 0.01);
+        c.parameters.a2 = 0.001;
+        assert!(combine_snapshots(&[&a, &c], &CombineParams::default()).is_err());
+    }
+
+    /// A trade-off two of three snapshots named is kept, its correlation
+    /// their mean; one named once is dropped.
+    #[test]
+    fn the_trade_offs_kept_are_those_half_the_snapshots_named() {
+        let pair = |a, b, correlation| TradeOff { a, b, correlation };
+        let mut cals: Vec<Calibration> = (0..3).map(|i| snapshot(i as f64, 0.01)).collect();
+        cals[0].trade_offs = vec![pair(Parameter::Dy, Parameter::AlphaDeg, -0.9)];
+        cals[1].trade_offs = vec![
+            pair(Parameter::Dy, Parameter::AlphaDeg, -0.8),
+            pair(Parameter::Dx, Parameter::A1, -0.85),
+        ];
+        let refs: Vec<&Calibration> = cals.iter().collect();
+        let c = combine_snapshots(&refs, &CombineParams::default()).unwrap();
+        assert_eq!(c.trade_offs.len(), 1);
+        assert_eq!(c.trade_offs[0].a, Parameter::Dy);
+        assert!((c.trade_offs[0].correlation + 0.85).abs() < 1e-12);
+    }
+
+    /// The reconstruction σ is the snapshots' mean where any had the
+    /// model's own; the record reads back as it was written.
+    #[test]
+    fn the_combination_is_a_calibration_record() {
+        let mut cals: Vec<Calibration> = (0..2).map(|i| snapshot(i as f64, 0.01)).collect();
+        cals[0].model_blur_sigma_px = Some(0.4);
+        let refs: Vec<&Calibration> = cals.iter().collect();
+        let c = combine_snapshots(&refs, &CombineParams::default()).unwrap();
+        assert!((c.model_blur_sigma_px.unwrap() - 0.45).abs() < 1e-12);
+        assert!((c.reconstruction_parameters().blur_sigma_px - 0.45).abs() < 1e-12);
+        let json = serde_json::to_string(&c).unwrap();
+        let back: Calibration = serde_json::from_str(&json).unwrap();
+        assert_eq!(serde_json::to_string(&back).unwrap(), json);
+        assert_eq!(back.snapshots, c.snapshots);
+    }
+}
