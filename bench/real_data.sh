@@ -2,7 +2,9 @@
 # Self-calibration on the five real TSA-Net snapshots (660×714, 660×660 mask):
 # calibrate each, reconstruct with GAP-TV under the nominal and the calibrated
 # model, keep the calibration JSON and both previews in bench/results/real/,
-# and write bench/results/real/README.md (table of parameters and residuals).
+# combine the five calibrations (one camera: `cassi combine`, its printout in
+# combined.<preset>.txt), and write bench/results/real/README.<preset>.md (table of
+# parameters and residuals).
 #
 # Run from the repository root: bench/real_data.sh [--preset default|paper]
 set -euo pipefail
@@ -28,5 +30,8 @@ for meas in "$data"/scene*.mat; do
   cp "$work/$name.nominal.json" "$out/$name.nominal.recon.json"
   cp "$work/$name.calibrated.json" "$out/$name.$preset.calibrated.recon.json"
 done
+# one camera, five snapshots: their calibrations combined, and whether they agree
+"$cassi" combine "$out"/scene*."$preset".calib.json -o "$out/combined.$preset.calib.json" \
+  2> "$out/combined.$preset.txt"
 python3 bench/real_data_table.py "$out" "$preset" > "$out/README.$preset.md"
 echo "wrote $out/README.$preset.md"

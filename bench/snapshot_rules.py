@@ -11,10 +11,13 @@ and the coverage of the 1σ and 95 % bars. The stated errors are combined
 as correlated between snapshots at each `--rho=R` (default 0 and 0.5). `--check` also recomputes the
 shipped rule (`cassi_core::calib::combine_snapshots`, its default) and
 compares it with the record's `snapshots.instruments` (the code and this
-script agree).
+script agree). Last, the shipped rule on every subset of k of each
+instrument's snapshots (k = 1: the snapshots alone, their own errors), with
+the record's rule or `--centre` and each `--rho`.
 
-Usage: python3 bench/snapshot_rules.py RECORD.json [RECORD.json ...] [--rho=R ...] [--check]
+Usage: python3 bench/snapshot_rules.py RECORD.json [RECORD.json ...] [--rho=R ...] [--centre=mean|median|inverse_variance] [--check]
 """
+import itertools
 import json
 import math
 import sys
@@ -84,13 +87,51 @@ def instruments(records):
     return groups
 
 
+def subsets(groups, tol, rule, rho):
+    """The rule on every subset of k of each instrument's snapshots."""
+    print(f"\n== subsets of k snapshots, centre {rule['centre']}, error bar larger, snapshot correlation {rho}")
+    for kind in sorted({cases[0]["kind"] for cases in groups.values()}):
+        members = [cases for cases in groups.values() if cases[0]["kind"] == kind]
+        for k in range(1, max(len(c) for c in members) + 1):
+            n = allw = 0
+            c1 = {p: 0 for p in PARAMS}
+            c95 = {p: 0 for p in PARAMS}
+            for cases in members:
+                for subset in itertools.combinations(cases, k):
+                    n += 1
+                    truth = subset[0]["truth"]
+                    ok = True
+                    for p in PARAMS:
+                        if k == 1:
+                            c = subset[0]
+                            v, s1, s95 = c["estimate"][p], c["uncertainty"][p], c["interval_95"][p]
+                        else:
+                            v, s1, s95 = combine(
+                                [c["estimate"][p] for c in subset],
+                                [c["uncertainty"][p] for c in subset],
+                                [c["interval_95"][p] for c in subset],
+                                rule["centre"],
+                                "larger",
+                                rho,
+                            )
+                        e = abs(v - truth[p])
+                        ok &= e <= tol[p]
+                        c1[p] += e <= s1
+                        c95[p] += e <= s95
+                    allw += ok
+            cov = lambda c: " ".join(f"{p.split('_')[0]} {100 * c[p] / n:.0f}" for p in PARAMS)
+            print(f"  {kind:<13} k {k}: {n:>4} combinations, all six within {100 * allw / n:5.1f} %;"
+                  f" 1σ cov % {cov(c1)}; 95 % cov % {cov(c95)}")
+
+
 def main():
     args = [a for a in sys.argv[1:] if not a.startswith("--")]
     if not args:
         sys.exit(__doc__)
     groups = instruments(args)
     tol = json.load(open(args[0]))["tolerances"]
-    rhos = [float(a.split("=", 1)[1]) for a in sys.argv[1:] if a.startswith("--rho=")] or [0.0, 0.5]
+    explicit = [float(a.split("=", 1)[1]) for a in sys.argv[1:] if a.startswith("--rho=")]
+    rhos = explicit or [0.0, 0.5]
     for centre, bar, rho in [(c, b, r) for c in ["mean", "inverse_variance", "median"]
                              for b in ["stated", "scatter", "larger"] for r in rhos]:
         if bar == "scatter" and rho != rhos[0]:
@@ -136,6 +177,15 @@ def main():
             w = sum(c["within_tolerance"][p] for c in cases)
             rmse = math.sqrt(sum(c["error"][p] ** 2 for c in cases) / n)
             print(f"    {p:<14} within {w:>3}/{n}  RMSE {rmse:.4f}")
+    # how the shipped rule fares with fewer snapshots: every subset of k of
+    # an instrument's snapshots, k = 2 … K (each subset one combination)
+    d = json.load(open(args[0]))
+    rule = (d.get("snapshots") or {}).get("rule") or {"centre": "mean", "snapshot_correlation": 0.5}
+    centres = [a.split("=", 1)[1] for a in sys.argv[1:] if a.startswith("--centre=")]
+    if centres:
+        rule = dict(rule, centre=centres[0])
+    for rho in explicit or [rule.get("snapshot_correlation", 0.0)]:
+        subsets(groups, tol, rule, rho)
     if "--check" in sys.argv:
         worst = 0.0
         for path in args:
