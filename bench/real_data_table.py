@@ -60,7 +60,7 @@ print("| scene | " + " | ".join(h for _, h, _ in PARAMS)
 print("|---|" + "---|" * (len(PARAMS) + 5))
 values = {k: [] for k, _, _ in PARAMS}
 trade = []
-for calib in sorted(out.glob(f"*.{preset}.calib.json")):
+for calib in sorted(out.glob(f"scene*.{preset}.calib.json")):
     name = calib.name.split(".")[0]
     c = json.loads(calib.read_text())
     p, u, w = c["parameters"], c.get("uncertainty", {}), c.get("interval_95", {})
@@ -91,3 +91,19 @@ if trade:
     print("\nParameters the data pin only in combination (error correlation ≥ 0.8):\n")
     for t in trade:
         print(f"- {t}")
+combined = out / f"combined.{preset}.calib.json"
+if combined.exists():
+    c = json.loads(combined.read_text())
+    p, u, w = c["parameters"], c.get("uncertainty", {}), c.get("interval_95", {})
+    print(f"\nThe five combined (`cassi combine`: each parameter the snapshots' median, ± the larger of "
+          f"their stated errors combined and their scatter; [{combined.name}]({combined.name}), "
+          f"printout in combined.{preset}.txt):\n")
+    print("| | " + " | ".join(h for _, h, _ in PARAMS) + " |")
+    print("|---|" + "---|" * len(PARAMS))
+    print("| combined | " + " | ".join(cell(p.get(k), u.get(k), w.get(k), d) for k, _, d in PARAMS) + " |")
+    apart = [x for x in c.get("snapshots", {}).get("consistency", []) if x["disagree"]]
+    for x in apart:
+        print(f"\n{x['parameter']}: the snapshots disagree beyond their own error bars (χ² {x['chi_squared']:.1f} "
+              f"on {x['dof']} dof, p {x['p_value']:.1e}; spread {x['spread']:.3f}).")
+    if not apart:
+        print("\nThe snapshots agree within their own error bars on every parameter.")
