@@ -192,8 +192,9 @@ def calibrate(
 
 def combine_calibrations(calibrations: List[Calibration]) -> Calibration:
     """Several snapshots' calibrations of one instrument combined: each parameter
-    the snapshots' mean, its error the larger of their stated errors combined and
-    their scatter (Student's t); `snapshots` on the result says where they agree."""
+    the snapshots' median, its error the larger of their stated errors combined
+    (correlated at 0.5) and their scatter (Student's t); `snapshots` on the result
+    says where they agree."""
 
 @overload
 def reconstruct(

@@ -222,12 +222,14 @@ fn value_error_here(msg: String) -> PyErr {
     Python::attach(|py| value_error(py, msg))
 }
 
-/// Several snapshots' calibrations of one instrument (the same mask, stride
-/// and model; different scenes) combined into one: each parameter the
-/// snapshots' mean, its standard error and 95 % half-width the larger of
-/// the snapshots' stated errors combined as independent and their scatter
-/// (Student's t at K − 1 dof). The result's `snapshots` holds the answers
-/// and, per parameter, whether they agree within their error bars.
+/// Several snapshots' calibrations of one instrument (the same mask,
+/// stride, model and preset; different scenes) combined into one: each
+/// parameter the snapshots' median, its standard error and 95 % half-width
+/// the larger of the snapshots' stated errors combined (as correlated at
+/// 0.5 between snapshots: part of each one's error is the instrument's) and
+/// their scatter (Student's t at K − 1 dof). The result's `snapshots` holds
+/// the answers and, per parameter, whether they agree within their error
+/// bars (a χ² test at p < 0.01).
 ///
 /// Args:
 ///     calibrations: two or more Calibration (from `calibrate`, or
@@ -238,7 +240,7 @@ fn value_error_here(msg: String) -> PyErr {
 ///
 /// Raises:
 ///     InputError (a ValueError): fewer than two, or calibrations of
-///         different models or held curvatures (named by position).
+///         different models, presets or held curvatures (named by position).
 #[pyfunction]
 pub fn combine_calibrations(
     py: Python<'_>,

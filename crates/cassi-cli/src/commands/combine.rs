@@ -16,8 +16,8 @@ use crate::report::Reporter;
 #[derive(Args)]
 pub struct CombineArgs {
     /// Two or more calibration files (`cassi calibrate -o`), each of one
-    /// snapshot of the same instrument — the same mask file, stride and
-    /// model; the scenes should differ: a scene's bias is what combining
+    /// snapshot of the same instrument — the same mask file, stride, model
+    /// and preset; the scenes should differ: a scene's bias is what combining
     /// averages.
     #[arg(required = true, num_args = 2..)]
     pub calibrations: Vec<PathBuf>,

@@ -100,8 +100,8 @@ struct Combined {
     interval_95: f64,
 }
 
-/// `calibrations` (two or more, of one instrument: the same model and held
-/// curvature) combined into one [`Calibration`]: each calibrated parameter
+/// `calibrations` (two or more, of one instrument: the same model, held
+/// curvature and preset) combined into one [`Calibration`]: each calibrated parameter
 /// centred as `params` says (by default the median), with the larger of
 /// two error bars — the snapshots' stated errors combined as correlated at
 /// [`CombineParams::snapshot_correlation`] (σ √((1 + ρ(K − 1))/K) for the
@@ -131,6 +131,16 @@ pub fn combine_snapshots(
                 reason: format!(
                     "model {:?}, snapshot 0's {:?}: one instrument, one model",
                     c.model, first.model
+                ),
+            });
+        }
+        if c.preset != first.preset {
+            return Err(CassiError::Meaningless {
+                what: format!("snapshot {i}'s calibration"),
+                reason: format!(
+                    "preset {:?}, snapshot 0's {:?}: their error bars mean different things; \
+                     calibrate every snapshot with one preset",
+                    c.preset, first.preset
                 ),
             });
         }
@@ -469,6 +479,10 @@ mod tests {
         let mut c = snapshot(0.1, 0.01);
         c.parameters.a2 = 0.001;
         assert!(combine_snapshots(&[&a, &c], &CombineParams::default()).is_err());
+        let mut d = snapshot(0.1, 0.01);
+        d.preset = "paper".into();
+        let e = combine_snapshots(&[&a, &d], &CombineParams::default()).unwrap_err();
+        assert!(e.to_string().contains("preset"), "{e}");
     }
 
     /// A trade-off two of three snapshots named is kept, its correlation
