@@ -109,9 +109,10 @@ struct Combined {
 /// standard deviation, scaled by Student's t at K − 1 degrees of freedom
 /// for 68.27 % and 95 %); the median's both √(π/2) the mean's. The
 /// stages are the snapshots' answers ("snapshot i"); σ to reconstruct with
-/// is the mean of theirs; the pairs named are those at least half the
-/// snapshots named. Scores are the snapshots' means (each on its own
-/// measurement, so not comparable with a single calibration's).
+/// is theirs centred alike (the median, or the mean); the pairs named are
+/// those at least half the snapshots named. Scores are the snapshots'
+/// means (each on its own measurement, so not comparable with a single
+/// calibration's).
 pub fn combine_snapshots(
     calibrations: &[&Calibration],
     params: &CombineParams,
@@ -178,7 +179,10 @@ pub fn combine_snapshots(
     let model_blur_sigma_px = calibrations
         .iter()
         .any(|c| c.model_blur_sigma_px.is_some())
-        .then(|| mean(&reconstruction));
+        .then(|| match params.centre {
+            Centre::Median => median(&reconstruction),
+            Centre::Mean | Centre::InverseVariance => mean(&reconstruction),
+        });
     let stages = calibrations
         .iter()
         .enumerate()
@@ -503,8 +507,9 @@ mod tests {
         assert!((c.trade_offs[0].correlation + 0.85).abs() < 1e-12);
     }
 
-    /// The reconstruction σ is the snapshots' mean where any had the
-    /// model's own; the record reads back as it was written.
+    /// The reconstruction σ is the snapshots' centre (two: their mean)
+    /// where any had the model's own; the record reads back as it was
+    /// written.
     #[test]
     fn the_combination_is_a_calibration_record() {
         let mut cals: Vec<Calibration> = (0..2).map(|i| snapshot(i as f64, 0.01)).collect();
