@@ -32,6 +32,6 @@ for meas in "$data"/scene*.mat; do
 done
 # one camera, five snapshots: their calibrations combined, and whether they agree
 "$cassi" combine "$out"/scene*."$preset".calib.json -o "$out/combined.$preset.calib.json" \
-  2> "$out/combined.$preset.txt"
+  > "$out/combined.$preset.txt"
 python3 bench/real_data_table.py "$out" "$preset" > "$out/README.$preset.md"
 echo "wrote $out/README.$preset.md"
