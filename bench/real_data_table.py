@@ -102,8 +102,12 @@ if combined.exists():
     print("|---|" + "---|" * len(PARAMS))
     print("| combined | " + " | ".join(cell(p.get(k), u.get(k), w.get(k), d) for k, _, d in PARAMS) + " |")
     apart = [x for x in c.get("snapshots", {}).get("consistency", []) if x["disagree"]]
+    # the combination's snapshots are the scene files in sorted order (real_data.sh's glob)
+    names = [f.name.split(".")[0] for f in sorted(out.glob(f"scene*.{preset}.calib.json"))]
     for x in apart:
+        far = names[x["farthest"]] if "farthest" in x and x["farthest"] < len(names) else "?"
         print(f"\n{x['parameter']}: the snapshots disagree beyond their own error bars (χ² {x['chi_squared']:.1f} "
-              f"on {x['dof']} dof, p {x['p_value']:.1e}; spread {x['spread']:.3f}).")
+              f"on {x['dof']} dof, p {x['p_value']:.1e}; spread {x['spread']:.3f}); most of all {far}, "
+              f"without which the others agree best.")
     if not apart:
         print("\nThe snapshots agree within their own error bars on every parameter.")

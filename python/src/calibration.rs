@@ -143,7 +143,9 @@ impl PyCalibration {
     /// Where this calibration combines several snapshots
     /// (`combine_calibrations`): {"parameters": [each snapshot's dict],
     /// "consistency": [{parameter, chi_squared, dof, p_value, spread,
-    /// disagree} per parameter]}; None for a single snapshot's.
+    /// disagree, farthest} per parameter]} (farthest: the index of the
+    /// snapshot without which the others agree best); None for a single
+    /// snapshot's.
     #[getter]
     fn snapshots<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
         let Some(spread) = &self.inner.snapshots else {
@@ -165,6 +167,7 @@ impl PyCalibration {
             e.set_item("p_value", c.p_value)?;
             e.set_item("spread", c.spread)?;
             e.set_item("disagree", c.disagree)?;
+            e.set_item("farthest", c.farthest)?;
             consistency.append(e)?;
         }
         d.set_item("consistency", consistency)?;

@@ -75,7 +75,7 @@ pub fn run(args: &CombineArgs, reporter: &Reporter) -> anyhow::Result<()> {
         snapshots.len(),
         Parameter::format_all(&combined.parameters)
     );
-    text += &combined_lines(&combined);
+    text += &combined_lines(&combined, &args.calibrations, &snapshots);
     text += &format!("→ {}", args.output.display());
     reporter.say(&text);
     reporter.emit(&serde_json::to_value(&combined)?);
@@ -83,8 +83,10 @@ pub fn run(args: &CombineArgs, reporter: &Reporter) -> anyhow::Result<()> {
 }
 
 /// The combined errors, then where the snapshots disagree beyond their
-/// own error bars (the combined ± is then their scatter's).
-fn combined_lines(cal: &Calibration) -> String {
+/// own error bars (the combined ± is then their scatter's), naming the
+/// file farthest out (`files` and `snapshots`: the snapshots' calibration
+/// files and calibrations, in order).
+fn combined_lines(cal: &Calibration, files: &[PathBuf], snapshots: &[Calibration]) -> String {
     let mut out = estimate_lines(cal);
     let Some(spread) = &cal.snapshots else {
         return out;
@@ -96,16 +98,27 @@ fn combined_lines(cal: &Calibration) -> String {
     for c in disagree {
         let p = c.parameter;
         let prec = p.decimals();
+        // the snapshot farthest out, by file, with its own answer and error
+        let farthest = match (files.get(c.farthest), snapshots.get(c.farthest)) {
+            (Some(f), Some(s)) => format!(
+                ", most of all {} ({} ± {:.prec$} {})",
+                f.display(),
+                p.format(p.get(&s.parameters)),
+                s.uncertainty.get(p).unwrap_or(f64::NAN),
+                p.unit()
+            ),
+            _ => String::new(),
+        };
         out += &format!(
             "  {}: the snapshots disagree beyond their error bars (spread {:.prec$} {}, χ² {:.1} on \
-             {} dof, p {:.1e}): each snapshot's scene biases it differently; the combined ± is \
-             their scatter's\n",
+             {} dof, p {:.1e}){farthest}: a scene's bias, or an error bar too small; the combined \
+             ± is their scatter's\n",
             p.name(),
             c.spread,
             p.unit(),
             c.chi_squared,
             c.dof,
-            c.p_value
+            c.p_value,
         );
     }
     out
@@ -124,15 +137,24 @@ mod tests {
     /// Disagreeing snapshots are named per parameter; agreeing ones say so.
     #[test]
     fn the_lines_name_the_parameters_the_snapshots_disagree_on() {
-        let apart = [snapshot(0.0), snapshot(0.5), snapshot(1.0)];
+        let apart = [snapshot(0.0), snapshot(0.1), snapshot(1.0)];
         let refs: Vec<&Calibration> = apart.iter().collect();
         let c = combine_snapshots(&refs, &CombineParams::default()).unwrap();
-        let text = combined_lines(&c);
+        let files: Vec<PathBuf> = ["a.json", "b.json", "c.json"].map(PathBuf::from).into();
+        let text = combined_lines(&c, &files, &apart);
         assert!(text.contains("dx: the snapshots disagree"), "{text}");
+        // without c the others agree best
+        assert!(
+            text.contains("most of all c.json (+1.000 ± 0.010 px)"),
+            "{text}"
+        );
         assert!(!text.contains("dy: the snapshots disagree"), "{text}");
         let alike = [snapshot(0.0), snapshot(0.001)];
         let refs: Vec<&Calibration> = alike.iter().collect();
         let c = combine_snapshots(&refs, &CombineParams::default()).unwrap();
-        assert!(combined_lines(&c).contains("agree within their error bars on every parameter"));
+        assert!(
+            combined_lines(&c, &[], &[])
+                .contains("agree within their error bars on every parameter")
+        );
     }
 }

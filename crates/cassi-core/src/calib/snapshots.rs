@@ -79,6 +79,11 @@ pub struct Consistency {
     pub p_value: f64,
     /// The snapshots' standard deviation.
     pub spread: f64,
+    /// The snapshot (its index) without which the others agree best (the
+    /// smallest χ² of the rest): the one farthest out. Not the largest
+    /// term of `chi_squared`: a snapshot with too small an error bar pulls
+    /// x̄_w to itself and makes the others look far.
+    pub farthest: usize,
     /// `p_value` < [`CombineParams::disagree_below_p`].
     pub disagree: bool,
 }
@@ -282,22 +287,36 @@ fn combine(
 /// The coverage of ±1σ of a normal distribution.
 const ONE_SIGMA: f64 = 0.682_689_492_137_086;
 
+/// Σ wᵢ (xᵢ − x̄_w)² over the snapshots `keep` says.
+fn chi_squared_of(values: &[f64], w: &[f64], keep: impl Fn(usize) -> bool) -> f64 {
+    let (mut sum, mut weight) = (0.0, 0.0);
+    for i in (0..values.len()).filter(|&i| keep(i)) {
+        sum += w[i] * values[i];
+        weight += w[i];
+    }
+    let centre = sum / weight;
+    (0..values.len())
+        .filter(|&i| keep(i))
+        .map(|i| w[i] * (values[i] - centre).powi(2))
+        .sum()
+}
+
 fn agreement(p: Parameter, values: &[f64], sigmas: &[f64], below_p: f64) -> Consistency {
     let w: Vec<f64> = sigmas.iter().map(|s| 1.0 / (s * s)).collect();
-    let centre = values.iter().zip(&w).map(|(x, w)| x * w).sum::<f64>() / w.iter().sum::<f64>();
-    let chi_squared: f64 = values
-        .iter()
-        .zip(&w)
-        .map(|(x, w)| w * (x - centre).powi(2))
-        .sum();
+    let chi_squared = chi_squared_of(values, &w, |_| true);
     let dof = values.len() - 1;
     let p_value = chi_squared_sf(chi_squared, dof as f64);
+    let without = |i: usize| chi_squared_of(values, &w, |j| j != i);
+    let farthest = (0..values.len())
+        .min_by(|&a, &b| without(a).total_cmp(&without(b)))
+        .unwrap_or(0);
     Consistency {
         parameter: p,
         chi_squared,
         dof,
         p_value,
         spread: sd(values),
+        farthest,
         disagree: p_value < below_p,
     }
 }
@@ -433,10 +452,34 @@ mod tests {
                 .unwrap()
         };
         assert!(of(Parameter::Dx).disagree && of(Parameter::Dx).p_value < 1e-6);
+        // without dx 1.0 the others agree best
+        assert_eq!(of(Parameter::Dx).farthest, 4);
         assert!(!of(Parameter::Dy).disagree);
         assert_eq!(spread.parameters.len(), 5);
         assert_eq!(c.stages.len(), 5);
         assert_eq!(c.evaluations, 50);
+    }
+
+    /// One snapshot far out with a tiny error bar pulls the weighted centre
+    /// to itself; it is still the one named farthest out.
+    #[test]
+    fn the_snapshot_named_farthest_out_is_the_one_the_rest_disagree_with() {
+        let mut cals: Vec<Calibration> = [0.0, 0.05, -0.05, 0.02]
+            .iter()
+            .map(|&d| snapshot(d, 0.1))
+            .collect();
+        cals.push(snapshot(-0.9, 0.003));
+        let refs: Vec<&Calibration> = cals.iter().collect();
+        let c = combine_snapshots(&refs, &CombineParams::default()).unwrap();
+        let spread = c.snapshots.unwrap();
+        let dx = spread
+            .consistency
+            .iter()
+            .find(|c| c.parameter == Parameter::Dx);
+        assert!(
+            dx.is_some_and(|dx| dx.disagree && dx.farthest == 4),
+            "{dx:?}"
+        );
     }
 
     /// Snapshots whose stated errors are 10× too small: the scatter term
