@@ -105,7 +105,8 @@ if combined.exists():
     # the combination's snapshots are the scene files in sorted order (real_data.sh's glob)
     names = [f.name.split(".")[0] for f in sorted(out.glob(f"scene*.{preset}.calib.json"))]
     for x in apart:
-        far = names[x["farthest"]] if "farthest" in x and x["farthest"] < len(names) else "?"
+        i = x.get("farthest")
+        far = names[i] if i is not None and i < len(names) else "?"
         print(f"\n{x['parameter']}: the snapshots disagree beyond their own error bars (χ² {x['chi_squared']:.1f} "
               f"on {x['dof']} dof, p {x['p_value']:.1e}; spread {x['spread']:.3f}); most of all {far}, "
               f"without which the others agree best.")

@@ -144,8 +144,8 @@ impl PyCalibration {
     /// (`combine_calibrations`): {"parameters": [each snapshot's dict],
     /// "consistency": [{parameter, chi_squared, dof, p_value, spread,
     /// disagree, farthest} per parameter]} (farthest: the index of the
-    /// snapshot without which the others agree best); None for a single
-    /// snapshot's.
+    /// snapshot without which the others agree best, None for two); None
+    /// for a single snapshot's.
     #[getter]
     fn snapshots<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
         let Some(spread) = &self.inner.snapshots else {

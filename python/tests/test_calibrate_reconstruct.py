@@ -111,7 +111,8 @@ def test_snapshots_of_one_instrument_combine_into_one_calibration(case):
     spread = both.snapshots
     assert spread["parameters"] == [c.parameters for c in cals]
     assert {c["parameter"] for c in spread["consistency"]} <= set(cassi.CALIBRATED_PARAMETERS)
-    assert all(c["farthest"] in (0, 1) for c in spread["consistency"])
+    # of two snapshots neither is farther out than the other
+    assert all(c["farthest"] is None for c in spread["consistency"])
     assert [s["name"] for s in both.stages] == ["snapshot 0", "snapshot 1"]
     again = cassi.Calibration.from_json(both.to_json())
     assert again.snapshots == spread

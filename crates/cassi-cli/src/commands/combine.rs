@@ -99,15 +99,16 @@ fn combined_lines(cal: &Calibration, files: &[PathBuf], snapshots: &[Calibration
         let p = c.parameter;
         let prec = p.decimals();
         // the snapshot farthest out, by file, with its own answer and error
-        let farthest = match (files.get(c.farthest), snapshots.get(c.farthest)) {
-            (Some(f), Some(s)) => format!(
+        let at = c.farthest.and_then(|i| files.get(i).zip(snapshots.get(i)));
+        let farthest = match at {
+            Some((f, s)) => format!(
                 ", most of all {} ({} ± {:.prec$} {})",
                 f.display(),
                 p.format(p.get(&s.parameters)),
                 s.uncertainty.get(p).unwrap_or(f64::NAN),
                 p.unit()
             ),
-            _ => String::new(),
+            None => String::new(),
         };
         out += &format!(
             "  {}: the snapshots disagree beyond their error bars (spread {:.prec$} {}, χ² {:.1} on \

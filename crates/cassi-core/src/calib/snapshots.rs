@@ -2,8 +2,8 @@
 //! into one answer. The single-snapshot errors are mostly the scene's
 //! (a red scene pins the red bands' positions, a textured one misplaces the
 //! mask along the dx–a1 ridge), so different scenes err differently and
-//! their mean averages the bias a single snapshot cannot see; their scatter
-//! measures it. The result is a [`Calibration`] (readable wherever one is)
+//! their median averages out the bias a single snapshot cannot see; their
+//! scatter measures it. The result is a [`Calibration`] (readable wherever one is)
 //! whose [`SnapshotSpread`] holds the snapshots' answers and whether they
 //! agree within their own error bars.
 
@@ -80,10 +80,11 @@ pub struct Consistency {
     /// The snapshots' standard deviation.
     pub spread: f64,
     /// The snapshot (its index) without which the others agree best (the
-    /// smallest χ² of the rest): the one farthest out. Not the largest
-    /// term of `chi_squared`: a snapshot with too small an error bar pulls
-    /// x̄_w to itself and makes the others look far.
-    pub farthest: usize,
+    /// smallest χ² of the rest): the one farthest out; `None` for two
+    /// snapshots, where either is. Not the largest term of `chi_squared`:
+    /// a snapshot with too small an error bar pulls x̄_w to itself and
+    /// makes the others look far.
+    pub farthest: Option<usize>,
     /// `p_value` < [`CombineParams::disagree_below_p`].
     pub disagree: bool,
 }
@@ -98,21 +99,26 @@ pub struct SnapshotSpread {
     pub consistency: Vec<Consistency>,
 }
 
-/// One parameter's combination: centre, standard error, 95 % half-width.
+/// One parameter's combination: centre, standard error, 95 % half-width
+/// (each where every snapshot stated one).
 struct Combined {
     value: f64,
-    standard: f64,
-    interval_95: f64,
+    standard: Option<f64>,
+    interval_95: Option<f64>,
 }
 
 /// `calibrations` (two or more, of one instrument: the same model, held
-/// curvature and preset) combined into one [`Calibration`]: each calibrated parameter
-/// centred as `params` says (by default the median), with the larger of
+/// curvature and preset) combined into one [`Calibration`]: each
+/// calibrated parameter centred as `params` says (by default the median),
+/// with the larger of
 /// two error bars — the snapshots' stated errors combined as correlated at
 /// [`CombineParams::snapshot_correlation`] (σ √((1 + ρ(K − 1))/K) for the
 /// mean of K equal σ) and their scatter (s/√K for the mean, s their
 /// standard deviation, scaled by Student's t at K − 1 degrees of freedom
-/// for 68.27 % and 95 %); the median's both √(π/2) the mean's. The
+/// for 68.27 % and 95 %); the median's both √(π/2) the mean's. A
+/// standard error (95 % half-width) only where every snapshot stated one:
+/// the combination states no error bar whose kind was not stated (the
+/// rounded model's a1, the paper preset's intervals). The
 /// stages are the snapshots' answers ("snapshot i"); σ to reconstruct with
 /// is theirs centred alike (the median, or the mean); the pairs named are
 /// those at least half the snapshots named. Scores are the snapshots'
@@ -170,8 +176,8 @@ pub fn combine_snapshots(
         let halves: Option<Vec<f64>> = calibrations.iter().map(|c| c.interval_95.get(p)).collect();
         let combined = combine(&values, sigmas.as_deref(), halves.as_deref(), params);
         p.set(&mut parameters, combined.value);
-        standard.0.insert(p, Some(combined.standard));
-        interval_95.0.insert(p, Some(combined.interval_95));
+        standard.0.insert(p, combined.standard);
+        interval_95.0.insert(p, combined.interval_95);
         if let Some(s) = sigmas.as_deref().filter(|s| s.iter().all(|&s| s > 0.0)) {
             consistency.push(agreement(p, &values, s, params.disagree_below_p));
         }
@@ -276,11 +282,10 @@ fn combine(
     };
     let t68 = student_t_two_sided(ONE_SIGMA, dof);
     let t95 = student_t_two_sided(0.95, dof);
-    let formal_1 = sigmas.map_or(0.0, formal);
     Combined {
         value,
-        standard: formal_1.max(t68 * scatter),
-        interval_95: halves.map_or(2.0 * formal_1, formal).max(t95 * scatter),
+        standard: sigmas.map(|s| formal(s).max(t68 * scatter)),
+        interval_95: halves.map(|h| formal(h).max(t95 * scatter)),
     }
 }
 
@@ -307,9 +312,10 @@ fn agreement(p: Parameter, values: &[f64], sigmas: &[f64], below_p: f64) -> Cons
     let dof = values.len() - 1;
     let p_value = chi_squared_sf(chi_squared, dof as f64);
     let without = |i: usize| chi_squared_of(values, &w, |j| j != i);
-    let farthest = (0..values.len())
-        .min_by(|&a, &b| without(a).total_cmp(&without(b)))
-        .unwrap_or(0);
+    // of two, either is as far out
+    let farthest = (values.len() > 2)
+        .then(|| (0..values.len()).min_by(|&a, &b| without(a).total_cmp(&without(b))))
+        .flatten();
     Consistency {
         parameter: p,
         chi_squared,
@@ -453,7 +459,7 @@ mod tests {
         };
         assert!(of(Parameter::Dx).disagree && of(Parameter::Dx).p_value < 1e-6);
         // without dx 1.0 the others agree best
-        assert_eq!(of(Parameter::Dx).farthest, 4);
+        assert_eq!(of(Parameter::Dx).farthest, Some(4));
         assert!(!of(Parameter::Dy).disagree);
         assert_eq!(spread.parameters.len(), 5);
         assert_eq!(c.stages.len(), 5);
@@ -477,7 +483,7 @@ mod tests {
             .iter()
             .find(|c| c.parameter == Parameter::Dx);
         assert!(
-            dx.is_some_and(|dx| dx.disagree && dx.farthest == 4),
+            dx.is_some_and(|dx| dx.disagree && dx.farthest == Some(4)),
             "{dx:?}"
         );
     }
@@ -530,6 +536,37 @@ mod tests {
         d.preset = "paper".into();
         let e = combine_snapshots(&[&a, &d], &CombineParams::default()).unwrap_err();
         assert!(e.to_string().contains("preset"), "{e}");
+    }
+
+    /// Where the snapshots stated no error bar of a kind (the rounded
+    /// model's a1, the paper preset's intervals) the combination states
+    /// none either, though their answers scatter.
+    #[test]
+    fn an_error_bar_the_snapshots_did_not_state_is_not_invented() {
+        let mut cals: Vec<Calibration> =
+            [0.0, 0.3, 0.7].iter().map(|&d| snapshot(d, 0.01)).collect();
+        for c in &mut cals {
+            c.interval_95 = Uncertainty::default();
+            c.uncertainty.0.insert(Parameter::A1, None);
+            c.parameters.a1 += c.parameters.dx / 100.0;
+        }
+        let refs: Vec<&Calibration> = cals.iter().collect();
+        let c = combine_snapshots(&refs, &CombineParams::default()).unwrap();
+        assert!(c.uncertainty.get(Parameter::Dx).is_some_and(|s| s > 0.0));
+        assert_eq!(c.uncertainty.get(Parameter::A1), None);
+        assert!(
+            Parameter::CALIBRATED
+                .iter()
+                .all(|&p| c.interval_95.get(p).is_none())
+        );
+        // nor is a1's agreement tested without its errors
+        let spread = c.snapshots.unwrap();
+        assert!(
+            spread
+                .consistency
+                .iter()
+                .all(|k| k.parameter != Parameter::A1)
+        );
     }
 
     /// A trade-off two of three snapshots named is kept, its correlation
