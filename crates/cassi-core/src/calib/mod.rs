@@ -17,6 +17,7 @@ mod detail_pass;
 pub(crate) mod gradient;
 mod grid;
 pub(crate) mod init;
+mod joint_fit;
 pub(crate) mod nelder_mead;
 mod nominal_start;
 mod objective;
@@ -51,6 +52,7 @@ pub use default::{
 };
 pub use detail_pass::{DetailPass, DetailSource};
 pub use gradient::Parameter;
+pub use joint_fit::{JointFit, joint_scene_fit};
 pub use nelder_mead::nelder_mead;
 pub use nominal_start::NominalStart;
 pub use paper::{GradientStage, PaperPreset, calibrate_paper};

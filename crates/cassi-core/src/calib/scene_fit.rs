@@ -307,7 +307,7 @@ fn difference_step(p: Parameter) -> f64 {
     }
 }
 
-fn settled_step(p: Parameter) -> f64 {
+pub(super) fn settled_step(p: Parameter) -> f64 {
     difference_step(p) / 5.0
 }
 
@@ -596,6 +596,17 @@ impl<'a> SceneFit<'a> {
         }
     }
 
+    /// ψ with its coarse scene solved as a first solve (`cold_solve`) from
+    /// `from` (or zero).
+    pub(crate) fn solve_cold(&self, psi: &Mismatch, from: Option<&[f32]>) -> Result<Solved> {
+        self.solve_with(psi, from, self.settings.cold_solve)
+    }
+
+    /// ‖H y‖² (weighted where the fit is): the score's denominator.
+    pub(crate) fn data_energy(&self) -> f64 {
+        self.data_energy
+    }
+
     /// ψ with its coarse scene solved by `params` from `from` (or zero).
     fn solve_with(
         &self,
@@ -796,7 +807,7 @@ pub(crate) fn fit_scene_from(
     scene: Option<&[f32]>,
     free: &[Parameter],
 ) -> Result<SceneFitResult> {
-    let first = fit.solve_with(start, scene, fit.settings.cold_solve)?;
+    let first = fit.solve_cold(start, scene)?;
     let found = minimise(
         &OverParameters { fit, free },
         first,
@@ -873,6 +884,16 @@ pub(crate) mod tests {
     const SIZE: usize = 128;
 
     pub(crate) fn measured(truth: &Mismatch, noise: bool) -> (crate::Measurement, crate::Mask) {
+        measured_scene(truth, noise, 5)
+    }
+
+    /// [`measured`] of the synthetic scene drawn from `scene_seed` (the
+    /// noise's seed follows it).
+    pub(crate) fn measured_scene(
+        truth: &Mismatch,
+        noise: bool,
+        scene_seed: u64,
+    ) -> (crate::Measurement, crate::Mask) {
         let (rows, cols, bands) = (SIZE, SIZE, BANDS);
         let wl: Vec<f64> = (0..bands)
             .map(|k| 450.0 + 200.0 / bands as f64 * k as f64)
@@ -881,7 +902,7 @@ pub(crate) mod tests {
             rows,
             cols,
             wavelengths_nm: wl.clone(),
-            seed: 5,
+            seed: scene_seed,
         })
         .unwrap();
         let mask = random_binary_mask(rows, cols, 0.5, 11).unwrap();
@@ -893,7 +914,7 @@ pub(crate) mod tests {
         let noise = noise.then_some(NoiseModel {
             photon_peak: Some(2e4),
             read_noise: 3.0,
-            seed: 2,
+            seed: scene_seed.wrapping_sub(3),
         });
         let y = simulate_physical(&scene, &mask, &wl, truth, &spec, noise.as_ref()).unwrap();
         (y, mask)

@@ -57,7 +57,7 @@
 //! [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene]
 //! [--fine-pass-free pose-and-slope|geometry|all] [--scene-cell PX] [--scene-nodes N]
 //! [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv ITERATIONS] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N]]
-//! [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--out PATH] [--scene-transform none|flip-cols|flip-rows|transpose] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--model-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--detail-cold-above PX|none] [--blur-bootstrap crisp-cells|dispersed-mask [--blur-bootstrap-noise] [--blur-bootstrap-residual] [--blur-bootstrap-min PX]] [--snapshots N] [--verbose]`
+//! [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--out PATH] [--scene-transform none|flip-cols|flip-rows|transpose] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--model-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--detail-cold-above PX|none] [--blur-bootstrap crisp-cells|dispersed-mask [--blur-bootstrap-noise] [--blur-bootstrap-residual] [--blur-bootstrap-min PX]] [--snapshots N [--joint]] [--verbose]`
 //! (`--no-texture`: the default preset without its texture fit, as it was
 //! before issue #14 — the "before" row; `--no-scene-fit`: without its
 //! scene fit, ending in the texture fit as the records `*_texture.json`
@@ -237,6 +237,9 @@ struct Args {
     /// measuring every scene of the half, their snapshots combined
     /// ([`snapshots`]).
     snapshots: Option<usize>,
+    /// `--joint` (with `--snapshots`): each instrument's snapshots also
+    /// fitted as one (`calib::joint_scene_fit`) from their combination.
+    joint: bool,
 }
 
 /// The masks of a run: the one the simulated instrument carries and the
@@ -378,7 +381,7 @@ impl SceneTransform {
 const USAGE: &str = "calibrate [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] \
                      [--no-aligned] [--no-inverse-crime] [--no-wide-blur] [--model rounded|subpixel|dispersed-mask|crisp-cells] \
                      [--preset NAME] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all] [--scene-cell PX] [--scene-nodes N] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv N] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N]] [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--out PATH] \
-                     [--scene-transform none|flip-cols|flip-rows|transpose] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--snapshots N] [--verbose]";
+                     [--scene-transform none|flip-cols|flip-rows|transpose] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--snapshots N [--joint]] [--verbose]";
 
 fn parse_args(argv: &[String]) -> Result<Args> {
     let mut half_name = "held-out".to_string();
@@ -420,6 +423,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
     let mut blur_bootstrap_residual = false;
     let mut blur_bootstrap_min: Option<f64> = None;
     let mut snapshots_n: Option<usize> = None;
+    let mut joint = false;
     let mut it = argv.iter();
     while let Some(flag) = it.next() {
         let mut value = || {
@@ -658,6 +662,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
                 );
                 snapshots_n = Some(n);
             }
+            "--joint" => joint = true,
             other => bail!("unknown argument '{other}'\nusage: {USAGE}"),
         }
     }
@@ -868,6 +873,16 @@ fn parse_args(argv: &[String]) -> Result<Args> {
         limits || limits_gap_tv.is_none(),
         "--limits-gap-tv: the limits are off (--no-limits)"
     );
+    let scene_fit_passes = match &preset {
+        Preset::Default(d) => d
+            .scene_fit
+            .is_some_and(|s| s.detail_pass.is_some() && s.fine_pass.is_some()),
+        Preset::Paper(_) => false,
+    };
+    ensure!(
+        !joint || (snapshots_n.is_some() && scene_fit_passes && model.is_subpixel()),
+        "--joint needs --snapshots N and the default preset with its scene fit's detail and fine passes"
+    );
     Ok(Args {
         halves,
         half_name,
@@ -892,6 +907,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
         mask_capture_px,
         mask_sharpen,
         snapshots: snapshots_n,
+        joint,
     })
 }
 
@@ -1660,6 +1676,8 @@ fn main() -> Result<()> {
     let t0 = Instant::now();
     let mut rows = Vec::new();
     let mut cals = Vec::new();
+    let mut measurements = Vec::new();
+    let mut bands = 0;
     for &half in &args.halves {
         for (index, si) in half_scenes(half, scenes.len(), args.scenes)
             .into_iter()
@@ -1681,6 +1699,17 @@ fn main() -> Result<()> {
                 if args.snapshots.is_some() {
                     cals.push(cal);
                 }
+                // the joint fit's data: the snapshot again (its noise seeded)
+                if args.joint {
+                    bands = scene.bands();
+                    measurements.push(measure(
+                        &case,
+                        &scene,
+                        &masks,
+                        Some(&noise(case.seed)),
+                        &args,
+                    )?);
+                }
             }
         }
     }
@@ -1688,7 +1717,15 @@ fn main() -> Result<()> {
     print_summary(&summary);
     let combined = match args.snapshots {
         Some(_) => {
-            let groups = snapshots::groups(&rows, &cals)?;
+            let joint = args.joint.then(|| snapshots::JointInputs {
+                measurements: &measurements,
+                mask: &masks.nominal,
+                model: args.model,
+                bands,
+                preset: texture_preset(&args)
+                    .expect("--joint is refused without the default preset"),
+            });
+            let groups = snapshots::groups(&rows, &cals, joint.as_ref())?;
             let summary = snapshots::summarise(&groups);
             eprintln!(
                 "snapshots combined: {}",

@@ -13,8 +13,14 @@
 
 use anyhow::{Result, ensure};
 use cassi_bench::physical_random_mismatch;
-use cassi_core::calib::{Calibration, CombineParams, combine_snapshots};
-use cassi_core::{Mismatch, Parameter};
+use std::time::Instant;
+
+use cassi_core::calib::{
+    Calibration, CalibrationProblem, CombineParams, DefaultPreset, combine_snapshots,
+    joint_scene_fit,
+};
+use cassi_core::optics::DispersionModel;
+use cassi_core::{Mask, Measurement, Mismatch, Parameter};
 use serde_json::{Value, json};
 
 use super::{
@@ -87,11 +93,70 @@ pub(super) fn scene_cases(
         .collect()
 }
 
+/// What `--joint` fits each instrument's snapshots with: their
+/// measurements (in the rows' order) and the calibration's setting.
+pub(super) struct JointInputs<'a> {
+    pub measurements: &'a [Measurement],
+    pub mask: &'a Mask,
+    pub model: DispersionModel,
+    /// The scenes' band count.
+    pub bands: usize,
+    pub preset: &'a DefaultPreset,
+}
+
+/// The instrument's snapshots (`members` of the rows) fitted as one from
+/// their combination: the geometry the joint fit's, σ the combination's
+/// (the joint fit holds the scene fit's own σ, from which it starts).
+fn joint_fit(
+    inputs: &JointInputs<'_>,
+    members: &[usize],
+    combined: &Calibration,
+) -> Result<(Mismatch, Mismatch, f64)> {
+    let problems = members
+        .iter()
+        .map(|&i| {
+            CalibrationProblem::nominal(
+                &inputs.measurements[i],
+                inputs.mask,
+                inputs.bands,
+                STRIDE,
+                inputs.model,
+            )
+        })
+        .collect::<cassi_core::Result<Vec<_>>>()?;
+    let settings = inputs
+        .preset
+        .scene_fit
+        .expect("--joint is refused without the scene fit");
+    let start = Mismatch {
+        blur_sigma_px: combined
+            .model_blur_sigma_px
+            .unwrap_or(combined.parameters.blur_sigma_px),
+        ..combined.parameters
+    };
+    let t0 = Instant::now();
+    let fit = joint_scene_fit(&problems, &settings, &inputs.preset.proxy, &start)?;
+    let answer = Mismatch {
+        blur_sigma_px: combined.parameters.blur_sigma_px,
+        ..fit.parameters
+    };
+    let detail = Mismatch {
+        blur_sigma_px: combined.parameters.blur_sigma_px,
+        ..fit.detail_pass
+    };
+    Ok((answer, detail, t0.elapsed().as_secs_f64()))
+}
+
 /// Each instrument's snapshots combined: one record per instrument, its
 /// truth, the combination's estimate, errors, stated uncertainty and the
-/// snapshots' consistency. `rows` and `cals` are the single-snapshot
-/// records and calibrations, in the same order.
-pub(super) fn groups(rows: &[Value], cals: &[Calibration]) -> Result<Vec<Value>> {
+/// snapshots' consistency; with `joint`, also their joint fit's estimate.
+/// `rows` and `cals` are the single-snapshot records and calibrations, in
+/// the same order.
+pub(super) fn groups(
+    rows: &[Value],
+    cals: &[Calibration],
+    joint: Option<&JointInputs<'_>>,
+) -> Result<Vec<Value>> {
     ensure!(rows.len() == cals.len(), "one calibration per snapshot");
     let mut seeds: Vec<u64> = rows
         .iter()
@@ -121,7 +186,39 @@ pub(super) fn groups(rows: &[Value], cals: &[Calibration]) -> Result<Vec<Value>>
                 .collect::<Vec<_>>()
                 .join("  ")
         );
+        let judged = |est: &Mismatch| {
+            let err = |p: Parameter| p.get(est) - truth(p);
+            json!({
+                "estimate": per_parameter(|p| json!(p.get(est))),
+                "error": per_parameter(|p| json!(err(p))),
+                "within_tolerance": per_parameter(|p| json!(err(p).abs() <= tolerance(p))),
+                "all_within_tolerance": Parameter::CALIBRATED.iter().all(|&p| err(p).abs() <= tolerance(p)),
+            })
+        };
+        let joint = match joint {
+            Some(inputs) => {
+                let (answer, detail, seconds) = joint_fit(inputs, &members, &combined)?;
+                let mut record = judged(&answer);
+                record["detail_pass"] = judged(&detail);
+                record["seconds"] = json!(seconds);
+                eprintln!(
+                    "         joint fit err {} ({seconds:.1} s)",
+                    Parameter::CALIBRATED
+                        .iter()
+                        .map(|&p| format!(
+                            "{} {}",
+                            p.name(),
+                            fmt_signed(p, p.get(&answer) - truth(p))
+                        ))
+                        .collect::<Vec<_>>()
+                        .join("  ")
+                );
+                Some(record)
+            }
+            None => None,
+        };
         out.push(json!({
+            "joint": joint,
             "half": first["half"],
             "kind": first["kind"],
             "headline": first["headline"],
@@ -174,6 +271,17 @@ pub(super) fn summarise(groups: &[Value]) -> Value {
                 rows.iter().map(|r| r["snapshots_all_within"].as_u64().unwrap_or(0) as usize).sum(),
                 rows.iter().map(|r| r["snapshots"].as_u64().unwrap_or(0) as usize).sum(),
             ),
+            // `--joint`: the joint fits, judged alike
+            "joint": rows.iter().all(|r| !r["joint"].is_null()).then(|| {
+                let jerr = |r: &Value, p: Parameter| r["joint"]["error"][p.key()].as_f64().unwrap_or(f64::NAN).abs();
+                json!({
+                    "all_within_tolerance": share(count(&|r| r["joint"]["all_within_tolerance"] == json!(true)), n),
+                    "within_tolerance": per_parameter(|p| share(count(&|r| jerr(r, p) <= tolerance(p)), n)),
+                    "rmse": per_parameter(|p| {
+                        json!((rows.iter().map(|r| jerr(r, p).powi(2)).sum::<f64>() / n.max(1) as f64).sqrt())
+                    }),
+                })
+            }),
         })
     };
     let mut out = serde_json::Map::new();
