@@ -190,11 +190,21 @@ def calibrate(
     stages run on (None: the preset's own, the middle 256 of a taller frame; N;
     "all"); an error with the paper preset."""
 
-def combine_calibrations(calibrations: List[Calibration]) -> Calibration:
+def combine_calibrations(
+    calibrations: List[Calibration],
+    *,
+    measurements: Optional[List[ArrayLike]] = None,
+    mask: Optional[ArrayLike] = None,
+    bands: int = 28,
+    stride: float = 2.0,
+) -> Calibration:
     """Several snapshots' calibrations of one instrument combined: each parameter
     the snapshots' median, its error the larger of their stated errors combined
     (correlated at 0.5) and their scatter (Student's t); `snapshots` on the result
-    says where they agree."""
+    says where they agree. With `measurements` (one per calibration, in order) and
+    `mask`, the combination is refitted on them as one fit (one ψ, each snapshot
+    its own scene): the geometry the joint fit's, σ and the error bars the
+    combination's; `snapshots["joint_fit_from"]` keeps the combination."""
 
 @overload
 def reconstruct(

@@ -143,9 +143,10 @@ impl PyCalibration {
     /// Where this calibration combines several snapshots
     /// (`combine_calibrations`): {"parameters": [each snapshot's dict],
     /// "consistency": [{parameter, chi_squared, dof, p_value, spread,
-    /// disagree, farthest} per parameter]} (farthest: the index of the
-    /// snapshot without which the others agree best, None for two); None
-    /// for a single snapshot's.
+    /// disagree, farthest} per parameter], "joint_fit_from": the
+    /// combination's parameters where the answer is the snapshots' joint
+    /// fit, else None} (farthest: the index of the snapshot without which
+    /// the others agree best, None for two); None for a single snapshot's.
     #[getter]
     fn snapshots<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
         let Some(spread) = &self.inner.snapshots else {
@@ -171,6 +172,11 @@ impl PyCalibration {
             consistency.append(e)?;
         }
         d.set_item("consistency", consistency)?;
+        let joint_from = match &spread.joint_fit_from {
+            Some(m) => Some(params::to_dict(py, m)?),
+            None => None,
+        };
+        d.set_item("joint_fit_from", joint_from)?;
         Ok(Some(d))
     }
 
@@ -234,25 +240,104 @@ fn value_error_here(msg: String) -> PyErr {
 /// the answers and, per parameter, whether they agree within their error
 /// bars (a χ² test at p < 0.01).
 ///
+/// With `measurements` (one per calibration, in their order) and `mask`,
+/// the combination is then refitted on the measurements as one fit (one
+/// ψ, each snapshot its own scene; the default preset's scene fit, detail
+/// and fine passes): the geometry the joint fit's, σ and every error bar
+/// the combination's; `snapshots["joint_fit_from"]` keeps the combination.
+///
 /// Args:
 ///     calibrations: two or more Calibration (from `calibrate`, or
 ///         `Calibration.from_json` of `cassi calibrate -o` files).
+///     measurements: None, or the snapshots' measurements (2-D arrays).
+///     mask: the nominal coded aperture they were calibrated with (with
+///         `measurements`).
+///     bands, stride: as they were calibrated with (with `measurements`).
 ///
 /// Returns:
 ///     Calibration: usable wherever one is (`reconstruct(calibration=)`).
 ///
 /// Raises:
 ///     InputError (a ValueError): fewer than two, or calibrations of
-///         different models, presets or held curvatures (named by position).
+///         different models, presets or held curvatures (named by
+///         position); measurements not one per calibration, without a
+///         mask, of the wrong shape, or of calibrations whose preset or
+///         model has no scene fit.
+///
+/// The GIL is released while the joint fit runs.
 #[pyfunction]
+#[pyo3(signature = (calibrations, *, measurements=None, mask=None, bands=28, stride=2.0))]
 pub fn combine_calibrations(
     py: Python<'_>,
     calibrations: Vec<Bound<'_, PyCalibration>>,
+    measurements: Option<Vec<Bound<'_, PyAny>>>,
+    mask: Option<&Bound<'_, PyAny>>,
+    bands: usize,
+    stride: f64,
 ) -> PyResult<PyCalibration> {
     let refs: Vec<&calib::Calibration> = calibrations.iter().map(|c| &c.get().inner).collect();
-    calib::combine_snapshots(&refs, &calib::CombineParams::default())
-        .map(|inner| PyCalibration { inner })
-        .map_err(|e| value_error(py, e.to_string()))
+    let combined = calib::combine_snapshots(&refs, &calib::CombineParams::default())
+        .map_err(|e| value_error(py, e.to_string()))?;
+    let Some(measurements) = measurements else {
+        return Ok(PyCalibration { inner: combined });
+    };
+    let Some(mask) = mask else {
+        return Err(value_error(
+            py,
+            "measurements: the joint fit needs the mask",
+        ));
+    };
+    if measurements.len() != refs.len() {
+        return Err(value_error(
+            py,
+            format!(
+                "measurements: {} for {} calibrations; give one per calibration, in their order",
+                measurements.len(),
+                refs.len()
+            ),
+        ));
+    }
+    let preset = match Preset::by_name(&combined.preset, stride)
+        .and_then(|p| p.with_dispersion_a2(combined.parameters.a2))
+        .map_err(|e| value_error(py, e.to_string()))?
+    {
+        Preset::Default(p) => p,
+        Preset::Paper(_) => {
+            return Err(value_error(
+                py,
+                format!(
+                    "measurements: the calibrations are the {} preset's; the joint fit is the \
+                     default preset's scene fit",
+                    combined.preset
+                ),
+            ));
+        }
+    };
+    let mask = arrays::frame(mask, "mask")?;
+    let ys = measurements
+        .iter()
+        .enumerate()
+        .map(|(i, y)| arrays::frame(y, &format!("measurements[{i}]")))
+        .collect::<PyResult<Vec<_>>>()?;
+    let refit = || -> Result<calib::Calibration, Failure> {
+        for (i, y) in ys.iter().enumerate() {
+            validate_measurement(y, &format!("measurements[{i}]"))?;
+        }
+        let problems = ys
+            .iter()
+            .enumerate()
+            .map(|(i, y)| {
+                CalibrationProblem::nominal(y, &mask, bands, stride, combined.model)
+                    .and_then(|p| p.validate().map(|()| p))
+                    .map_err(|e| {
+                        Failure::Study(anyhow::Error::new(e).context(format!("measurements[{i}]")))
+                    })
+            })
+            .collect::<Result<Vec<_>, Failure>>()?;
+        Ok(calib::refit_jointly(&combined, &problems, &preset)?)
+    };
+    let inner = py.detach(|| catch(refit))?;
+    Ok(PyCalibration { inner })
 }
 
 enum Message {

@@ -128,6 +128,37 @@ def test_snapshots_of_one_instrument_combine_into_one_calibration(case):
         cassi.combine_calibrations([cals[0], sub])
 
 
+def test_snapshots_refit_jointly_on_their_measurements(case):
+    """Two snapshots of one blurred instrument (the crisp-cell model's data, not
+    the model fitted) refitted as one: the geometry moves from the combination
+    (kept), σ and the error bars stay its; bad measurements are refused."""
+    scene, mask, _ = case
+    truth = dict(TRUTH, dx=0.6, dy=-0.3, theta_deg=0.0, a1=2.02, blur_sigma_px=0.4)
+    scenes = [scene, cassi.synthetic_scene(96, 96, 8, seed=9)]
+    ys = [cassi.simulate(s, mask, truth, model="crisp-cells", noise=False) for s in scenes]
+    cals = [cassi.calibrate(y, mask, bands=8) for y in ys]
+    plain = cassi.combine_calibrations(cals)
+    joint = cassi.combine_calibrations(cals, measurements=ys, mask=mask, bands=8)
+    assert joint.snapshots["joint_fit_from"] == plain.parameters
+    assert plain.snapshots["joint_fit_from"] is None
+    assert joint.parameters["blur_sigma_px"] == plain.parameters["blur_sigma_px"]
+    assert joint.standard_errors == plain.standard_errors
+    assert joint.parameters != plain.parameters
+    assert len(joint.stages) == len(plain.stages) + 2
+    assert joint.stages[-1]["name"].startswith("joint fit's fine pass")
+    assert abs(joint.parameters["dx"] - truth["dx"]) < 0.15, joint.parameters
+    assert cassi.Calibration.from_json(joint.to_json()).snapshots == joint.snapshots
+    with pytest.raises(cassi.InputError, match="1 for 2 calibrations"):
+        cassi.combine_calibrations(cals, measurements=ys[:1], mask=mask, bands=8)
+    with pytest.raises(cassi.InputError, match="needs the mask"):
+        cassi.combine_calibrations(cals, measurements=ys, bands=8)
+    with pytest.raises(cassi.InputError, match=r"measurements\[1\]"):
+        cassi.combine_calibrations(cals, measurements=[ys[0], ys[1][:10]], mask=mask, bands=8)
+    rounded = [cassi.calibrate(y, mask, bands=8, model="rounded") for y in ys]
+    with pytest.raises(cassi.InputError, match="does not run"):
+        cassi.combine_calibrations(rounded, measurements=ys, mask=mask, bands=8)
+
+
 def test_the_blur_pass_refits_the_blur_alone_last(case):
     scene, mask, _ = case
     truth = dict(TRUTH, blur_sigma_px=0.6)

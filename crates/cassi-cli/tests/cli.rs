@@ -641,6 +641,165 @@ fn combine_averages_snapshots_and_refuses_what_is_not_one() {
     );
 }
 
+/// `cassi combine --joint`: two snapshots of one instrument (different
+/// scenes; the 4× oversampled simulator) calibrated by the default, their
+/// combination refitted on both measurements as one: the answer moves from
+/// the combination (kept in the file), σ and the error bars stay the
+/// combination's, the joint passes are stages. A measurement count that
+/// is not the calibrations', or calibrations of a model the scene fit does
+/// not run, are refused before any work, nothing written.
+#[test]
+fn combine_refits_the_snapshots_jointly_on_their_measurements() {
+    let dir = scratch("combine-joint");
+    let mask = dir.join("mask.npy");
+    cassi_io::save_frame(&mask, &random_binary_mask(64, 64, 0.5, 1).unwrap(), "mask").unwrap();
+    let mut meas = Vec::new();
+    let mut cals = Vec::new();
+    for seed in ["1", "2"] {
+        let m = dir.join(format!("meas{seed}.npy"));
+        ok(&cassi(&[
+            "simulate",
+            "--synthetic",
+            "--size",
+            "64",
+            "--bands",
+            "8",
+            "--random-mask",
+            "--scene-seed",
+            seed,
+            "--noise-seed",
+            seed,
+            "--oversample",
+            "4",
+            "--blur",
+            "0.4",
+            "--dx",
+            "0.6",
+            "--dy",
+            "-0.3",
+            "--a1",
+            "2.02",
+            "-o",
+            s(&m),
+            "--quiet",
+        ]));
+        let c = dir.join(format!("cal{seed}.json"));
+        ok(&cassi(&[
+            "calibrate",
+            s(&m),
+            "--mask",
+            s(&mask),
+            "-o",
+            s(&c),
+            "--quiet",
+        ]));
+        meas.push(m);
+        cals.push(c);
+    }
+    let read = |p: &Path| -> serde_json::Value {
+        serde_json::from_slice(&std::fs::read(p).unwrap()).unwrap()
+    };
+    let plain = dir.join("plain.json");
+    ok(&cassi(&[
+        "combine",
+        s(&cals[0]),
+        s(&cals[1]),
+        "-o",
+        s(&plain),
+        "--quiet",
+    ]));
+    let joint = dir.join("joint.json");
+    let out = cassi(&[
+        "combine",
+        s(&cals[0]),
+        s(&cals[1]),
+        "-o",
+        s(&joint),
+        "--joint",
+        s(&meas[0]),
+        s(&meas[1]),
+        "--mask",
+        s(&mask),
+    ]);
+    ok(&out);
+    let text =
+        String::from_utf8_lossy(&out.stderr).to_string() + &String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains("joint fit (one ψ"), "{text}");
+    let (plain, joint_cal) = (read(&plain), read(&joint));
+    assert_eq!(
+        joint_cal["snapshots"]["joint_fit_from"],
+        plain["parameters"]
+    );
+    assert_ne!(joint_cal["parameters"]["dx"], plain["parameters"]["dx"]);
+    assert_eq!(
+        joint_cal["parameters"]["blur_sigma_px"],
+        plain["parameters"]["blur_sigma_px"]
+    );
+    assert_eq!(joint_cal["uncertainty"], plain["uncertainty"]);
+    let stages = joint_cal["stages"].as_array().unwrap();
+    assert_eq!(stages.len(), 4);
+    assert!(
+        stages[3]["name"]
+            .as_str()
+            .unwrap()
+            .starts_with("joint fit's fine pass")
+    );
+    let dx = joint_cal["parameters"]["dx"].as_f64().unwrap();
+    assert!((dx - 0.6).abs() < 0.15, "joint dx {dx}");
+    // refused before any work
+    let refused = dir.join("refused.json");
+    assert_fails(
+        &[
+            "combine",
+            s(&cals[0]),
+            s(&cals[1]),
+            "-o",
+            s(&refused),
+            "--joint",
+            s(&meas[0]),
+            s(&meas[0]),
+            s(&meas[1]),
+            "--mask",
+            s(&mask),
+        ],
+        &["3 measurements for 2 calibrations"],
+        &refused,
+    );
+    let rounded: Vec<PathBuf> = (0..2)
+        .map(|i| {
+            let c = dir.join(format!("rounded{i}.json"));
+            ok(&cassi(&[
+                "calibrate",
+                s(&meas[i]),
+                "--mask",
+                s(&mask),
+                "--model",
+                "rounded",
+                "-o",
+                s(&c),
+                "--quiet",
+            ]));
+            c
+        })
+        .collect();
+    assert_fails(
+        &[
+            "combine",
+            s(&rounded[0]),
+            s(&rounded[1]),
+            "-o",
+            s(&refused),
+            "--joint",
+            s(&meas[0]),
+            s(&meas[1]),
+            "--mask",
+            s(&mask),
+        ],
+        &["Rounded model does not run"],
+        &refused,
+    );
+}
+
 /// Sharded runs merged give the study one process makes: every score and
 /// parameter the same (only timings differ), the report and figures
 /// written; a merge before every shard has finished names the missing one.

@@ -109,14 +109,7 @@ pub fn run(args: &CalibrateArgs, reporter: &Reporter) -> anyhow::Result<()> {
     let mut on_stage = |s: &StageReport| {
         // between stages nothing is half-written: a signal ends the run here
         interrupt::stop_point();
-        reporter.say(&format!(
-            "  {:<20} {}  score {:.4e}  ({} evals, {:.2} s)",
-            s.name,
-            Parameter::format_all(&s.parameters),
-            s.score,
-            s.evaluations,
-            s.seconds
-        ));
+        reporter.say(&stage_line(s));
         if let Some(other) = &s.passed_over {
             reporter.say(&format!(
                 "  {:<20} {}  score {:.4e}  (passed over: scored higher)",
@@ -157,6 +150,18 @@ pub fn run(args: &CalibrateArgs, reporter: &Reporter) -> anyhow::Result<()> {
     ));
     reporter.emit(&serde_json::to_value(&cal)?);
     Ok(())
+}
+
+/// A stage's line as it finishes: its name, answer, score, cost.
+pub(crate) fn stage_line(s: &StageReport) -> String {
+    format!(
+        "  {:<20} {}  score {:.4e}  ({} evals, {:.2} s)",
+        s.name,
+        Parameter::format_all(&s.parameters),
+        s.score,
+        s.evaluations,
+        s.seconds
+    )
 }
 
 /// One line per estimated parameter with its standard error and, where

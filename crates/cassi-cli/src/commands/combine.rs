@@ -4,13 +4,16 @@
 use std::path::PathBuf;
 
 use cassi_core::Parameter;
-use cassi_core::calib::{Calibration, CombineParams, combine_snapshots};
+use cassi_core::calib::{
+    Calibration, CalibrationProblem, CombineParams, Preset, combine_snapshots, refit_jointly,
+};
 use cassi_eval::records::read_record;
 use clap::Args;
 
 use cassi_io::OutputSet;
 
-use super::calibrate::{check_output_json, estimate_lines};
+use super::calibrate::{check_output_json, estimate_lines, stage_line};
+use super::inputs::{MeasurementArgs, UncodedMask};
 use crate::report::Reporter;
 
 #[derive(Args)]
@@ -25,6 +28,57 @@ pub struct CombineArgs {
     /// combined answer, the snapshots' answers and their agreement.
     #[arg(long, short)]
     pub output: PathBuf,
+    /// The snapshots' measurements (.mat, .npy, .npz), one per calibration
+    /// and in their order: the combination is then refitted on them as one
+    /// fit (one ψ, each snapshot its own scene, the scene fit's detail and
+    /// fine passes) from the combination's answer — the geometry the joint
+    /// fit's, σ and every error bar the combination's. Default preset's
+    /// calibrations; needs --mask.
+    #[arg(long, num_args = 2.., value_name = "MEASUREMENT", requires = "mask")]
+    pub joint: Vec<PathBuf>,
+    /// The nominal coded aperture the snapshots were calibrated with (with
+    /// --joint).
+    #[arg(long, requires = "joint")]
+    pub mask: Option<PathBuf>,
+    /// Variable name inside the measurement files (with --joint).
+    #[arg(long, requires = "joint")]
+    pub meas_var: Option<String>,
+    /// Variable name inside the mask file (with --joint).
+    #[arg(long, requires = "joint")]
+    pub mask_var: Option<String>,
+    /// Number of bands (with --joint; default as for `cassi calibrate`).
+    #[arg(long, requires = "joint")]
+    pub bands: Option<usize>,
+    /// Nominal dispersion stride, px per band (with --joint; the one the
+    /// snapshots were calibrated with).
+    #[arg(
+        long,
+        default_value_t = 2.0,
+        allow_hyphen_values = true,
+        requires = "joint"
+    )]
+    pub stride: f64,
+}
+
+impl CombineArgs {
+    /// Each --joint measurement with the mask and its options, as
+    /// `cassi calibrate` reads them.
+    fn joint_inputs(&self) -> Vec<MeasurementArgs> {
+        let Some(mask) = &self.mask else {
+            return Vec::new();
+        };
+        self.joint
+            .iter()
+            .map(|m| MeasurementArgs {
+                measurement: m.clone(),
+                meas_var: self.meas_var.clone(),
+                mask: mask.clone(),
+                mask_var: self.mask_var.clone(),
+                bands: self.bands,
+                stride: self.stride,
+            })
+            .collect()
+    }
 }
 
 pub fn run(args: &CombineArgs, reporter: &Reporter) -> anyhow::Result<()> {
@@ -32,6 +86,17 @@ pub fn run(args: &CombineArgs, reporter: &Reporter) -> anyhow::Result<()> {
     let mut set = OutputSet::new();
     for p in &args.calibrations {
         set.input("calibration", p);
+    }
+    let joint = args.joint_inputs();
+    if !joint.is_empty() && joint.len() != args.calibrations.len() {
+        anyhow::bail!(
+            "--joint: {} measurements for {} calibrations; give one per calibration, in the same order",
+            joint.len(),
+            args.calibrations.len()
+        );
+    }
+    for m in &joint {
+        m.declare_inputs(&mut set);
     }
     set.output("-o", &args.output);
     let checked = set.check()?;
@@ -59,6 +124,11 @@ pub fn run(args: &CombineArgs, reporter: &Reporter) -> anyhow::Result<()> {
                 .join(", ")
         )
     })?;
+    let combination = combined.parameters;
+    let combined = match joint.is_empty() {
+        true => combined,
+        false => refit(&combined, &joint, reporter)?,
+    };
     let staging = checked.begin()?;
     cassi_eval::records::write_record(&args.output, &combined)?;
     staging.commit()?;
@@ -70,16 +140,77 @@ pub fn run(args: &CombineArgs, reporter: &Reporter) -> anyhow::Result<()> {
             p.display()
         );
     }
-    text += &format!(
-        "combined ({} snapshots): {}\n",
-        snapshots.len(),
-        Parameter::format_all(&combined.parameters)
-    );
+    if combined
+        .snapshots
+        .as_ref()
+        .is_some_and(|s| s.joint_fit_from.is_some())
+    {
+        text += &format!(
+            "combination ({} snapshots): {}\njoint fit (one ψ, each snapshot its own scene; σ and \
+             the error bars the combination's): {}\n",
+            snapshots.len(),
+            Parameter::format_all(&combination),
+            Parameter::format_all(&combined.parameters)
+        );
+    } else {
+        text += &format!(
+            "combined ({} snapshots): {}\n",
+            snapshots.len(),
+            Parameter::format_all(&combined.parameters)
+        );
+    }
     text += &combined_lines(&combined, &args.calibrations, &snapshots);
     text += &format!("→ {}", args.output.display());
     reporter.say(&text);
     reporter.emit(&serde_json::to_value(&combined)?);
     Ok(())
+}
+
+/// `combined` refitted jointly on the `joint` measurements (in the
+/// snapshots' order), with the preset and model its snapshots were
+/// calibrated with.
+fn refit(
+    combined: &Calibration,
+    joint: &[MeasurementArgs],
+    reporter: &Reporter,
+) -> anyhow::Result<Calibration> {
+    let first = &joint[0];
+    let preset = Preset::by_name(&combined.preset, first.stride)?
+        .with_dispersion_a2(combined.parameters.a2)?;
+    let Preset::Default(preset) = preset else {
+        anyhow::bail!(
+            "--joint: the snapshots were calibrated with the {} preset; the joint fit is the default \
+             preset's scene fit",
+            combined.preset
+        );
+    };
+    let loaded = joint
+        .iter()
+        .map(|m| m.load(reporter, UncodedMask::Refuse))
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    let bands = loaded[0].2;
+    for (m, (_, _, b)) in joint.iter().zip(&loaded) {
+        if *b != bands {
+            anyhow::bail!(
+                "--joint: {} holds {b} bands, {} holds {bands}: one instrument, one band count",
+                m.measurement.display(),
+                first.measurement.display()
+            );
+        }
+    }
+    let problems = loaded
+        .iter()
+        .map(|(y, mask, _)| {
+            CalibrationProblem::nominal(y, mask, bands, first.stride, combined.model)
+        })
+        .collect::<cassi_core::Result<Vec<_>>>()?;
+    let refit = reporter.stage("refitting the snapshots jointly", || {
+        Ok(refit_jointly(combined, &problems, &preset)?)
+    })?;
+    for stage in &refit.stages[combined.stages.len()..] {
+        reporter.say(&stage_line(stage));
+    }
+    Ok(refit)
 }
 
 /// The combined errors, then where the snapshots disagree beyond their

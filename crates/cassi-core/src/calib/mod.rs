@@ -52,7 +52,9 @@ pub use default::{
 };
 pub use detail_pass::{DetailPass, DetailSource};
 pub use gradient::Parameter;
-pub use joint_fit::{JointFit, joint_scene_fit};
+pub use joint_fit::{
+    JOINT_DETAIL_PASS_STAGE, JOINT_FINE_PASS_STAGE, JointFit, joint_scene_fit, refit_jointly,
+};
 pub use nelder_mead::nelder_mead;
 pub use nominal_start::NominalStart;
 pub use paper::{GradientStage, PaperPreset, calibrate_paper};

@@ -97,6 +97,10 @@ pub struct SnapshotSpread {
     pub parameters: Vec<Mismatch>,
     /// Per calibrated parameter whose errors every snapshot stated.
     pub consistency: Vec<Consistency>,
+    /// Where the answer is the snapshots' joint fit
+    /// ([`super::refit_jointly`]): the combination it started from.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub joint_fit_from: Option<Mismatch>,
 }
 
 /// One parameter's combination: centre, standard error, 95 % half-width
@@ -229,6 +233,7 @@ pub fn combine_snapshots(
             params: *params,
             parameters: calibrations.iter().map(|c| c.parameters).collect(),
             consistency,
+            joint_fit_from: None,
         }),
     })
 }

@@ -16,8 +16,7 @@ use cassi_bench::physical_random_mismatch;
 use std::time::Instant;
 
 use cassi_core::calib::{
-    Calibration, CalibrationProblem, CombineParams, DefaultPreset, combine_snapshots,
-    joint_scene_fit,
+    Calibration, CalibrationProblem, CombineParams, DefaultPreset, combine_snapshots, refit_jointly,
 };
 use cassi_core::optics::DispersionModel;
 use cassi_core::{Mask, Measurement, Mismatch, Parameter};
@@ -124,27 +123,17 @@ fn joint_fit(
             )
         })
         .collect::<cassi_core::Result<Vec<_>>>()?;
-    let settings = inputs
-        .preset
-        .scene_fit
-        .expect("--joint is refused without the scene fit");
-    let start = Mismatch {
-        blur_sigma_px: combined
-            .model_blur_sigma_px
-            .unwrap_or(combined.parameters.blur_sigma_px),
-        ..combined.parameters
-    };
     let t0 = Instant::now();
-    let fit = joint_scene_fit(&problems, &settings, &inputs.preset.proxy, &start)?;
-    let answer = Mismatch {
-        blur_sigma_px: combined.parameters.blur_sigma_px,
-        ..fit.parameters
-    };
+    let refit = refit_jointly(combined, &problems, inputs.preset)?;
+    let seconds = t0.elapsed().as_secs_f64();
+    let answer = refit.parameters;
+    // the joint detail pass's answer (σ held at the scene fit's own), with
+    // the combination's σ as the answer has it
     let detail = Mismatch {
-        blur_sigma_px: combined.parameters.blur_sigma_px,
-        ..fit.detail_pass
+        blur_sigma_px: answer.blur_sigma_px,
+        ..refit.stages[refit.stages.len() - 2].parameters
     };
-    Ok((answer, detail, t0.elapsed().as_secs_f64()))
+    Ok((answer, detail, seconds))
 }
 
 /// Each instrument's snapshots combined: one record per instrument, its
