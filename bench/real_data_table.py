@@ -101,6 +101,13 @@ if combined.exists():
     print("| | " + " | ".join(h for _, h, _ in PARAMS) + " |")
     print("|---|" + "---|" * len(PARAMS))
     print("| combined | " + " | ".join(cell(p.get(k), u.get(k), w.get(k), d) for k, _, d in PARAMS) + " |")
+    joint = out / f"combined_joint.{preset}.calib.json"
+    if joint.exists():
+        j = json.loads(joint.read_text())
+        print("| joint fit (`--joint`: one ψ, each snapshot its own scene; σ and the error bars the "
+              "combination's) | " + " | ".join(
+                  cell(j["parameters"].get(k), j.get("uncertainty", {}).get(k), j.get("interval_95", {}).get(k), d)
+                  for k, _, d in PARAMS) + " |")
     apart = [x for x in c.get("snapshots", {}).get("consistency", []) if x["disagree"]]
     # the combination's snapshots are the scene files in sorted order (real_data.sh's glob)
     names = [f.name.split(".")[0] for f in sorted(out.glob(f"scene*.{preset}.calib.json"))]
