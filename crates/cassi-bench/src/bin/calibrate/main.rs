@@ -57,7 +57,7 @@
 //! [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene]
 //! [--fine-pass-free pose-and-slope|geometry|all] [--scene-cell PX] [--scene-nodes N]
 //! [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv ITERATIONS] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N]]
-//! [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--out PATH] [--scene-transform none|flip-cols|flip-rows|transpose] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--model-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--detail-cold-above PX|none] [--blur-bootstrap crisp-cells|dispersed-mask [--blur-bootstrap-noise] [--blur-bootstrap-residual] [--blur-bootstrap-min PX]] [--snapshots N [--joint]] [--verbose]`
+//! [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--out PATH] [--scene-transform none|flip-cols|flip-rows|transpose] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--model-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--detail-cold-above PX|none] [--blur-bootstrap crisp-cells|dispersed-mask [--blur-bootstrap-noise] [--blur-bootstrap-residual] [--blur-bootstrap-min PX]] [--snapshots N [--joint [--joint-model MODEL]]] [--verbose]`
 //! (`--no-texture`: the default preset without its texture fit, as it was
 //! before issue #14 — the "before" row; `--no-scene-fit`: without its
 //! scene fit, ending in the texture fit as the records `*_texture.json`
@@ -240,6 +240,8 @@ struct Args {
     /// `--joint` (with `--snapshots`): each instrument's snapshots also
     /// fitted as one (`calib::joint_scene_fit`) from their combination.
     joint: bool,
+    /// `--joint-model MODEL`: the joint fit on MODEL (a probe).
+    joint_model: Option<DispersionModel>,
 }
 
 /// The masks of a run: the one the simulated instrument carries and the
@@ -381,7 +383,7 @@ impl SceneTransform {
 const USAGE: &str = "calibrate [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] \
                      [--no-aligned] [--no-inverse-crime] [--no-wide-blur] [--model rounded|subpixel|dispersed-mask|crisp-cells] \
                      [--preset NAME] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all] [--scene-cell PX] [--scene-nodes N] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv N] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N]] [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--out PATH] \
-                     [--scene-transform none|flip-cols|flip-rows|transpose] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--snapshots N [--joint]] [--verbose]";
+                     [--scene-transform none|flip-cols|flip-rows|transpose] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--snapshots N [--joint [--joint-model MODEL]]] [--verbose]";
 
 fn parse_args(argv: &[String]) -> Result<Args> {
     let mut half_name = "held-out".to_string();
@@ -424,6 +426,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
     let mut blur_bootstrap_min: Option<f64> = None;
     let mut snapshots_n: Option<usize> = None;
     let mut joint = false;
+    let mut joint_model = None;
     let mut it = argv.iter();
     while let Some(flag) = it.next() {
         let mut value = || {
@@ -663,6 +666,13 @@ fn parse_args(argv: &[String]) -> Result<Args> {
                 snapshots_n = Some(n);
             }
             "--joint" => joint = true,
+            "--joint-model" => {
+                let v = value()?;
+                joint_model = Some(
+                    v.parse::<DispersionModel>()
+                        .map_err(|e| anyhow!("--joint-model {v}: {e}"))?,
+                );
+            }
             other => bail!("unknown argument '{other}'\nusage: {USAGE}"),
         }
     }
@@ -883,6 +893,10 @@ fn parse_args(argv: &[String]) -> Result<Args> {
         !joint || (snapshots_n.is_some() && scene_fit_passes && model.is_subpixel()),
         "--joint needs --snapshots N and the default preset with its scene fit's detail and fine passes"
     );
+    ensure!(
+        joint || joint_model.is_none(),
+        "--joint-model needs --joint"
+    );
     Ok(Args {
         halves,
         half_name,
@@ -908,6 +922,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
         mask_sharpen,
         snapshots: snapshots_n,
         joint,
+        joint_model,
     })
 }
 
@@ -1722,6 +1737,7 @@ fn main() -> Result<()> {
                 mask: &masks.nominal,
                 model: args.model,
                 bands,
+                fit_model: args.joint_model,
                 preset: texture_preset(&args)
                     .expect("--joint is refused without the default preset"),
             });

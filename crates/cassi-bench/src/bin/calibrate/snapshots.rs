@@ -16,7 +16,8 @@ use cassi_bench::physical_random_mismatch;
 use std::time::Instant;
 
 use cassi_core::calib::{
-    Calibration, CalibrationProblem, CombineParams, DefaultPreset, combine_snapshots, refit_jointly,
+    Calibration, CalibrationProblem, CombineParams, DefaultPreset, combine_snapshots,
+    joint_scene_fit, refit_jointly,
 };
 use cassi_core::optics::DispersionModel;
 use cassi_core::{Mask, Measurement, Mismatch, Parameter};
@@ -100,6 +101,10 @@ pub(super) struct JointInputs<'a> {
     pub model: DispersionModel,
     /// The scenes' band count.
     pub bands: usize,
+    /// `--joint-model`: the joint fit on another model than the snapshots'
+    /// (a probe), from the combination's answer with its σ (the blur
+    /// pass's: the instrument's, which the crisp-cell model fits).
+    pub fit_model: Option<DispersionModel>,
     pub preset: &'a DefaultPreset,
 }
 
@@ -111,6 +116,7 @@ fn joint_fit(
     members: &[usize],
     combined: &Calibration,
 ) -> Result<(Mismatch, Mismatch, f64)> {
+    let model = inputs.fit_model.unwrap_or(inputs.model);
     let problems = members
         .iter()
         .map(|&i| {
@@ -119,19 +125,36 @@ fn joint_fit(
                 inputs.mask,
                 inputs.bands,
                 STRIDE,
-                inputs.model,
+                model,
             )
         })
         .collect::<cassi_core::Result<Vec<_>>>()?;
     let t0 = Instant::now();
-    let refit = refit_jointly(combined, &problems, inputs.preset)?;
+    let (answer, stages) = match inputs.fit_model {
+        None => {
+            let refit = refit_jointly(combined, &problems, inputs.preset)?;
+            (refit.parameters, refit.stages)
+        }
+        Some(_) => {
+            let settings = inputs
+                .preset
+                .scene_fit
+                .expect("--joint needs the scene fit");
+            let fit = joint_scene_fit(
+                &problems,
+                &settings,
+                &inputs.preset.proxy,
+                &combined.parameters,
+            )?;
+            (fit.parameters, fit.stages)
+        }
+    };
     let seconds = t0.elapsed().as_secs_f64();
-    let answer = refit.parameters;
-    // the joint detail pass's answer (σ held at the scene fit's own), with
-    // the combination's σ as the answer has it
+    // the joint detail pass's answer, with the combination's σ as the
+    // answer has it
     let detail = Mismatch {
         blur_sigma_px: answer.blur_sigma_px,
-        ..refit.stages[refit.stages.len() - 2].parameters
+        ..stages[stages.len() - 2].parameters
     };
     Ok((answer, detail, seconds))
 }
