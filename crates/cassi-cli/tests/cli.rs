@@ -748,22 +748,21 @@ fn combine_refits_the_snapshots_jointly_on_their_measurements() {
     assert!((dx - 0.6).abs() < 0.15, "joint dx {dx}");
     // refused before any work
     let refused = dir.join("refused.json");
-    assert_fails(
-        &[
-            "combine",
-            s(&cals[0]),
-            s(&cals[1]),
-            "-o",
-            s(&refused),
-            "--joint",
-            s(&meas[0]),
-            s(&meas[0]),
-            s(&meas[1]),
-            "--mask",
-            s(&mask),
-        ],
-        &["3 measurements for 2 calibrations"],
-        &refused,
+    let joint_args = |cals: &[&PathBuf], meas: &[&PathBuf]| -> Vec<String> {
+        let mut args = vec!["combine".to_string()];
+        args.extend(cals.iter().map(|p| s(p).to_string()));
+        args.extend(["-o", s(&refused), "--joint"].map(String::from));
+        args.extend(meas.iter().map(|p| s(p).to_string()));
+        args.extend(["--mask", s(&mask)].map(String::from));
+        args
+    };
+    let refuses = |args: Vec<String>, needle: &str| {
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        assert_fails(&args, &[needle], &refused);
+    };
+    refuses(
+        joint_args(&[&cals[0], &cals[1]], &[&meas[0], &meas[0], &meas[1]]),
+        "3 measurements for 2 calibrations",
     );
     let rounded: Vec<PathBuf> = (0..2)
         .map(|i| {
@@ -782,21 +781,9 @@ fn combine_refits_the_snapshots_jointly_on_their_measurements() {
             c
         })
         .collect();
-    assert_fails(
-        &[
-            "combine",
-            s(&rounded[0]),
-            s(&rounded[1]),
-            "-o",
-            s(&refused),
-            "--joint",
-            s(&meas[0]),
-            s(&meas[1]),
-            "--mask",
-            s(&mask),
-        ],
-        &["Rounded model does not run"],
-        &refused,
+    refuses(
+        joint_args(&[&rounded[0], &rounded[1]], &[&meas[0], &meas[1]]),
+        "Rounded model does not run",
     );
 }
 
