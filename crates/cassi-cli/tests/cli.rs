@@ -540,6 +540,25 @@ fn calibrate_recovers_the_simulated_mismatch_and_feeds_reconstruct() {
     assert_eq!(report["model_parameters"], expected);
 }
 
+/// `cassi simulate` of the 64×64, 8-band synthetic scene through the
+/// random mask (seed 1) into `out`, with `extra` flags.
+fn simulate_64(out: &Path, extra: &[&str]) {
+    let mut args = vec![
+        "simulate",
+        "--synthetic",
+        "--size",
+        "64",
+        "--bands",
+        "8",
+        "--random-mask",
+        "-o",
+        s(out),
+        "--quiet",
+    ];
+    args.extend_from_slice(extra);
+    ok(&cassi(&args));
+}
+
 /// `cassi combine`: two snapshots' calibration files → their mean, the
 /// snapshots and their agreement, read back by `reconstruct`; a file that
 /// is a combination, no calibration, or the output itself is refused by
@@ -548,22 +567,7 @@ fn calibrate_recovers_the_simulated_mismatch_and_feeds_reconstruct() {
 fn combine_averages_snapshots_and_refuses_what_is_not_one() {
     let dir = scratch("combine");
     let (meas, mask) = (dir.join("meas.npy"), dir.join("mask.npy"));
-    let sim = [
-        "simulate",
-        "--synthetic",
-        "--size",
-        "64",
-        "--bands",
-        "8",
-        "--random-mask",
-        "--dx",
-        "0.7",
-        "--no-noise",
-        "-o",
-        s(&meas),
-        "--quiet",
-    ];
-    ok(&cassi(&sim));
+    simulate_64(&meas, &["--dx", "0.7", "--no-noise"]);
     cassi_io::save_frame(&mask, &random_binary_mask(64, 64, 0.5, 1).unwrap(), "mask").unwrap();
     let first = dir.join("first.json");
     ok(&cassi(&[
@@ -657,32 +661,25 @@ fn combine_refits_the_snapshots_jointly_on_their_measurements() {
     let mut cals = Vec::new();
     for seed in ["1", "2"] {
         let m = dir.join(format!("meas{seed}.npy"));
-        ok(&cassi(&[
-            "simulate",
-            "--synthetic",
-            "--size",
-            "64",
-            "--bands",
-            "8",
-            "--random-mask",
-            "--scene-seed",
-            seed,
-            "--noise-seed",
-            seed,
-            "--oversample",
-            "4",
-            "--blur",
-            "0.4",
-            "--dx",
-            "0.6",
-            "--dy",
-            "-0.3",
-            "--a1",
-            "2.02",
-            "-o",
-            s(&m),
-            "--quiet",
-        ]));
+        simulate_64(
+            &m,
+            &[
+                "--scene-seed",
+                seed,
+                "--noise-seed",
+                seed,
+                "--oversample",
+                "4",
+                "--blur",
+                "0.4",
+                "--dx",
+                "0.6",
+                "--dy",
+                "-0.3",
+                "--a1",
+                "2.02",
+            ],
+        );
         let c = dir.join(format!("cal{seed}.json"));
         ok(&cassi(&[
             "calibrate",

@@ -1175,7 +1175,7 @@ fn run_case(
     name: &str,
     scene: &Cube,
     masks: &Masks,
-) -> Result<(Value, Calibration)> {
+) -> Result<(Value, Calibration, Measurement)> {
     let y = measure(case, scene, masks, Some(&noise(case.seed)), args)?;
     let mask = &masks.nominal;
     let problem = CalibrationProblem::nominal(&y, mask, scene.bands(), 2.0, args.model)?;
@@ -1400,7 +1400,7 @@ fn run_case(
         }
         record["limits"] = lim;
     }
-    Ok((record, cal))
+    Ok((record, cal, y))
 }
 
 /// The default preset when the run ends in its texture fit (subpixel
@@ -1708,22 +1708,16 @@ fn main() -> Result<()> {
                 None => scene_cases(&args, half, si, index as u64),
             };
             for case in cases {
-                let (row, cal) = run_case(&args, &case, &names[case.scene], &scene, &masks)?;
+                let (row, cal, y) = run_case(&args, &case, &names[case.scene], &scene, &masks)?;
                 rows.push(row);
                 // only the combinations need them
                 if args.snapshots.is_some() {
                     cals.push(cal);
                 }
-                // the joint fit's data: the snapshot again (its noise seeded)
+                // the joint fit's data: the snapshot's measurement
                 if args.joint {
                     bands = scene.bands();
-                    measurements.push(measure(
-                        &case,
-                        &scene,
-                        &masks,
-                        Some(&noise(case.seed)),
-                        &args,
-                    )?);
+                    measurements.push(y);
                 }
             }
         }
