@@ -11,7 +11,7 @@ before it (the pass changes σ alone and states no new errors): the default's an
 41, which made the pass the default's last stage (`--no-blur-pass` runs the default without it).
 
 With --per-parameter, the pool's figures per kind follow: each parameter's count within its
-tolerance and RMSE, the geometry (all but σ) within, and the worst case (largest error over its
+tolerance, RMSE and mean error, the geometry (all but σ) within, and the worst case (largest error over its
 tolerance) — the README's table is these.
 
     python3 bench/held_out_pool.py RECORD.json [RECORD.json ...] [--no-coverage] [--before-blur-pass] [--per-parameter]
@@ -51,7 +51,7 @@ def cases(path, default_answer=False):
 
 
 def per_parameter(pool):
-    """Per kind: each parameter within tolerance and its RMSE, the geometry within, the worst case."""
+    """Per kind: each parameter within tolerance, its RMSE and mean error, the geometry within, the worst case."""
     lines = []
     for kind in KINDS:
         group = [c for c in pool.values() if c["kind"] == kind]
@@ -64,6 +64,8 @@ def per_parameter(pool):
             + f"; geometry (all but σ) {sum(all(within(c, p) for p in PARAMS[:5]) for c in group)}")
         lines.append("    RMSE " + ", ".join(
             f"{p} {math.sqrt(sum(c['error'][p] ** 2 for c in group) / n):.4f}" for p in PARAMS))
+        lines.append("    mean error " + ", ".join(
+            f"{p} {sum(c['error'][p] for c in group) / n:+.4f}" for p in PARAMS))
         worst = max(group, key=lambda c: max(abs(c["error"][p]) / c["tolerances"][p] for p in PARAMS))
         lines.append(f"    worst {worst['scene']} seed {worst['seed']}: " + ", ".join(
             f"{p} {worst['error'][p]:+.3f}" for p in PARAMS))

@@ -57,7 +57,7 @@
 //! [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene]
 //! [--fine-pass-free pose-and-slope|geometry|all] [--scene-cell PX] [--scene-nodes N]
 //! [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv ITERATIONS] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N]]
-//! [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--out PATH] [--scene-transform none|flip-cols|flip-rows|transpose] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--model-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--detail-cold-above PX|none] [--blur-bootstrap crisp-cells|dispersed-mask [--blur-bootstrap-noise] [--blur-bootstrap-residual] [--blur-bootstrap-min PX]] [--snapshots N [--joint [--joint-model MODEL]]] [--verbose]`
+//! [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--out PATH] [--scene-transform none|flip-cols|flip-rows|transpose|coarse|smooth-PX] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--model-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--detail-cold-above PX|none] [--blur-bootstrap crisp-cells|dispersed-mask [--blur-bootstrap-noise] [--blur-bootstrap-residual] [--blur-bootstrap-min PX]] [--snapshots N [--joint [--joint-model MODEL]]] [--verbose]`
 //! (`--no-texture`: the default preset without its texture fit, as it was
 //! before issue #14 — the "before" row; `--no-scene-fit`: without its
 //! scene fit, ending in the texture fit as the records `*_texture.json`
@@ -97,7 +97,10 @@
 //! `--inverse-crime` do not apply);
 //! `--scene-transform`: every scene flipped or transposed — the
 //! tuning scenes in three more configurations against the mask, with their
-//! own `--seed-round`, for the uncertainty floors); without flags it
+//! own `--seed-round`, for the uncertainty floors; `coarse`: every scene
+//! as the scene fit's first-pass basis holds it, `smooth-PX`: every band
+//! blurred by a Gaussian of σ PX — diagnoses of what the blind scene
+//! leaves out); without flags it
 //! reproduces the README's held-out table (every scene of the held-out
 //! half, 2 random cases and 3 aligned-blur cases each, the inverse-crime
 //! row, GAP-TV recovery and the limits). Writes
@@ -325,38 +328,81 @@ fn sharpen_separable(frame: &mut [f32], rows: usize, cols: usize, v: f32) {
 
 /// A rigid re-orientation of the scene cubes (the mask stays): the same
 /// content meets the mask's code and the dispersion in another
-/// configuration.
+/// configuration. `Coarse` and `Smooth` take texture out instead.
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum SceneTransform {
     None,
     FlipCols,
     FlipRows,
     Transpose,
+    /// The scene as the default scene fit's first-pass basis holds it
+    /// (`calib::coarse_scene_of`): no detail between its nodes — a
+    /// diagnosis of what the blind scene leaves out, not a benchmark.
+    Coarse,
+    /// Every band blurred by a Gaussian of this σ (px): the scene's texture
+    /// below that scale taken out (a diagnosis, as `Coarse`).
+    Smooth(f64),
 }
 
 impl SceneTransform {
-    fn name(self) -> &'static str {
+    fn name(self) -> String {
         match self {
-            Self::None => "none",
-            Self::FlipCols => "flip-cols",
-            Self::FlipRows => "flip-rows",
-            Self::Transpose => "transpose",
+            Self::None => "none".into(),
+            Self::FlipCols => "flip-cols".into(),
+            Self::FlipRows => "flip-rows".into(),
+            Self::Transpose => "transpose".into(),
+            Self::Coarse => "coarse".into(),
+            Self::Smooth(px) => format!("smooth-{px}"),
         }
     }
 
     fn parse(v: &str) -> Result<Self> {
-        [Self::None, Self::FlipCols, Self::FlipRows, Self::Transpose]
-            .into_iter()
-            .find(|t| t.name() == v)
-            .ok_or_else(|| {
-                anyhow!("--scene-transform {v}: expected none, flip-cols, flip-rows or transpose")
-            })
+        if let Some(px) = v.strip_prefix("smooth-") {
+            return match px.parse::<f64>() {
+                Ok(px) if px > 0.0 && px.is_finite() => Ok(Self::Smooth(px)),
+                _ => Err(anyhow!(
+                    "--scene-transform {v}: smooth-PX wants a positive blur σ in pixels"
+                )),
+            };
+        }
+        [
+            Self::None,
+            Self::FlipCols,
+            Self::FlipRows,
+            Self::Transpose,
+            Self::Coarse,
+        ]
+        .into_iter()
+        .find(|t| t.name() == v)
+        .ok_or_else(|| {
+            anyhow!(
+                "--scene-transform {v}: expected none, flip-cols, flip-rows, transpose, coarse or smooth-PX"
+            )
+        })
     }
 
     fn apply(self, scene: Cube) -> Result<Cube> {
         let (bands, rows, cols) = scene.shape();
-        if self == Self::None {
-            return Ok(scene);
+        match self {
+            Self::None => return Ok(scene),
+            Self::Coarse => {
+                let settings = SceneFitSettings::default();
+                return Ok(cassi_core::calib::coarse_scene_of(&scene, &settings));
+            }
+            Self::Smooth(px) => {
+                let blur = GaussianBlur::new(px, rows, cols)?;
+                let mut out = Cube::zeros(bands, rows, cols);
+                let mut tmp = vec![0.0f32; rows * cols];
+                for (band, smoothed) in scene
+                    .as_slice()
+                    .chunks_exact(rows * cols)
+                    .zip(out.as_mut_slice().chunks_exact_mut(rows * cols))
+                {
+                    blur.apply(band, smoothed, &mut tmp);
+                }
+                return Ok(out);
+            }
+            _ => {}
         }
         ensure!(
             self != Self::Transpose || rows == cols,
@@ -370,7 +416,7 @@ impl SceneTransform {
                         Self::FlipCols => (r, cols - 1 - c),
                         Self::FlipRows => (rows - 1 - r, c),
                         Self::Transpose => (c, r),
-                        Self::None => (r, c),
+                        Self::None | Self::Coarse | Self::Smooth(_) => (r, c),
                     };
                     out.set(k, r, c, scene.get(k, sr, sc));
                 }
@@ -383,7 +429,7 @@ impl SceneTransform {
 const USAGE: &str = "calibrate [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] \
                      [--no-aligned] [--no-inverse-crime] [--no-wide-blur] [--model rounded|subpixel|dispersed-mask|crisp-cells] \
                      [--preset NAME] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all] [--scene-cell PX] [--scene-nodes N] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv N] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N]] [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--out PATH] \
-                     [--scene-transform none|flip-cols|flip-rows|transpose] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--snapshots N [--joint [--joint-model MODEL]]] [--verbose]";
+                     [--scene-transform none|flip-cols|flip-rows|transpose|coarse|smooth-PX] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--snapshots N [--joint [--joint-model MODEL]]] [--verbose]";
 
 fn parse_args(argv: &[String]) -> Result<Args> {
     let mut half_name = "held-out".to_string();
