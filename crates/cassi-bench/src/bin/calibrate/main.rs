@@ -339,7 +339,9 @@ enum SceneTransform {
     /// (`calib::coarse_scene_of`): no detail between its nodes — a
     /// diagnosis of what the blind scene leaves out, not a benchmark.
     Coarse,
-    /// Every band blurred by a Gaussian of this σ (px): the scene's texture
+    /// Every band blurred by the detector blur's kernel of this σ (px;
+    /// `GaussianBlur`: the Gaussian times the pixel's triangle, zero outside
+    /// the frame, so the borders darken within ~2σ): the scene's texture
     /// below that scale taken out (a diagnosis, as `Coarse`).
     Smooth(f64),
 }
