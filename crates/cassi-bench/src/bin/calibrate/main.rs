@@ -385,7 +385,7 @@ impl SceneTransform {
 
     fn apply(self, scene: Cube) -> Result<Cube> {
         let (bands, rows, cols) = scene.shape();
-        match self {
+        let source: fn(usize, usize, usize, usize) -> (usize, usize) = match self {
             Self::None => return Ok(scene),
             Self::Coarse => {
                 let settings = SceneFitSettings::default();
@@ -404,22 +404,22 @@ impl SceneTransform {
                 }
                 return Ok(out);
             }
-            _ => {}
-        }
-        ensure!(
-            self != Self::Transpose || rows == cols,
-            "--scene-transform transpose needs square scenes, got {rows}×{cols}"
-        );
+            Self::FlipCols => |r, c, _, cols| (r, cols - 1 - c),
+            Self::FlipRows => |r, c, rows, _| (rows - 1 - r, c),
+            Self::Transpose => {
+                ensure!(
+                    rows == cols,
+                    "--scene-transform transpose needs square scenes, got {rows}×{cols}"
+                );
+                |r, c, _, _| (c, r)
+            }
+        };
+        // output (r, c) takes the scene's source(r, c)
         let mut out = Cube::zeros(bands, rows, cols);
         for k in 0..bands {
             for r in 0..rows {
                 for c in 0..cols {
-                    let (sr, sc) = match self {
-                        Self::FlipCols => (r, cols - 1 - c),
-                        Self::FlipRows => (rows - 1 - r, c),
-                        Self::Transpose => (c, r),
-                        Self::None | Self::Coarse | Self::Smooth(_) => (r, c),
-                    };
+                    let (sr, sc) = source(r, c, rows, cols);
                     out.set(k, r, c, scene.get(k, sr, sc));
                 }
             }
