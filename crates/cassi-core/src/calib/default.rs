@@ -817,7 +817,7 @@ fn scene_fit_stage(
             problem.check_cancelled()?;
             let stage = run.start();
             let detail = pass.detail_map(problem, &found.best.psi, &preset.proxy)?;
-            let detailed = SceneFit::new(problem, settings)?.with_detail(detail);
+            let detailed = SceneFit::new(problem, settings)?.with_detail(detail.clone());
             // the first pass's coefficients start it: d is about one on
             // average, so they already hold the scene's smooth factor
             let cold = pass.starts_cold(found.best.psi.blur_sigma_px);
@@ -836,9 +836,13 @@ fn scene_fit_stage(
                 best: scored(&refit),
                 passed_over: None,
             };
-            (Some(detailed), refit, pending)
+            (Some((detailed, detail)), refit, pending)
         }
         _ => (None, found, pending),
+    };
+    let (detailed, detail) = match detailed {
+        Some((fit, map)) => (Some(fit), Some(map)),
+        None => (None, None),
     };
     let first_fit = detailed.as_ref().unwrap_or(&fit);
     match settings.fine_pass {
@@ -853,13 +857,20 @@ fn scene_fit_stage(
                 fine_pass: None,
                 ..settings
             };
-            let fine = SceneFit::new(problem, fine_settings)?;
+            let mut fine = SceneFit::new(problem, fine_settings)?;
+            // the smooth factor's nodes either way: `fit` is the plain basis
             let scene = fine.coefficients_from(&fit, &found.best.z);
+            if let (true, Some(map)) = (pass.carries_detail, detail) {
+                fine = fine.with_detail(map);
+            }
             let anchor = match pass.anchor {
                 RidgeAnchor::Zero => None,
                 RidgeAnchor::FirstPassScene => Some(scene.clone()),
             };
-            let fine = fine.with_ridge(pass.ridge, anchor);
+            let mut fine = fine.with_ridge(pass.ridge, anchor);
+            if let Some(weighting) = &pass.weighting {
+                fine = fine.with_weights(weighting, &found.best)?;
+            }
             let moved = moved_by(pass.free);
             let refined = fit_scene_from(&fine, &found.best.psi, Some(&scene), &moved)?;
             stage.count(refined.evaluations);

@@ -64,6 +64,7 @@ pub use scene_fit::{
     reweighted_scene_fit_scores, scene_fit_score,
 };
 pub use score::{CalibrationProblem, ProxyParams, gap_tv_reconstruction};
+pub use smooth::{gaussian_taps, smooth_bands};
 pub use snapshots::{Centre, CombineParams, Consistency, SnapshotSpread, combine_snapshots};
 pub use texture::{SCENE_SMOOTH_PX, SceneEstimate};
 

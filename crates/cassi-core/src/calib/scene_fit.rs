@@ -124,6 +124,17 @@ pub struct FinePass {
     pub first_solve: CglsParams,
     /// BFGS steps at most.
     pub max_steps: usize,
+    /// Its scene multiplied by the detail pass's map too (x_k = d ⊙ (U z)_k
+    /// on its finer nodes), when the detail pass ran; otherwise (the
+    /// default, and settings written before the field) its scene is smooth
+    /// between the nodes.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub carries_detail: bool,
+    /// Its residual weighted by the local energy of what the pass before it
+    /// left ([`ResidualWeighting`]), held through the pass; `None` (the
+    /// default, and settings written before the field): unweighted.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub weighting: Option<ResidualWeighting>,
 }
 
 /// z₀ of the fine pass's ridge λ‖z − z₀‖².
@@ -256,6 +267,8 @@ impl Default for FinePass {
                 tolerance: 1e-5,
             },
             max_steps: 20,
+            carries_detail: false,
+            weighting: None,
         }
     }
 }
@@ -1015,6 +1028,19 @@ pub(crate) mod tests {
         }
         assert!("nope".parse::<RidgeAnchor>().is_err());
         assert!("nope".parse::<FinePassFree>().is_err());
+        // the two probes' options: absent by default (the records before
+        // them read back unchanged), written and read back when on
+        let default_json = serde_json::to_string(&FinePass::default()).unwrap();
+        assert!(!default_json.contains("carries_detail"), "{default_json}");
+        assert!(!default_json.contains("weighting"), "{default_json}");
+        let probe = FinePass {
+            carries_detail: true,
+            weighting: Some(ResidualWeighting::default()),
+            ..FinePass::default()
+        };
+        let json = serde_json::to_string(&probe).unwrap();
+        assert!(json.contains("\"carries_detail\":true"), "{json}");
+        assert_eq!(serde_json::from_str::<FinePass>(&json).unwrap(), probe);
     }
 
     /// Settings written before the detail pass read back without one; with

@@ -33,7 +33,7 @@ use std::time::Instant;
 use cassi_bench::{predict_on_detector, psi_of};
 use cassi_core::calib::{
     CalibrationProblem, DefaultPreset, SCENE_SMOOTH_PX, SceneEstimate, SceneFitSettings,
-    gap_tv_reconstruction, nelder_mead, scene_fit_score, texture_fit,
+    gap_tv_reconstruction, gaussian_taps, nelder_mead, scene_fit_score, smooth_bands, texture_fit,
 };
 use cassi_core::linop::LinearOperator;
 use cassi_core::optics::{DispersionModel, GaussianBlur, ModelOperator};
@@ -320,6 +320,57 @@ pub fn gap_tv_scene_fits(
         "gap_tv_iterations": gap_iterations,
         "fits": out,
     }))
+}
+
+/// `--limits-smoothed-scene PX`: the scene-known fit (as [`measure`]'s, in
+/// `family`, from the blind estimate) with the true scene and with every
+/// band of it smoothed by a Gaussian of σ `smooth_px` (edge-replicating, so
+/// the frame's borders keep their light): how far a fit would get that knew
+/// the scene down to that scale and nothing finer. Where the smoothed fit
+/// misses as the blind one does, the miss is the scene's texture below
+/// that scale, which no scene model coarser than it can hold.
+pub fn smoothed_scene_fits(
+    y: &Measurement,
+    scene: &Cube,
+    mask: &Mask,
+    blind: &Mismatch,
+    truth: &Mismatch,
+    family: DispersionModel,
+    smooth_px: f64,
+) -> Value {
+    let (rows, cols) = y.shape();
+    let (bands, h, w) = scene.shape();
+    let mut smoothed = scene.clone().into_vec();
+    smooth_bands(&mut smoothed, h, w, &gaussian_taps(smooth_px as f32));
+    let smoothed = Cube::from_vec(bands, h, w, smoothed).expect("the scene's own shape");
+    let y = as_f64(y);
+    let mut out = serde_json::Map::new();
+    for (key, known) in [("true_scene", scene), ("smoothed_scene", &smoothed)] {
+        let model = SceneKnown {
+            mask,
+            scene: known,
+            rows,
+            cols,
+            model: family,
+        };
+        out.insert(key.into(), oracle_fit(&model, &y, blind, truth));
+    }
+    json!({ "family": family, "smooth_px": smooth_px, "fits": out })
+}
+
+/// `p ±e` for each parameter of an `error` record, on one line.
+pub fn error_line(e: &Value) -> String {
+    Parameter::CALIBRATED
+        .iter()
+        .map(|p| {
+            format!(
+                "{} {:+.4}",
+                p.name(),
+                e[p.key()].as_f64().unwrap_or(f64::NAN)
+            )
+        })
+        .collect::<Vec<_>>()
+        .join("  ")
 }
 
 /// Scale of the local means the imprint is measured against, pixels.

@@ -77,7 +77,11 @@
 //! from GAP-TV's scene (N iterations) instead of the proxy's, `--detail-cold-above PX|none` its
 //! scene solved from zero where the first pass's σ exceeds PX px (the
 //! default 0.85), or never (as the records before it were made),
-//! `--no-detail-pass` without it;
+//! `--detail-pre-smooth PX` its luminance smoothed by PX px first (default 1),
+//! `--no-detail-pass` without it; `--fine-pass-detail`: the fine pass's
+//! scene times the detail pass's map too (`FinePass::carries_detail`);
+//! `--fine-pass-weighted WINDOW_PX,FLOOR_QUANTILE`: the fine pass's residual
+//! weighted from the detail pass's (`FinePass::weighting`);
 //! `--halo SHARE,SIGMA_PX` and `--dispersion-a2 A2`: the simulated
 //! instrument with a wide skirt under its blur (`optics::Halo`) or a
 //! dispersion curved by A2·k² px (model studies: no model fitted has
@@ -118,8 +122,8 @@ use cassi_bench::{
 };
 use cassi_core::calib::{
     BlurBootstrap, BlurPass, Calibration, CalibrationProblem, CombineParams, DefaultPreset,
-    DetailPass, DetailSource, FinePass, FinePassFree, PRESET_NAMES, Preset, SCENE_FIT_STAGE,
-    SceneFitSettings, calibrate, grid_phase, model_error_floor,
+    DetailPass, DetailSource, FinePass, FinePassFree, PRESET_NAMES, Preset, ResidualWeighting,
+    SCENE_FIT_STAGE, SceneFitSettings, calibrate, grid_phase, model_error_floor,
 };
 use cassi_core::metrics::psnr;
 use cassi_core::optics::blur::GaussianBlur;
@@ -217,6 +221,9 @@ struct Args {
     /// `--limits-gap-tv FAMILY`: with `--limits`, the scene-known fit in
     /// FAMILY on GAP-TV's scene ([`limits::gap_tv_scene_fits`]).
     limits_gap_tv: Option<DispersionModel>,
+    /// `--limits-smoothed-scene PX`: the scene-known fit with the true scene
+    /// and with it smoothed by PX px ([`limits::smoothed_scene_fits`]).
+    limits_smoothed_scene: Option<f64>,
     out: PathBuf,
     verbose: bool,
     /// `--scene-transform`: every scene flipped or transposed before the
@@ -430,7 +437,7 @@ impl SceneTransform {
 
 const USAGE: &str = "calibrate [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] \
                      [--no-aligned] [--no-inverse-crime] [--no-wide-blur] [--model rounded|subpixel|dispersed-mask|crisp-cells] \
-                     [--preset NAME] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all] [--scene-cell PX] [--scene-nodes N] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv N] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N]] [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--out PATH] \
+                     [--preset NAME] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all] [--scene-cell PX] [--scene-nodes N] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv N] [--detail-pre-smooth PX] [--fine-pass-detail] [--fine-pass-weighted WINDOW_PX,FLOOR_QUANTILE] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N]] [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--out PATH] \
                      [--scene-transform none|flip-cols|flip-rows|transpose|coarse|smooth-PX] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--snapshots N [--joint [--joint-model MODEL]]] [--verbose]";
 
 fn parse_args(argv: &[String]) -> Result<Args> {
@@ -441,6 +448,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
     let mut wide_blur = true;
     let mut limits = true;
     let mut limits_gap_tv: Option<DispersionModel> = None;
+    let mut limits_smoothed_scene: Option<f64> = None;
     let mut model = DispersionModel::DispersedMask;
     let mut preset_name = "default".to_string();
     let mut texture = true;
@@ -463,6 +471,9 @@ fn parse_args(argv: &[String]) -> Result<Args> {
     let mut mask_sharpen = None;
     let mut model_a2: Option<f64> = None;
     let mut detail_cold_above: Option<Option<f64>> = None;
+    let mut detail_pre_smooth: Option<f64> = None;
+    let mut fine_pass_detail = false;
+    let mut fine_pass_weighting: Option<ResidualWeighting> = None;
     let mut blur_bootstrap: Option<DispersionModel> = None;
     let mut blur_pass = false;
     let mut no_blur_pass = false;
@@ -574,6 +585,31 @@ fn parse_args(argv: &[String]) -> Result<Args> {
                     .with_context(|| format!("--blur-bootstrap-min {v}"))?;
                 ensure!(px >= 0.0, "--blur-bootstrap-min {v}: a blur σ ≥ 0 px");
                 blur_bootstrap_min = Some(px);
+            }
+            "--detail-pre-smooth" => {
+                let v = value()?;
+                let px: f64 = v
+                    .parse()
+                    .with_context(|| format!("--detail-pre-smooth {v}"))?;
+                ensure!(
+                    px.is_finite() && px >= 0.0,
+                    "--detail-pre-smooth {v}: a Gaussian width ≥ 0 px"
+                );
+                detail_pre_smooth = Some(px);
+            }
+            "--fine-pass-detail" => fine_pass_detail = true,
+            "--fine-pass-weighted" => {
+                let v = value()?;
+                let parsed = v.split_once(',').and_then(|(w, q)| {
+                    Some(ResidualWeighting {
+                        window_px: w.parse().ok()?,
+                        floor_quantile: q.parse().ok()?,
+                    })
+                });
+                let Some(weighting) = parsed else {
+                    bail!("--fine-pass-weighted {v}: WINDOW_PX,FLOOR_QUANTILE, e.g. 3,0.25");
+                };
+                fine_pass_weighting = Some(weighting);
             }
             "--detail-cold-above" => {
                 let v = value()?;
@@ -699,6 +735,17 @@ fn parse_args(argv: &[String]) -> Result<Args> {
                         .map_err(|e: String| anyhow!("--limits-gap-tv: {e}"))?,
                 )
             }
+            "--limits-smoothed-scene" => {
+                let v = value()?;
+                let px: f64 = v
+                    .parse()
+                    .with_context(|| format!("--limits-smoothed-scene {v}"))?;
+                ensure!(
+                    px.is_finite() && px > 0.0,
+                    "--limits-smoothed-scene {v}: a Gaussian width above 0 px"
+                );
+                limits_smoothed_scene = Some(px);
+            }
             "--no-limits" => limits = false,
             "--out" => out = Some(PathBuf::from(value()?)),
             "--scene-transform" => transform = SceneTransform::parse(&value()?)?,
@@ -813,6 +860,14 @@ fn parse_args(argv: &[String]) -> Result<Args> {
             None => " (detail pass always warm-started)".to_string(),
         };
     }
+    if let Some(px) = detail_pre_smooth {
+        let settings = scene_fit_settings(&mut preset, "--detail-pre-smooth")?;
+        let Some(pass) = settings.detail_pass.as_mut() else {
+            bail!("--detail-pre-smooth: the detail pass is off (--no-detail-pass)");
+        };
+        pass.pre_smooth_px = px;
+        preset_name += &format!(" (detail maps pre-smoothed {px} px)");
+    }
     if let Some(groups) = detail_groups {
         let settings = scene_fit_settings(&mut preset, "--detail-groups")?;
         let Some(pass) = settings.detail_pass.as_mut() else {
@@ -919,6 +974,29 @@ fn parse_args(argv: &[String]) -> Result<Args> {
         }
         preset_name += ")";
     }
+    if fine_pass_detail {
+        let settings = scene_fit_settings(&mut preset, "--fine-pass-detail")?;
+        ensure!(
+            settings.detail_pass.is_some(),
+            "--fine-pass-detail: the detail pass is off (--no-detail-pass)"
+        );
+        let Some(pass) = settings.fine_pass.as_mut() else {
+            bail!("--fine-pass-detail: the fine pass is off");
+        };
+        pass.carries_detail = true;
+        preset_name += " (fine pass with the detail map)";
+    }
+    if let Some(weighting) = fine_pass_weighting {
+        let settings = scene_fit_settings(&mut preset, "--fine-pass-weighted")?;
+        let Some(pass) = settings.fine_pass.as_mut() else {
+            bail!("--fine-pass-weighted: the fine pass is off");
+        };
+        pass.weighting = Some(weighting);
+        preset_name += &format!(
+            " (fine pass weighted: window {} px, floor quantile {})",
+            weighting.window_px, weighting.floor_quantile
+        );
+    }
     let out = out.unwrap_or_else(|| {
         Path::new(env!("CARGO_MANIFEST_DIR"))
             .join("../../bench/results")
@@ -961,6 +1039,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
         recon,
         limits,
         limits_gap_tv,
+        limits_smoothed_scene,
         out,
         verbose,
         transform,
@@ -1380,6 +1459,16 @@ fn run_case(
             record["psnr_db"]["IV_instrument_sigma"] = json!(db);
         }
     }
+    if let Some(px) = args.limits_smoothed_scene {
+        let fits = limits::smoothed_scene_fits(&y, scene, mask, &est, &instrument, args.model, px);
+        for (key, fit) in fits["fits"].as_object().into_iter().flatten() {
+            eprintln!(
+                "  scene known ({key}): {}",
+                limits::error_line(&fit["error"])
+            );
+        }
+        record["limits_smoothed_scene"] = fits;
+    }
     if let (true, Some(clean)) = (args.limits, &clean) {
         let detector = limits::DetectorNoise {
             photon_peak: PHOTON_PEAK,
@@ -1417,18 +1506,9 @@ fn run_case(
                 .into_iter()
                 .flatten()
             {
-                let e = &fit["error"];
                 eprintln!(
                     "  GAP-TV scene {key}: {}",
-                    Parameter::CALIBRATED
-                        .iter()
-                        .map(|p| format!(
-                            "{} {:+.4}",
-                            p.name(),
-                            e[p.key()].as_f64().unwrap_or(f64::NAN)
-                        ))
-                        .collect::<Vec<_>>()
-                        .join("  ")
+                    limits::error_line(&fit["error"])
                 );
             }
         }
