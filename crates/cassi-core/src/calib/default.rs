@@ -811,13 +811,18 @@ fn scene_fit_stage(
     // the detail pass, when on, stands in for the first pass from here
     // (its fit for the uncertainty; the fine pass's scene still starts from
     // the smooth factor, in the first pass's basis)
-    let (detailed, found, pending) = match settings.detail_pass {
+    let (detailed, fine_detail, found, pending) = match settings.detail_pass {
         Some(pass) if !moved_by(pass.free).is_empty() => {
             pending.finish(run);
             problem.check_cancelled()?;
             let stage = run.start();
             let detail = pass.detail_map(problem, &found.best.psi, &preset.proxy)?;
-            let detailed = SceneFit::new(problem, settings)?.with_detail(detail.clone());
+            // the map again for a fine pass that carries it (a probe's)
+            let fine_detail = settings
+                .fine_pass
+                .filter(|f| f.carries_detail)
+                .map(|_| detail.clone());
+            let detailed = SceneFit::new(problem, settings)?.with_detail(detail);
             // the first pass's coefficients start it: d is about one on
             // average, so they already hold the scene's smooth factor
             let cold = pass.starts_cold(found.best.psi.blur_sigma_px);
@@ -836,13 +841,9 @@ fn scene_fit_stage(
                 best: scored(&refit),
                 passed_over: None,
             };
-            (Some((detailed, detail)), refit, pending)
+            (Some(detailed), fine_detail, refit, pending)
         }
-        _ => (None, found, pending),
-    };
-    let (detailed, detail) = match detailed {
-        Some((fit, map)) => (Some(fit), Some(map)),
-        None => (None, None),
+        _ => (None, None, found, pending),
     };
     let first_fit = detailed.as_ref().unwrap_or(&fit);
     match settings.fine_pass {
@@ -860,7 +861,7 @@ fn scene_fit_stage(
             let mut fine = SceneFit::new(problem, fine_settings)?;
             // the smooth factor's nodes either way: `fit` is the plain basis
             let scene = fine.coefficients_from(&fit, &found.best.z);
-            if let (true, Some(map)) = (pass.carries_detail, detail) {
+            if let Some(map) = fine_detail {
                 fine = fine.with_detail(map);
             }
             let anchor = match pass.anchor {
