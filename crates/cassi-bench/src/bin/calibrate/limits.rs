@@ -743,4 +743,49 @@ mod tests {
         eprintln!("imprint off the field {before:.3} -> {after:.3}; field moved {moved:.4}");
         assert!(moved < 0.02, "{moved}");
     }
+
+    /// Noiseless data of a textured scene at ψ*: the fit that knows the
+    /// whole scene returns ψ* and explains the data; the fit that knows it
+    /// smoothed by 1 px cannot explain the texture, so it leaves a larger
+    /// objective — the record holds both fits, the width and the family.
+    #[test]
+    fn the_smoothed_scene_fit_knows_less_than_the_true_scene_fit() {
+        let (rows, cols, bands) = (40, 40, 4);
+        let mask = random_binary_mask(rows, cols, 0.5, 5).unwrap();
+        let texture = random_binary_mask(rows, cols, 0.5, 6).unwrap();
+        let scene: Vec<f32> = (0..bands * rows * cols)
+            .map(|i| {
+                let (k, p) = (i / (rows * cols), i % (rows * cols));
+                (1.0 + 0.2 * k as f32) * (0.6 + 0.4 * texture.as_slice()[p])
+            })
+            .collect();
+        let scene = Cube::from_vec(bands, rows, cols, scene).unwrap();
+        let truth = Mismatch {
+            dx: 0.3,
+            dy: -0.2,
+            blur_sigma_px: 0.4,
+            ..Mismatch::nominal(2.0)
+        };
+        let family = DispersionModel::DispersedMask;
+        let (my, mx) = (rows, cols + 2 * (bands - 1));
+        let clean = predict_on_detector(&mask, &scene, &truth, family, (my, mx)).unwrap();
+        let y = Measurement::from_vec(my, mx, clean.iter().map(|&v| v as f32).collect()).unwrap();
+        let start = Mismatch {
+            dx: 0.35,
+            dy: -0.15,
+            ..truth
+        };
+        let record = smoothed_scene_fits(&y, &scene, &mask, &start, &truth, family, 1.0);
+        assert_eq!(record["smooth_px"], 1.0);
+        let fits = &record["fits"];
+        let objective = |key: &str| fits[key]["objective"].as_f64().unwrap();
+        let dx_error = fits["true_scene"]["error"]["dx"].as_f64().unwrap();
+        assert!(dx_error.abs() < 0.01, "true scene: dx off by {dx_error}");
+        assert!(
+            objective("smoothed_scene") > 100.0 * objective("true_scene").max(1e-12),
+            "smoothed {} against true {}",
+            objective("smoothed_scene"),
+            objective("true_scene")
+        );
+    }
 }
