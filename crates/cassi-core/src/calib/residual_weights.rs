@@ -41,7 +41,7 @@ impl Default for ResidualWeighting {
 
 impl ResidualWeighting {
     /// An error naming the field unless the settings can weight.
-    pub(crate) fn check(&self) -> Result<()> {
+    pub fn check(&self) -> Result<()> {
         let bad = |name, value, reason: &str| {
             Err(CassiError::InvalidParameter {
                 name,

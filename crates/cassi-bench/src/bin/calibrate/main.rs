@@ -591,9 +591,10 @@ fn parse_args(argv: &[String]) -> Result<Args> {
                 let px: f64 = v
                     .parse()
                     .with_context(|| format!("--detail-pre-smooth {v}"))?;
+                let most = cassi_core::optics::blur::MAX_SIGMA_PX;
                 ensure!(
-                    px.is_finite() && px >= 0.0,
-                    "--detail-pre-smooth {v}: a Gaussian width ≥ 0 px"
+                    px.is_finite() && (0.0..=most).contains(&px),
+                    "--detail-pre-smooth {v}: a Gaussian width of 0 to {most} px"
                 );
                 detail_pre_smooth = Some(px);
             }
@@ -609,6 +610,9 @@ fn parse_args(argv: &[String]) -> Result<Args> {
                 let Some(weighting) = parsed else {
                     bail!("--fine-pass-weighted {v}: WINDOW_PX,FLOOR_QUANTILE, e.g. 3,0.25");
                 };
+                weighting
+                    .check()
+                    .with_context(|| format!("--fine-pass-weighted {v}"))?;
                 fine_pass_weighting = Some(weighting);
             }
             "--detail-cold-above" => {
