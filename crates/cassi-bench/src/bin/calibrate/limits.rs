@@ -358,7 +358,8 @@ pub fn smoothed_scene_fits(
     json!({ "family": family, "smooth_px": smooth_px, "fits": out })
 }
 
-/// `p ±e` for each parameter of an `error` record, on one line.
+/// Each parameter's name and signed error from an `error` record, on one
+/// line (`dx +0.0123  dy -0.0040  …`).
 pub fn error_line(e: &Value) -> String {
     Parameter::CALIBRATED
         .iter()
