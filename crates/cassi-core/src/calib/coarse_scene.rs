@@ -20,6 +20,7 @@ use rayon::prelude::*;
 
 use crate::linop::LinearOperator;
 use crate::optics::operator::CubeRows;
+use crate::simd::{Simd, kernel};
 
 /// The basis of one cube shape.
 #[derive(Debug, Clone)]
@@ -43,6 +44,7 @@ pub(crate) struct CoarseScene {
     detail: Option<Vec<f32>>,
     /// Per band: its detail map's offset in `detail`.
     detail_offsets: Vec<usize>,
+    simd: Simd,
 }
 
 thread_local! {
@@ -62,7 +64,7 @@ fn taps(n: usize, cell: usize) -> (usize, Vec<(usize, f32)>) {
 
 /// `row` ← the node values `line` interpolated linearly over cells of `C`
 /// pixels (the last node held past the edge).
-#[inline]
+#[inline(always)]
 fn expand_cells<const C: usize>(line: &[f32], row: &mut [f32]) {
     let frac: [f32; C] = std::array::from_fn(|j| j as f32 / C as f32);
     let nc = line.len();
@@ -84,6 +86,293 @@ fn expand_cells<const C: usize>(line: &[f32], row: &mut [f32]) {
         }
     }
 }
+
+/// A smooth row from its two node rows (`nodes.1` empty when the row's
+/// weight `f` of the second is 0): `line` ← the nodes' row, then `row` ←
+/// it interpolated linearly over cells of `cell` pixels (the last node
+/// held past the edge), times `detail` when it is not empty. `expand`
+/// does the cells of 4 and 8 pixels (the scene fit's widths), given the
+/// width.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn up_row_body(
+    nodes: (&[f32], &[f32]),
+    f: f32,
+    line: &mut [f32],
+    row: &mut [f32],
+    detail: &[f32],
+    cell: usize,
+    fractions: &[f32],
+    expand: impl FnOnce(usize, &[f32], &mut [f32]),
+) {
+    let (a, b) = nodes;
+    if b.is_empty() {
+        line.copy_from_slice(a);
+    } else {
+        line.iter_mut()
+            .zip(a.iter().zip(b))
+            .for_each(|(l, (&a, &b))| *l = a + f * (b - a));
+    }
+    // cell by cell: a + f·(b − a) over the cell's pixels
+    if cell == 4 || cell == 8 {
+        expand(cell, line, row);
+    } else {
+        let nc = line.len();
+        for (c, chunk) in row.chunks_mut(cell).enumerate() {
+            let a = line[c];
+            let d = if c + 1 < nc { line[c + 1] - a } else { 0.0 };
+            chunk
+                .iter_mut()
+                .zip(fractions)
+                .for_each(|(o, &f)| *o = a + f * d);
+        }
+    }
+    if !detail.is_empty() {
+        row.iter_mut().zip(detail).for_each(|(o, &d)| *o *= d);
+    }
+}
+
+/// [`up_row_body`] for the baseline target (one cell per SSE vector when
+/// cells are 4 pixels wide).
+#[inline(never)]
+#[allow(clippy::too_many_arguments)]
+fn up_row_port(
+    nodes: (&[f32], &[f32]),
+    f: f32,
+    line: &mut [f32],
+    row: &mut [f32],
+    detail: &[f32],
+    cell: usize,
+    fractions: &[f32],
+) {
+    up_row_body(
+        nodes,
+        f,
+        line,
+        row,
+        detail,
+        cell,
+        fractions,
+        |cell, line, row| {
+            if cell == 4 {
+                expand_cells::<4>(line, row)
+            } else {
+                expand_cells::<8>(line, row)
+            }
+        },
+    );
+}
+
+/// [`up_row_body`] with AVX: 8-lane vectors of one 8-pixel cell or two
+/// 4-pixel ones, written out (the compiler's own AVX copy interleaved
+/// the cells through shuffles, slower than the baseline's).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx")]
+#[inline(never)]
+#[allow(clippy::too_many_arguments)]
+unsafe fn up_row_avx(
+    nodes: (&[f32], &[f32]),
+    f: f32,
+    line: &mut [f32],
+    row: &mut [f32],
+    detail: &[f32],
+    cell: usize,
+    fractions: &[f32],
+) {
+    up_row_body(
+        nodes,
+        f,
+        line,
+        row,
+        detail,
+        cell,
+        fractions,
+        |cell, line, row| {
+            // SAFETY: this function runs only where the CPU has AVX (its caller's contract).
+            unsafe {
+                if cell == 4 {
+                    expand_cells_avx::<4>(line, row)
+                } else {
+                    expand_cells_avx::<8>(line, row)
+                }
+            }
+        },
+    );
+}
+
+/// [`expand_cells`] with AVX, the same bits (a + f·d lane by lane).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx")]
+#[inline]
+unsafe fn expand_cells_avx<const C: usize>(line: &[f32], row: &mut [f32]) {
+    use std::arch::x86_64::{
+        _mm_set1_ps, _mm256_add_ps, _mm256_loadu_ps, _mm256_mul_ps, _mm256_set_m128,
+        _mm256_set1_ps, _mm256_storeu_ps,
+    };
+    const { assert!(C == 4 || C == 8) };
+    let frac: [f32; 8] = std::array::from_fn(|j| (j % C) as f32 / C as f32);
+    let nc = line.len();
+    let slope = |c: usize| {
+        if c + 1 < nc {
+            line[c + 1] - line[c]
+        } else {
+            0.0
+        }
+    };
+    // whole vectors: 8 pixels, of cells c0 and c0 + 1 (C = 4) or c0 (C = 8)
+    let vectors = row.len() / 8;
+    // SAFETY: `frac` holds 8 floats.
+    let fr = unsafe { _mm256_loadu_ps(frac.as_ptr()) };
+    for (v, out) in row.chunks_exact_mut(8).enumerate() {
+        let (a, d) = if C == 8 {
+            (_mm256_set1_ps(line[v]), _mm256_set1_ps(slope(v)))
+        } else {
+            let (c0, c1) = (2 * v, 2 * v + 1);
+            (
+                _mm256_set_m128(_mm_set1_ps(line[c1]), _mm_set1_ps(line[c0])),
+                _mm256_set_m128(_mm_set1_ps(slope(c1)), _mm_set1_ps(slope(c0))),
+            )
+        };
+        // SAFETY: `out` holds 8 floats.
+        unsafe { _mm256_storeu_ps(out.as_mut_ptr(), _mm256_add_ps(a, _mm256_mul_ps(fr, d))) };
+    }
+    // the last pixels, one by one
+    for (p, o) in row.iter_mut().enumerate().skip(8 * vectors) {
+        let c = p / C;
+        *o = line[c] + frac[p % C] * slope(c);
+    }
+}
+
+/// Dispatches [`up_row_port`] / [`up_row_avx`].
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn up_row_kernel(
+    simd: Simd,
+    nodes: (&[f32], &[f32]),
+    f: f32,
+    line: &mut [f32],
+    row: &mut [f32],
+    detail: &[f32],
+    cell: usize,
+    fractions: &[f32],
+) {
+    #[cfg(target_arch = "x86_64")]
+    if simd.avx {
+        // SAFETY: `simd.avx` is true only when `Simd::detect` found AVX at
+        // run time (tests pass detect's answer or false).
+        return unsafe { up_row_avx(nodes, f, line, row, detail, cell, fractions) };
+    }
+    let _ = simd;
+    up_row_port(nodes, f, line, row, detail, cell, fractions)
+}
+
+/// Adds the adjoint of a smooth row (cells of `cell` pixels, the next
+/// node's weight `fractions[j]` at offset j, the last node held past the
+/// edge) to the two node rows around it: `into.0` += (1 − f)·line,
+/// `into.1` += f·line (`into.1` empty when f = 0). `row` is first
+/// multiplied by `detail` in place (when not empty); `line` holds
+/// node cols + 2 · cells. Each cell's sums run pixel by pixel in order
+/// from 0, so every compiled copy gives the bits of accumulating cell by
+/// cell into a zeroed line.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn add_down_row_body(
+    row: &mut [f32],
+    detail: &[f32],
+    cell: usize,
+    fractions: &[f32],
+    line: &mut [f32],
+    into: (&mut [f32], &mut [f32]),
+    f: f32,
+) {
+    if !detail.is_empty() {
+        row.iter_mut().zip(detail).for_each(|(v, &d)| *v *= d);
+    }
+    let nc = into.0.len();
+    let cells = row.len().div_ceil(cell);
+    let (line, moments) = line.split_at_mut(nc);
+    let (sums, nexts) = moments[..2 * cells].split_at_mut(cells);
+    let full = row.len() / cell;
+    // fixed-width cells (the scene fit's) one cell per lane: the compiler
+    // vectorises across cells without reordering any cell's sum
+    match cell {
+        4 => cell_moments_fixed::<4>(&row[..4 * full], &mut sums[..full], &mut nexts[..full]),
+        8 => cell_moments_fixed::<8>(&row[..8 * full], &mut sums[..full], &mut nexts[..full]),
+        _ => cell_moments_any(&row[..cell * full], cell, fractions, sums, nexts),
+    }
+    if full < cells {
+        cell_moments_any(
+            &row[cell * full..],
+            cell,
+            fractions,
+            &mut sums[full..],
+            &mut nexts[full..],
+        );
+    }
+    // node c takes (0 + next[c − 1]) + (sum[c] − next[c]): cell c − 1's
+    // share first, as the cell-by-cell accumulation adds them (nc is cells
+    // or cells + 1: the last cell's share is dropped past the last node)
+    if cells > 0 {
+        line[0] = 0.0 + (sums[0] - nexts[0]);
+        let inner = &mut line[1..cells];
+        for (c, l) in inner.iter_mut().enumerate() {
+            *l = (0.0 + nexts[c]) + (sums[c + 1] - nexts[c + 1]);
+        }
+        if nc > cells {
+            line[cells] = 0.0 + nexts[cells - 1];
+        }
+    }
+    let (now, next) = into;
+    now.iter_mut()
+        .zip(line.iter())
+        .for_each(|(c, &l)| *c += l - f * l);
+    next.iter_mut()
+        .zip(line.iter())
+        .for_each(|(c, &l)| *c += f * l);
+}
+
+/// Each cell's pixel sum and fraction-weighted sum, pixel by pixel.
+#[inline(always)]
+fn cell_moments_any(
+    row: &[f32],
+    cell: usize,
+    fractions: &[f32],
+    sums: &mut [f32],
+    nexts: &mut [f32],
+) {
+    for ((chunk, s), n) in row.chunks(cell).zip(sums.iter_mut()).zip(nexts.iter_mut()) {
+        let (mut sum, mut next) = (0.0f32, 0.0f32);
+        for (&v, &f) in chunk.iter().zip(fractions) {
+            sum += v;
+            next += f * v;
+        }
+        (*s, *n) = (sum, next);
+    }
+}
+
+/// [`cell_moments_any`] of the full cells of `C` pixels of `row`, one cell
+/// per lane.
+#[inline(always)]
+fn cell_moments_fixed<const C: usize>(row: &[f32], sums: &mut [f32], nexts: &mut [f32]) {
+    let frac: [f32; C] = std::array::from_fn(|j| j as f32 / C as f32);
+    let n = sums.len();
+    let (row, nexts) = (&row[..C * n], &mut nexts[..n]);
+    for c in 0..n {
+        let (mut sum, mut next) = (0.0f32, 0.0f32);
+        for j in 0..C {
+            let v = row[C * c + j];
+            sum += v;
+            next += frac[j] * v;
+        }
+        sums[c] = sum;
+        nexts[c] = next;
+    }
+}
+
+kernel!(add_down_row_kernel, add_down_row_port, add_down_row_avx,
+    (row: &mut [f32], detail: &[f32], cell: usize, fractions: &[f32], line: &mut [f32],
+     into: (&mut [f32], &mut [f32]), f: f32) -> ()
+    = add_down_row_body(row, detail, cell, fractions, line, into, f));
 
 impl CoarseScene {
     /// The basis for `bands × rows × cols` cubes; `spectral_nodes` is
@@ -124,6 +413,7 @@ impl CoarseScene {
             band_taps,
             detail: None,
             detail_offsets: Vec::new(),
+            simd: Simd::detect(false),
         }
     }
 
@@ -143,6 +433,13 @@ impl CoarseScene {
             .map(|k| k * maps / self.bands * plane)
             .collect();
         self.detail = Some(detail);
+        self
+    }
+
+    /// The basis running the given compiled copy of its row kernels.
+    #[cfg(test)]
+    fn with_simd(mut self, simd: Simd) -> Self {
+        self.simd = simd;
         self
     }
 
@@ -169,43 +466,26 @@ impl CoarseScene {
     /// Pixel row `i` of band `k`'s coarse image, times its detail map.
     #[inline]
     fn up_row(&self, k: usize, coarse: &[f32], i: usize, row: &mut [f32], line: &mut Vec<f32>) {
-        self.smooth_row(coarse, i, row, line);
-        if let Some(d) = self.detail_row(k, i) {
-            row.iter_mut().zip(d).for_each(|(o, &d)| *o *= d);
-        }
-    }
-
-    /// Pixel row `i` of one band's coarse image, without the detail map.
-    #[inline]
-    fn smooth_row(&self, coarse: &[f32], i: usize, row: &mut [f32], line: &mut Vec<f32>) {
         let nc = self.node_cols;
         line.resize(nc, 0.0);
         let (q, f) = self.row_taps[i];
         let a = &coarse[q * nc..(q + 1) * nc];
-        if f == 0.0 {
-            line.copy_from_slice(a);
+        let b = if f == 0.0 {
+            &[][..]
         } else {
-            let b = &coarse[(q + 1) * nc..(q + 2) * nc];
-            line.iter_mut()
-                .zip(a.iter().zip(b))
-                .for_each(|(l, (&a, &b))| *l = a + f * (b - a));
-        }
-        // cell by cell: a + f·(b − a) over the cell's pixels (fixed-width
-        // cells for the widths the scene fit uses, which vectorise)
-        match self.cell {
-            4 => expand_cells::<4>(line, row),
-            8 => expand_cells::<8>(line, row),
-            _ => {
-                for (c, chunk) in row.chunks_mut(self.cell).enumerate() {
-                    let a = line[c];
-                    let d = if c + 1 < nc { line[c + 1] - a } else { 0.0 };
-                    chunk
-                        .iter_mut()
-                        .zip(&self.fractions)
-                        .for_each(|(o, &f)| *o = a + f * d);
-                }
-            }
-        }
+            &coarse[(q + 1) * nc..(q + 2) * nc]
+        };
+        let detail = self.detail_row(k, i).unwrap_or(&[]);
+        up_row_kernel(
+            self.simd,
+            (a, b),
+            f,
+            line,
+            row,
+            detail,
+            self.cell,
+            &self.fractions,
+        );
     }
 
     /// The adjoint of [`Self::up_band`]: band `k`'s pixels → its coarse
@@ -227,7 +507,8 @@ impl CoarseScene {
     }
 
     /// Adds the adjoint of [`Self::up_row`] of band `k`'s pixel row `i` to
-    /// `coarse` (`row` is overwritten: the detail map is applied in place).
+    /// `coarse` (`row` is overwritten: the detail map is applied in place;
+    /// `line`: scratch).
     #[inline]
     fn add_down_row(
         &self,
@@ -237,35 +518,25 @@ impl CoarseScene {
         coarse: &mut [f32],
         line: &mut Vec<f32>,
     ) {
-        if let Some(d) = self.detail_row(k, i) {
-            row.iter_mut().zip(d).for_each(|(v, &d)| *v *= d);
-        }
-        let row = &*row;
         let nc = self.node_cols;
-        line.resize(nc, 0.0);
-        line.fill(0.0);
-        for (c, chunk) in row.chunks(self.cell).enumerate() {
-            let (mut sum, mut next) = (0.0f32, 0.0f32);
-            for (&v, &f) in chunk.iter().zip(&self.fractions) {
-                sum += v;
-                next += f * v;
-            }
-            line[c] += sum - next;
-            if c + 1 < nc {
-                line[c + 1] += next;
-            }
-        }
+        line.resize(nc + 2 * row.len().div_ceil(self.cell), 0.0);
         let (q, f) = self.row_taps[i];
-        coarse[q * nc..(q + 1) * nc]
-            .iter_mut()
-            .zip(line.iter())
-            .for_each(|(c, &l)| *c += l - f * l);
-        if f != 0.0 {
-            coarse[(q + 1) * nc..(q + 2) * nc]
-                .iter_mut()
-                .zip(line.iter())
-                .for_each(|(c, &l)| *c += f * l);
-        }
+        let (now, next) = coarse[q * nc..].split_at_mut(nc);
+        let next = if f != 0.0 {
+            &mut next[..nc]
+        } else {
+            &mut [][..]
+        };
+        add_down_row_kernel(
+            self.simd,
+            row,
+            self.detail_row(k, i).unwrap_or(&[]),
+            self.cell,
+            &self.fractions,
+            line,
+            (now, next),
+            f,
+        );
     }
 
     /// Band `k`'s coarse image from the coefficients `z` (the spectral
@@ -500,6 +771,48 @@ mod tests {
                     let want = &detailed[(k * rows + r) * cols..][..cols];
                     assert_eq!(got, want, "{maps} maps: band {k} row {r}");
                 }
+            }
+        }
+    }
+
+    /// The AVX copies of the row kernels give the portable copies' bits,
+    /// forward and adjoint, with and without a detail map, for the fixed
+    /// cell widths and another, on rows that are not whole vectors.
+    #[test]
+    fn the_avx_copy_gives_the_same_bits_as_the_portable_one() {
+        let mut rng = crate::Rng::new(12);
+        for (bands, rows, cols, cell, nodes) in [
+            (6, 13, 37, 4, 3),
+            (5, 11, 45, 8, 5),
+            (4, 9, 29, 3, 4),
+            (3, 8, 64, 8, 3),
+        ] {
+            let plane = rows * cols;
+            let detail: Vec<f32> = (0..2 * plane).map(|_| rng.uniform() as f32 + 0.5).collect();
+            let z: Vec<f32> = (0..CoarseScene::new(bands, rows, cols, cell, nodes).domain_len())
+                .map(|_| rng.uniform() as f32 - 0.3)
+                .collect();
+            let y: Vec<f32> = (0..bands * plane)
+                .map(|_| rng.uniform() as f32 - 0.4)
+                .collect();
+            for with_detail in [false, true] {
+                let run = |avx: bool| {
+                    let mut u =
+                        CoarseScene::new(bands, rows, cols, cell, nodes).with_simd(Simd { avx });
+                    if with_detail {
+                        u = u.with_detail(detail.clone());
+                    }
+                    let mut cube = vec![0.0f32; u.range_len()];
+                    u.apply(&z, &mut cube);
+                    let mut back = vec![0.0f32; u.domain_len()];
+                    u.adjoint(&y, &mut back);
+                    (cube, back)
+                };
+                let (port, avx) = (run(false), run(Simd::detect(false).avx));
+                let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                let case = format!("{bands}×{rows}×{cols} cell {cell}, detail {with_detail}");
+                assert_eq!(bits(&port.0), bits(&avx.0), "forward, {case}");
+                assert_eq!(bits(&port.1), bits(&avx.1), "adjoint, {case}");
             }
         }
     }
