@@ -35,6 +35,7 @@ use cassi_core::calib::{
     CalibrationProblem, DefaultPreset, SCENE_SMOOTH_PX, SceneEstimate, SceneFitSettings,
     gap_tv_reconstruction, gaussian_taps, nelder_mead, scene_fit_score, smooth_bands, texture_fit,
 };
+use cassi_core::denoise::{TvChambolleParams, TvScratch2d, tv_chambolle_2d};
 use cassi_core::linop::LinearOperator;
 use cassi_core::optics::{DispersionModel, GaussianBlur, ModelOperator};
 use cassi_core::{Cube, Mask, Measurement, Mismatch, Parameter};
@@ -322,13 +323,51 @@ pub fn gap_tv_scene_fits(
     }))
 }
 
-/// `--limits-smoothed-scene PX`: the scene-known fit (as [`measure`]'s, in
-/// `family`, from the blind estimate) with the true scene and with every
-/// band of it smoothed by a Gaussian of σ `smooth_px` (edge-replicating, so
-/// the frame's borders keep their light): how far a fit would get that knew
-/// the scene down to that scale and nothing finer. Where the smoothed fit
-/// misses as the blind one does, the miss is the scene's texture below
-/// that scale, which no scene model coarser than it can hold.
+/// What the scene-known fit of [`smoothed_scene_fits`] is told of the
+/// scene: every band smoothed by a Gaussian (`--limits-smoothed-scene PX`)
+/// or TV-denoised (`--limits-tv-scene WEIGHT`: Chambolle's isotropic 2-D TV
+/// per band, skimage's weight and defaults — edges kept, texture below
+/// the edges' scale flattened).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum KnownScene {
+    Smoothed { px: f64 },
+    TvDenoised { weight: f64 },
+}
+
+impl KnownScene {
+    /// The scene as the fit is told it.
+    fn of(self, scene: &Cube) -> Cube {
+        let (bands, h, w) = scene.shape();
+        match self {
+            KnownScene::Smoothed { px } => {
+                let mut smoothed = scene.clone().into_vec();
+                smooth_bands(&mut smoothed, h, w, &gaussian_taps(px as f32));
+                Cube::from_vec(bands, h, w, smoothed).expect("the scene's own shape")
+            }
+            KnownScene::TvDenoised { weight } => {
+                let mut denoised = scene.clone();
+                tv_chambolle_2d(
+                    &mut denoised,
+                    weight as f32,
+                    &TvChambolleParams::default(),
+                    &mut TvScratch2d::default(),
+                );
+                denoised
+            }
+        }
+    }
+}
+
+/// `--limits-smoothed-scene PX` / `--limits-tv-scene WEIGHT`: the
+/// scene-known fit (as [`measure`]'s, in `family`, from the blind
+/// estimate) with the true scene and with the scene as `known` tells it:
+/// every band smoothed by a Gaussian of σ PX (edge-replicating, so the
+/// frame's borders keep their light) — how far a fit would get that knew
+/// the scene down to that scale and nothing finer — or TV-denoised, which
+/// keeps the edges and flattens the texture between them. Where the told
+/// fit misses as the blind one does, the miss is what the telling left
+/// out. The record holds the told scene's RMS difference from the scene
+/// (and the scene's RMS), to set the two kinds side by side.
 pub fn smoothed_scene_fits(
     y: &Measurement,
     scene: &Cube,
@@ -336,16 +375,23 @@ pub fn smoothed_scene_fits(
     blind: &Mismatch,
     truth: &Mismatch,
     family: DispersionModel,
-    smooth_px: f64,
+    known: KnownScene,
 ) -> Value {
     let (rows, cols) = y.shape();
-    let (bands, h, w) = scene.shape();
-    let mut smoothed = scene.clone().into_vec();
-    smooth_bands(&mut smoothed, h, w, &gaussian_taps(smooth_px as f32));
-    let smoothed = Cube::from_vec(bands, h, w, smoothed).expect("the scene's own shape");
+    let told = known.of(scene);
+    let rms = |v: &mut dyn Iterator<Item = f64>| {
+        let (sum, n) = v.fold((0.0, 0usize), |(s, n), x| (s + x * x, n + 1));
+        (sum / n.max(1) as f64).sqrt()
+    };
+    let change = rms(&mut told
+        .as_slice()
+        .iter()
+        .zip(scene.as_slice())
+        .map(|(&a, &b)| (a - b) as f64));
+    let level = rms(&mut scene.as_slice().iter().map(|&v| v as f64));
     let y = as_f64(y);
     let mut out = serde_json::Map::new();
-    for (key, known) in [("true_scene", scene), ("smoothed_scene", &smoothed)] {
+    for (key, known) in [("true_scene", scene), ("smoothed_scene", &told)] {
         let model = SceneKnown {
             mask,
             scene: known,
@@ -355,7 +401,17 @@ pub fn smoothed_scene_fits(
         };
         out.insert(key.into(), oracle_fit(&model, &y, blind, truth));
     }
-    json!({ "family": family, "smooth_px": smooth_px, "fits": out })
+    let mut record = json!({
+        "family": family,
+        "scene_rms": level,
+        "told_scene_rms_change": change,
+        "fits": out,
+    });
+    match known {
+        KnownScene::Smoothed { px } => record["smooth_px"] = json!(px),
+        KnownScene::TvDenoised { weight } => record["tv_weight"] = json!(weight),
+    }
+    record
 }
 
 /// Each parameter's name and signed error from an `error` record, on one
@@ -747,8 +803,9 @@ mod tests {
 
     /// Noiseless data of a textured scene at ψ*: the fit that knows the
     /// whole scene returns ψ* and explains the data; the fit that knows it
-    /// smoothed by 1 px cannot explain the texture, so it leaves a larger
-    /// objective — the record holds both fits, the width and the family.
+    /// smoothed by 1 px, or TV-denoised, cannot explain the texture, so it
+    /// leaves a larger objective — the record holds both fits, what the
+    /// fit was told, how far that is from the scene, and the family.
     #[test]
     fn the_smoothed_scene_fit_knows_less_than_the_true_scene_fit() {
         let (rows, cols, bands) = (40, 40, 4);
@@ -776,17 +833,31 @@ mod tests {
             dy: -0.15,
             ..truth
         };
-        let record = smoothed_scene_fits(&y, &scene, &mask, &start, &truth, family, 1.0);
-        assert_eq!(record["smooth_px"], 1.0);
-        let fits = &record["fits"];
-        let objective = |key: &str| fits[key]["objective"].as_f64().unwrap();
-        let dx_error = fits["true_scene"]["error"]["dx"].as_f64().unwrap();
-        assert!(dx_error.abs() < 0.01, "true scene: dx off by {dx_error}");
-        assert!(
-            objective("smoothed_scene") > 100.0 * objective("true_scene").max(1e-12),
-            "smoothed {} against true {}",
-            objective("smoothed_scene"),
-            objective("true_scene")
-        );
+        for known in [
+            KnownScene::Smoothed { px: 1.0 },
+            KnownScene::TvDenoised { weight: 0.1 },
+        ] {
+            let record = smoothed_scene_fits(&y, &scene, &mask, &start, &truth, family, known);
+            match known {
+                KnownScene::Smoothed { px } => assert_eq!(record["smooth_px"], px),
+                KnownScene::TvDenoised { weight } => assert_eq!(record["tv_weight"], weight),
+            }
+            let change = record["told_scene_rms_change"].as_f64().unwrap();
+            let level = record["scene_rms"].as_f64().unwrap();
+            assert!(
+                change > 0.01 * level && change < level,
+                "{known:?}: the told scene moved by {change} (scene RMS {level})"
+            );
+            let fits = &record["fits"];
+            let objective = |key: &str| fits[key]["objective"].as_f64().unwrap();
+            let dx_error = fits["true_scene"]["error"]["dx"].as_f64().unwrap();
+            assert!(dx_error.abs() < 0.01, "true scene: dx off by {dx_error}");
+            assert!(
+                objective("smoothed_scene") > 100.0 * objective("true_scene").max(1e-12),
+                "{known:?}: told {} against true {}",
+                objective("smoothed_scene"),
+                objective("true_scene")
+            );
+        }
     }
 }

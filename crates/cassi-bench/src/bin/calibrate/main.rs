@@ -52,7 +52,9 @@
 //! and at the blind estimate (what a reconstruct-then-fit round reaches).
 //! `--limits-smoothed-scene PX` (with or without `--limits`) the
 //! scene-known fit with the true scene and with it smoothed by PX px: how
-//! far a fit gets that knows the scene only down to that scale.
+//! far a fit gets that knows the scene only down to that scale;
+//! `--limits-tv-scene WEIGHT` the same with the scene TV-denoised instead
+//! (edges kept, the texture between them flattened).
 //!
 //! Run: `cargo run --release -p cassi-bench --bin calibrate --
 //! [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] [--no-aligned]
@@ -60,7 +62,7 @@
 //! [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene]
 //! [--fine-pass-free pose-and-slope|geometry|all] [--scene-cell PX] [--scene-nodes N]
 //! [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv ITERATIONS] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N]]
-//! [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX] [--out PATH] [--scene-transform none|flip-cols|flip-rows|transpose|coarse|smooth-PX] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--model-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--detail-cold-above PX|none] [--blur-bootstrap crisp-cells|dispersed-mask [--blur-bootstrap-noise] [--blur-bootstrap-residual] [--blur-bootstrap-min PX]] [--snapshots N [--joint [--joint-model MODEL]]] [--verbose]`
+//! [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX | --limits-tv-scene WEIGHT] [--out PATH] [--scene-transform none|flip-cols|flip-rows|transpose|coarse|smooth-PX] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--model-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--detail-cold-above PX|none] [--blur-bootstrap crisp-cells|dispersed-mask [--blur-bootstrap-noise] [--blur-bootstrap-residual] [--blur-bootstrap-min PX]] [--snapshots N [--joint [--joint-model MODEL]]] [--verbose]`
 //! (`--no-texture`: the default preset without its texture fit, as it was
 //! before issue #14 — the "before" row; `--no-scene-fit`: without its
 //! scene fit, ending in the texture fit as the records `*_texture.json`
@@ -224,9 +226,10 @@ struct Args {
     /// `--limits-gap-tv FAMILY`: with `--limits`, the scene-known fit in
     /// FAMILY on GAP-TV's scene ([`limits::gap_tv_scene_fits`]).
     limits_gap_tv: Option<DispersionModel>,
-    /// `--limits-smoothed-scene PX`: the scene-known fit with the true scene
-    /// and with it smoothed by PX px ([`limits::smoothed_scene_fits`]).
-    limits_smoothed_scene: Option<f64>,
+    /// `--limits-smoothed-scene PX` / `--limits-tv-scene WEIGHT`: the
+    /// scene-known fit with the true scene and with it as told
+    /// ([`limits::smoothed_scene_fits`]).
+    limits_smoothed_scene: Option<limits::KnownScene>,
     out: PathBuf,
     verbose: bool,
     /// `--scene-transform`: every scene flipped or transposed before the
@@ -440,7 +443,7 @@ impl SceneTransform {
 
 const USAGE: &str = "calibrate [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] \
                      [--no-aligned] [--no-inverse-crime] [--no-wide-blur] [--model rounded|subpixel|dispersed-mask|crisp-cells] \
-                     [--preset NAME] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all] [--scene-cell PX] [--scene-nodes N] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv N] [--detail-pre-smooth PX] [--fine-pass-detail] [--fine-pass-weighted WINDOW_PX,FLOOR_QUANTILE] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N]] [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX] [--out PATH] \
+                     [--preset NAME] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all] [--scene-cell PX] [--scene-nodes N] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv N] [--detail-pre-smooth PX] [--fine-pass-detail] [--fine-pass-weighted WINDOW_PX,FLOOR_QUANTILE] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N]] [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX | --limits-tv-scene WEIGHT] [--out PATH] \
                      [--scene-transform none|flip-cols|flip-rows|transpose|coarse|smooth-PX] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--snapshots N [--joint [--joint-model MODEL]]] [--verbose]";
 
 fn parse_args(argv: &[String]) -> Result<Args> {
@@ -451,7 +454,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
     let mut wide_blur = true;
     let mut limits = true;
     let mut limits_gap_tv: Option<DispersionModel> = None;
-    let mut limits_smoothed_scene: Option<f64> = None;
+    let mut limits_smoothed_scene: Option<limits::KnownScene> = None;
     let mut model = DispersionModel::DispersedMask;
     let mut preset_name = "default".to_string();
     let mut texture = true;
@@ -742,16 +745,22 @@ fn parse_args(argv: &[String]) -> Result<Args> {
                         .map_err(|e: String| anyhow!("--limits-gap-tv: {e}"))?,
                 )
             }
-            "--limits-smoothed-scene" => {
+            "--limits-smoothed-scene" | "--limits-tv-scene" => {
                 let v = value()?;
-                let px: f64 = v
-                    .parse()
-                    .with_context(|| format!("--limits-smoothed-scene {v}"))?;
+                let width: f64 = v.parse().with_context(|| format!("{flag} {v}"))?;
                 ensure!(
-                    px.is_finite() && px > 0.0,
-                    "--limits-smoothed-scene {v}: a Gaussian width above 0 px"
+                    width.is_finite() && width > 0.0,
+                    "{flag} {v}: a Gaussian width (px) or TV weight above 0"
                 );
-                limits_smoothed_scene = Some(px);
+                ensure!(
+                    limits_smoothed_scene.is_none(),
+                    "{flag}: one of --limits-smoothed-scene and --limits-tv-scene, once"
+                );
+                limits_smoothed_scene = Some(if flag.as_str() == "--limits-tv-scene" {
+                    limits::KnownScene::TvDenoised { weight: width }
+                } else {
+                    limits::KnownScene::Smoothed { px: width }
+                });
             }
             "--no-limits" => limits = false,
             "--out" => out = Some(PathBuf::from(value()?)),
@@ -1466,8 +1475,9 @@ fn run_case(
             record["psnr_db"]["IV_instrument_sigma"] = json!(db);
         }
     }
-    if let Some(px) = args.limits_smoothed_scene {
-        let fits = limits::smoothed_scene_fits(&y, scene, mask, &est, &instrument, args.model, px);
+    if let Some(known) = args.limits_smoothed_scene {
+        let fits =
+            limits::smoothed_scene_fits(&y, scene, mask, &est, &instrument, args.model, known);
         for (key, fit) in fits["fits"].as_object().into_iter().flatten() {
             eprintln!(
                 "  scene known ({key}): {}",
