@@ -64,7 +64,7 @@ fn taps(n: usize, cell: usize) -> (usize, Vec<(usize, f32)>) {
 
 /// `row` ← the node values `line` interpolated linearly over cells of `C`
 /// pixels (the last node held past the edge).
-#[inline(always)]
+#[inline]
 fn expand_cells<const C: usize>(line: &[f32], row: &mut [f32]) {
     let frac: [f32; C] = std::array::from_fn(|j| j as f32 / C as f32);
     let nc = line.len();
@@ -87,123 +87,50 @@ fn expand_cells<const C: usize>(line: &[f32], row: &mut [f32]) {
     }
 }
 
-/// A smooth row from its two node rows (`nodes.1` empty when the row's
-/// weight `f` of the second is 0): `line` ← the nodes' row, then `row` ←
-/// it interpolated linearly over cells of `cell` pixels (the last node
-/// held past the edge), times `detail` when it is not empty. `expand`
-/// does the cells of 4 and 8 pixels (the scene fit's widths), given the
-/// width.
-#[inline(always)]
-#[allow(clippy::too_many_arguments)]
-fn up_row_body(
-    nodes: (&[f32], &[f32]),
-    f: f32,
-    line: &mut [f32],
-    row: &mut [f32],
-    detail: &[f32],
-    cell: usize,
-    fractions: &[f32],
-    expand: impl FnOnce(usize, &[f32], &mut [f32]),
-) {
-    let (a, b) = nodes;
-    if b.is_empty() {
-        line.copy_from_slice(a);
-    } else {
-        line.iter_mut()
-            .zip(a.iter().zip(b))
-            .for_each(|(l, (&a, &b))| *l = a + f * (b - a));
+/// `row` ← the node values `line` interpolated linearly over cells of
+/// `cell` pixels (the last node held past the edge): the scene fit's
+/// widths, 4 and 8, through the compiled copy `simd` picks, others pixel
+/// by pixel.
+#[inline]
+fn expand_row(simd: Simd, cell: usize, fractions: &[f32], line: &[f32], row: &mut [f32]) {
+    #[cfg(target_arch = "x86_64")]
+    if simd.avx && (cell == 4 || cell == 8) {
+        // SAFETY: `simd.avx` is true only when `Simd::detect` found AVX at
+        // run time (tests pass detect's answer or false).
+        unsafe {
+            if cell == 4 {
+                expand_cells_avx::<4>(line, row)
+            } else {
+                expand_cells_avx::<8>(line, row)
+            }
+        }
+        return;
     }
-    // cell by cell: a + f·(b − a) over the cell's pixels
-    if cell == 4 || cell == 8 {
-        expand(cell, line, row);
-    } else {
-        let nc = line.len();
-        for (c, chunk) in row.chunks_mut(cell).enumerate() {
-            let a = line[c];
-            let d = if c + 1 < nc { line[c + 1] - a } else { 0.0 };
-            chunk
-                .iter_mut()
-                .zip(fractions)
-                .for_each(|(o, &f)| *o = a + f * d);
+    let _ = simd;
+    match cell {
+        4 => expand_cells::<4>(line, row),
+        8 => expand_cells::<8>(line, row),
+        _ => {
+            let nc = line.len();
+            for (c, chunk) in row.chunks_mut(cell).enumerate() {
+                let a = line[c];
+                let d = if c + 1 < nc { line[c + 1] - a } else { 0.0 };
+                chunk
+                    .iter_mut()
+                    .zip(fractions)
+                    .for_each(|(o, &f)| *o = a + f * d);
+            }
         }
     }
-    if !detail.is_empty() {
-        row.iter_mut().zip(detail).for_each(|(o, &d)| *o *= d);
-    }
 }
 
-/// [`up_row_body`] for the baseline target (one cell per SSE vector when
-/// cells are 4 pixels wide).
-#[inline(never)]
-#[allow(clippy::too_many_arguments)]
-fn up_row_port(
-    nodes: (&[f32], &[f32]),
-    f: f32,
-    line: &mut [f32],
-    row: &mut [f32],
-    detail: &[f32],
-    cell: usize,
-    fractions: &[f32],
-) {
-    up_row_body(
-        nodes,
-        f,
-        line,
-        row,
-        detail,
-        cell,
-        fractions,
-        |cell, line, row| {
-            if cell == 4 {
-                expand_cells::<4>(line, row)
-            } else {
-                expand_cells::<8>(line, row)
-            }
-        },
-    );
-}
-
-/// [`up_row_body`] with AVX: 8-lane vectors of one 8-pixel cell or two
-/// 4-pixel ones, written out (the compiler's own AVX copy interleaved
-/// the cells through shuffles, slower than the baseline's).
+/// [`expand_cells`] with AVX, the same bits (a + f·d lane by lane):
+/// 8-lane vectors of one 8-pixel cell or two 4-pixel ones, written out
+/// (the compiler's own AVX copy of `expand_cells` interleaved the cells
+/// through shuffles and was slower than the baseline's SSE).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx")]
 #[inline(never)]
-#[allow(clippy::too_many_arguments)]
-unsafe fn up_row_avx(
-    nodes: (&[f32], &[f32]),
-    f: f32,
-    line: &mut [f32],
-    row: &mut [f32],
-    detail: &[f32],
-    cell: usize,
-    fractions: &[f32],
-) {
-    up_row_body(
-        nodes,
-        f,
-        line,
-        row,
-        detail,
-        cell,
-        fractions,
-        |cell, line, row| {
-            // SAFETY: this function runs only where the CPU has AVX (its caller's contract).
-            unsafe {
-                if cell == 4 {
-                    expand_cells_avx::<4>(line, row)
-                } else {
-                    expand_cells_avx::<8>(line, row)
-                }
-            }
-        },
-    );
-}
-
-/// [`expand_cells`] with AVX, the same bits (a + f·d lane by lane).
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx")]
-#[inline]
 unsafe fn expand_cells_avx<const C: usize>(line: &[f32], row: &mut [f32]) {
     use std::arch::x86_64::{
         _mm_set1_ps, _mm256_add_ps, _mm256_loadu_ps, _mm256_mul_ps, _mm256_set_m128,
@@ -241,29 +168,6 @@ unsafe fn expand_cells_avx<const C: usize>(line: &[f32], row: &mut [f32]) {
         let c = p / C;
         *o = line[c] + frac[p % C] * slope(c);
     }
-}
-
-/// Dispatches [`up_row_port`] / [`up_row_avx`].
-#[inline(always)]
-#[allow(clippy::too_many_arguments)]
-fn up_row_kernel(
-    simd: Simd,
-    nodes: (&[f32], &[f32]),
-    f: f32,
-    line: &mut [f32],
-    row: &mut [f32],
-    detail: &[f32],
-    cell: usize,
-    fractions: &[f32],
-) {
-    #[cfg(target_arch = "x86_64")]
-    if simd.avx {
-        // SAFETY: `simd.avx` is true only when `Simd::detect` found AVX at
-        // run time (tests pass detect's answer or false).
-        return unsafe { up_row_avx(nodes, f, line, row, detail, cell, fractions) };
-    }
-    let _ = simd;
-    up_row_port(nodes, f, line, row, detail, cell, fractions)
 }
 
 /// Adds the adjoint of a smooth row (cells of `cell` pixels, the next
@@ -470,22 +374,18 @@ impl CoarseScene {
         line.resize(nc, 0.0);
         let (q, f) = self.row_taps[i];
         let a = &coarse[q * nc..(q + 1) * nc];
-        let b = if f == 0.0 {
-            &[][..]
+        if f == 0.0 {
+            line.copy_from_slice(a);
         } else {
-            &coarse[(q + 1) * nc..(q + 2) * nc]
-        };
-        let detail = self.detail_row(k, i).unwrap_or(&[]);
-        up_row_kernel(
-            self.simd,
-            (a, b),
-            f,
-            line,
-            row,
-            detail,
-            self.cell,
-            &self.fractions,
-        );
+            let b = &coarse[(q + 1) * nc..(q + 2) * nc];
+            line.iter_mut()
+                .zip(a.iter().zip(b))
+                .for_each(|(l, (&a, &b))| *l = a + f * (b - a));
+        }
+        expand_row(self.simd, self.cell, &self.fractions, line, row);
+        if let Some(d) = self.detail_row(k, i) {
+            row.iter_mut().zip(d).for_each(|(o, &d)| *o *= d);
+        }
     }
 
     /// The adjoint of [`Self::up_band`]: band `k`'s pixels → its coarse
