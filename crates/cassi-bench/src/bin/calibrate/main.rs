@@ -443,7 +443,7 @@ impl SceneTransform {
 
 const USAGE: &str = "calibrate [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] \
                      [--no-aligned] [--no-inverse-crime] [--no-wide-blur] [--model rounded|subpixel|dispersed-mask|crisp-cells] \
-                     [--preset NAME] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all] [--scene-cell PX] [--scene-nodes N] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv N] [--detail-pre-smooth PX] [--fine-pass-detail] [--fine-pass-weighted WINDOW_PX,FLOOR_QUANTILE] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N]] [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX | --limits-tv-scene WEIGHT] [--out PATH] \
+                     [--preset NAME] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all] [--scene-cell PX] [--scene-nodes N] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv N] [--detail-pre-smooth PX] [--search-rows N] [--fine-pass-detail] [--fine-pass-weighted WINDOW_PX,FLOOR_QUANTILE] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N]] [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX | --limits-tv-scene WEIGHT] [--out PATH] \
                      [--scene-transform none|flip-cols|flip-rows|transpose|coarse|smooth-PX] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--snapshots N [--joint [--joint-model MODEL]]] [--verbose]";
 
 fn parse_args(argv: &[String]) -> Result<Args> {
@@ -478,6 +478,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
     let mut model_a2: Option<f64> = None;
     let mut detail_cold_above: Option<Option<f64>> = None;
     let mut detail_pre_smooth: Option<f64> = None;
+    let mut search_rows: Option<usize> = None;
     let mut fine_pass_detail = false;
     let mut fine_pass_weighting: Option<ResidualWeighting> = None;
     let mut blur_bootstrap: Option<DispersionModel> = None;
@@ -603,6 +604,12 @@ fn parse_args(argv: &[String]) -> Result<Args> {
                     "--detail-pre-smooth {v}: a Gaussian width of 0 to {most} px"
                 );
                 detail_pre_smooth = Some(px);
+            }
+            "--search-rows" => {
+                let v = value()?;
+                let rows: usize = v.parse().with_context(|| format!("--search-rows {v}"))?;
+                ensure!(rows >= 16, "--search-rows {v}: at least 16 rows");
+                search_rows = Some(rows);
             }
             "--fine-pass-detail" => fine_pass_detail = true,
             "--fine-pass-weighted" => {
@@ -875,6 +882,13 @@ fn parse_args(argv: &[String]) -> Result<Args> {
             Some(px) => format!(" (detail pass from zero above σ {px} px)"),
             None => " (detail pass always warm-started)".to_string(),
         };
+    }
+    if let Some(rows) = search_rows {
+        let Preset::Default(p) = &mut preset else {
+            bail!("--search-rows: the default preset's search stages only");
+        };
+        p.search_rows = Some(rows);
+        preset_name += &format!(" (search stages on {rows} rows)");
     }
     if let Some(px) = detail_pre_smooth {
         let settings = scene_fit_settings(&mut preset, "--detail-pre-smooth")?;
