@@ -717,6 +717,68 @@ mod tests {
         }
     }
 
+    /// The adjoint's row, either compiled copy, gives the bits of adding
+    /// cell by cell into a zeroed line (the loop it replaced, kept here as
+    /// the reference): estimates made before the kernels stay reproducible.
+    #[test]
+    fn the_adjoint_row_gives_the_bits_of_the_cell_by_cell_loop() {
+        let reference =
+            |u: &CoarseScene, k: usize, row: &mut [f32], i: usize, coarse: &mut [f32]| {
+                if let Some(d) = u.detail_row(k, i) {
+                    row.iter_mut().zip(d).for_each(|(v, &d)| *v *= d);
+                }
+                let nc = u.node_cols;
+                let mut line = vec![0.0f32; nc];
+                for (c, chunk) in row.chunks(u.cell).enumerate() {
+                    let (mut sum, mut next) = (0.0f32, 0.0f32);
+                    for (&v, &f) in chunk.iter().zip(&u.fractions) {
+                        sum += v;
+                        next += f * v;
+                    }
+                    line[c] += sum - next;
+                    if c + 1 < nc {
+                        line[c + 1] += next;
+                    }
+                }
+                let (q, f) = u.row_taps[i];
+                coarse[q * nc..(q + 1) * nc]
+                    .iter_mut()
+                    .zip(&line)
+                    .for_each(|(c, &l)| *c += l - f * l);
+                if f != 0.0 {
+                    coarse[(q + 1) * nc..(q + 2) * nc]
+                        .iter_mut()
+                        .zip(&line)
+                        .for_each(|(c, &l)| *c += f * l);
+                }
+            };
+        let mut rng = crate::Rng::new(21);
+        for (bands, rows, cols, cell) in
+            [(2, 9, 37, 4), (2, 17, 45, 8), (2, 9, 29, 3), (2, 9, 33, 4)]
+        {
+            let plane = rows * cols;
+            let detail: Vec<f32> = (0..plane).map(|_| rng.uniform() as f32 + 0.5).collect();
+            for avx in [false, Simd::detect(false).avx] {
+                let u = CoarseScene::new(bands, rows, cols, cell, 2)
+                    .with_simd(Simd { avx })
+                    .with_detail(detail.clone());
+                let (mut got, mut want) = (vec![0.0f32; u.plane()], vec![0.0f32; u.plane()]);
+                let mut line = Vec::new();
+                for i in 0..rows {
+                    let row: Vec<f32> = (0..cols).map(|_| rng.uniform() as f32 - 0.3).collect();
+                    u.add_down_row(1, &mut row.clone(), i, &mut got, &mut line);
+                    reference(&u, 1, &mut row.clone(), i, &mut want);
+                }
+                let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                assert_eq!(
+                    bits(&got),
+                    bits(&want),
+                    "{cols} cols, cell {cell}, avx {avx}"
+                );
+            }
+        }
+    }
+
     /// Constant coefficients make a constant cube (the weights are a
     /// partition of unity in space and wavelength); a node's coefficient
     /// lands on its own pixel and band with weight 1 and fades linearly to

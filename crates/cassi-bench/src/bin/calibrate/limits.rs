@@ -323,7 +323,7 @@ pub fn gap_tv_scene_fits(
     }))
 }
 
-/// What the scene-known fit of [`smoothed_scene_fits`] is told of the
+/// What the scene-known fit of [`told_scene_fits`] is told of the
 /// scene: every band smoothed by a Gaussian (`--limits-smoothed-scene PX`)
 /// or TV-denoised (`--limits-tv-scene WEIGHT`: Chambolle's isotropic 2-D TV
 /// per band, skimage's weight and defaults — edges kept, texture below
@@ -367,8 +367,10 @@ impl KnownScene {
 /// keeps the edges and flattens the texture between them. Where the told
 /// fit misses as the blind one does, the miss is what the telling left
 /// out. The record holds the told scene's RMS difference from the scene
-/// (and the scene's RMS), to set the two kinds side by side.
-pub fn smoothed_scene_fits(
+/// (and the scene's RMS), to set the two kinds side by side; its fits keep
+/// the keys of the Gaussian kind's first records (`smoothed_scene` for
+/// the told scene, whichever kind).
+pub fn told_scene_fits(
     y: &Measurement,
     scene: &Cube,
     mask: &Mask,
@@ -379,16 +381,19 @@ pub fn smoothed_scene_fits(
 ) -> Value {
     let (rows, cols) = y.shape();
     let told = known.of(scene);
-    let rms = |v: &mut dyn Iterator<Item = f64>| {
-        let (sum, n) = v.fold((0.0, 0usize), |(s, n), x| (s + x * x, n + 1));
-        (sum / n.max(1) as f64).sqrt()
+    let rms = |v: &[f32], from: Option<&[f32]>| {
+        let sum: f64 = match from {
+            Some(b) => v
+                .iter()
+                .zip(b)
+                .map(|(&a, &b)| ((a - b) as f64).powi(2))
+                .sum(),
+            None => v.iter().map(|&a| (a as f64).powi(2)).sum(),
+        };
+        (sum / v.len().max(1) as f64).sqrt()
     };
-    let change = rms(&mut told
-        .as_slice()
-        .iter()
-        .zip(scene.as_slice())
-        .map(|(&a, &b)| (a - b) as f64));
-    let level = rms(&mut scene.as_slice().iter().map(|&v| v as f64));
+    let change = rms(told.as_slice(), Some(scene.as_slice()));
+    let level = rms(scene.as_slice(), None);
     let y = as_f64(y);
     let mut out = serde_json::Map::new();
     for (key, known) in [("true_scene", scene), ("smoothed_scene", &told)] {
@@ -837,7 +842,7 @@ mod tests {
             KnownScene::Smoothed { px: 1.0 },
             KnownScene::TvDenoised { weight: 0.1 },
         ] {
-            let record = smoothed_scene_fits(&y, &scene, &mask, &start, &truth, family, known);
+            let record = told_scene_fits(&y, &scene, &mask, &start, &truth, family, known);
             match known {
                 KnownScene::Smoothed { px } => assert_eq!(record["smooth_px"], px),
                 KnownScene::TvDenoised { weight } => assert_eq!(record["tv_weight"], weight),

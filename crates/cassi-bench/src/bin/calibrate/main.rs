@@ -228,8 +228,9 @@ struct Args {
     limits_gap_tv: Option<DispersionModel>,
     /// `--limits-smoothed-scene PX` / `--limits-tv-scene WEIGHT`: the
     /// scene-known fit with the true scene and with it as told
-    /// ([`limits::smoothed_scene_fits`]).
-    limits_smoothed_scene: Option<limits::KnownScene>,
+    /// ([`limits::told_scene_fits`]; recorded as `limits_smoothed_scene`,
+    /// whichever kind).
+    limits_told_scene: Option<limits::KnownScene>,
     out: PathBuf,
     verbose: bool,
     /// `--scene-transform`: every scene flipped or transposed before the
@@ -454,7 +455,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
     let mut wide_blur = true;
     let mut limits = true;
     let mut limits_gap_tv: Option<DispersionModel> = None;
-    let mut limits_smoothed_scene: Option<limits::KnownScene> = None;
+    let mut limits_told_scene: Option<limits::KnownScene> = None;
     let mut model = DispersionModel::DispersedMask;
     let mut preset_name = "default".to_string();
     let mut texture = true;
@@ -760,10 +761,10 @@ fn parse_args(argv: &[String]) -> Result<Args> {
                     "{flag} {v}: a Gaussian width (px) or TV weight above 0"
                 );
                 ensure!(
-                    limits_smoothed_scene.is_none(),
+                    limits_told_scene.is_none(),
                     "{flag}: one of --limits-smoothed-scene and --limits-tv-scene, once"
                 );
-                limits_smoothed_scene = Some(if flag.as_str() == "--limits-tv-scene" {
+                limits_told_scene = Some(if flag.as_str() == "--limits-tv-scene" {
                     limits::KnownScene::TvDenoised { weight: width }
                 } else {
                     limits::KnownScene::Smoothed { px: width }
@@ -1069,7 +1070,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
         recon,
         limits,
         limits_gap_tv,
-        limits_smoothed_scene,
+        limits_told_scene,
         out,
         verbose,
         transform,
@@ -1489,9 +1490,8 @@ fn run_case(
             record["psnr_db"]["IV_instrument_sigma"] = json!(db);
         }
     }
-    if let Some(known) = args.limits_smoothed_scene {
-        let fits =
-            limits::smoothed_scene_fits(&y, scene, mask, &est, &instrument, args.model, known);
+    if let Some(known) = args.limits_told_scene {
+        let fits = limits::told_scene_fits(&y, scene, mask, &est, &instrument, args.model, known);
         for (key, fit) in fits["fits"].as_object().into_iter().flatten() {
             eprintln!(
                 "  scene known ({key}): {}",
