@@ -528,3 +528,34 @@ fn the_blur_pass_moves_the_blur_alone() {
     assert!(e.to_string().contains("blur_pass.gap_iterations"), "{e}");
     assert_eq!(stages, 0);
 }
+
+/// The texture fit's Nelder–Mead stops at `texture_evaluations` (its σ grid
+/// of 11 scores before it), where `max_evaluations` would let it run on.
+#[test]
+fn the_texture_fit_keeps_to_its_budget() {
+    let truth = Mismatch {
+        dx: 1.3,
+        dy: -0.8,
+        theta_deg: 0.35,
+        a1: 2.07,
+        alpha_deg: 1.5,
+        ..Mismatch::nominal(2.0)
+    };
+    let model = DispersionModel::Subpixel;
+    let (y, mask) = setup(96, 8, truth, model);
+    let p = CalibrationProblem::nominal(&y, &mask, 8, 2.0, model).unwrap();
+    let texture_evaluations = |budget: Option<usize>| {
+        let preset = DefaultPreset {
+            texture_evaluations: budget,
+            ..DefaultPreset::default()
+        };
+        let cal = calibrate_default(&p, &preset, &mut |_| {}).unwrap();
+        let stage = cal.stages.last().unwrap();
+        assert!(stage.name.starts_with("texture fit"), "{}", stage.name);
+        stage.evaluations
+    };
+    let (budget, grid) = (12, 11);
+    assert!(texture_evaluations(Some(budget)) <= budget + grid);
+    let unbounded = texture_evaluations(Some(400));
+    assert!(unbounded > budget + grid, "{unbounded}");
+}

@@ -58,7 +58,7 @@
 //!
 //! Run: `cargo run --release -p cassi-bench --bin calibrate --
 //! [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] [--no-aligned]
-//! [--no-inverse-crime] [--model rounded|subpixel|dispersed-mask|crisp-cells] [--preset NAME]
+//! [--no-inverse-crime] [--model rounded|subpixel|dispersed-mask|crisp-cells] [--preset NAME | --preset-file PATH]
 //! [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene]
 //! [--fine-pass-free pose-and-slope|geometry|all] [--scene-cell PX] [--scene-nodes N]
 //! [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv ITERATIONS] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N]]
@@ -444,7 +444,7 @@ impl SceneTransform {
 
 const USAGE: &str = "calibrate [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] \
                      [--no-aligned] [--no-inverse-crime] [--no-wide-blur] [--model rounded|subpixel|dispersed-mask|crisp-cells] \
-                     [--preset NAME] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all] [--scene-cell PX] [--scene-nodes N] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv N] [--detail-pre-smooth PX] [--search-rows N] [--fine-pass-detail] [--fine-pass-weighted WINDOW_PX,FLOOR_QUANTILE] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N]] [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX | --limits-tv-scene WEIGHT] [--out PATH] \
+                     [--preset NAME | --preset-file PATH] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all] [--scene-cell PX] [--scene-nodes N] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv N] [--detail-pre-smooth PX] [--search-rows N] [--fine-pass-detail] [--fine-pass-weighted WINDOW_PX,FLOOR_QUANTILE] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N]] [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX | --limits-tv-scene WEIGHT] [--out PATH] \
                      [--scene-transform none|flip-cols|flip-rows|transpose|coarse|smooth-PX] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--snapshots N [--joint [--joint-model MODEL]]] [--verbose]";
 
 fn parse_args(argv: &[String]) -> Result<Args> {
@@ -480,6 +480,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
     let mut detail_cold_above: Option<Option<f64>> = None;
     let mut detail_pre_smooth: Option<f64> = None;
     let mut search_rows: Option<usize> = None;
+    let mut preset_file: Option<PathBuf> = None;
     let mut fine_pass_detail = false;
     let mut fine_pass_weighting: Option<ResidualWeighting> = None;
     let mut blur_bootstrap: Option<DispersionModel> = None;
@@ -535,6 +536,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
                     .map_err(|e: String| anyhow!("--model: {e}"))?
             }
             "--preset" => preset_name = value()?,
+            "--preset-file" => preset_file = Some(PathBuf::from(value()?)),
             "--no-texture" => texture = false,
             "--no-scene-fit" => scene_fit = false,
             "--no-fine-pass" => no_fine_pass = true,
@@ -810,8 +812,28 @@ fn parse_args(argv: &[String]) -> Result<Args> {
         cases > 0 || aligned || wide_blur,
         "--cases 0 with --no-aligned leaves no case to run"
     );
-    let mut preset = Preset::by_name(&preset_name, STRIDE)
-        .map_err(|e| anyhow!("--preset: {e} (presets: {PRESET_NAMES:?})"))?;
+    ensure!(
+        preset_file.is_none() || preset_name == "default",
+        "--preset {preset_name} and --preset-file: one or the other"
+    );
+    let mut preset = match &preset_file {
+        // a whole preset as its records hold it (every field settable
+        // without a flag of its own: the knobs of a time study)
+        Some(path) => {
+            let text = std::fs::read_to_string(path)
+                .with_context(|| format!("--preset-file {}", path.display()))?;
+            let preset: Preset = serde_json::from_str(&text).with_context(|| {
+                format!(
+                    "--preset-file {}: not a preset as records hold it",
+                    path.display()
+                )
+            })?;
+            preset_name = format!("{} from {}", preset.name(), path.display());
+            preset
+        }
+        None => Preset::by_name(&preset_name, STRIDE)
+            .map_err(|e| anyhow!("--preset: {e} (presets: {PRESET_NAMES:?})"))?,
+    };
     // the default preset as it was before the texture fit (proxy tilt and
     // joint refinement, curvature uncertainty, no blur): the "before" row
     if !texture {
