@@ -87,6 +87,9 @@
 //! scene times the detail pass's map too (`FinePass::carries_detail`);
 //! `--fine-pass-weighted WINDOW_PX,FLOOR_QUANTILE`: the fine pass's residual
 //! weighted from the detail pass's (`FinePass::weighting`);
+//! `--preset-file PATH`: a whole preset as the records' `preset` holds it
+//! (time and tuning studies set any field without a flag of their own; the
+//! flags after it still apply);
 //! `--halo SHARE,SIGMA_PX` and `--dispersion-a2 A2`: the simulated
 //! instrument with a wide skirt under its blur (`optics::Halo`) or a
 //! dispersion curved by A2·k² px (model studies: no model fitted has
