@@ -214,19 +214,25 @@ fn the_subpixel_score_is_minimal_at_the_true_dispersion() {
     }
 }
 
-#[test]
-fn default_preset_recovers_a_known_mask_misalignment() {
-    // rounded: a1 and α act only through the rounding pattern, so the truth
-    // keeps the nominal one; subpixel and dispersed-mask: a drifted, tilted prism (band 7 lands
-    // 14.49 columns and 0.38 rows away) that the preset must recover
-    let drifted = Mismatch {
+/// A shifted, turned mask behind a drifted, tilted prism (band 7 lands 14.49
+/// columns and 0.38 rows away).
+fn drifted_prism() -> Mismatch {
+    Mismatch {
         dx: 1.3,
         dy: -0.8,
         theta_deg: 0.35,
         a1: 2.07,
         alpha_deg: 1.5,
         ..Mismatch::nominal(2.0)
-    };
+    }
+}
+
+#[test]
+fn default_preset_recovers_a_known_mask_misalignment() {
+    // rounded: a1 and α act only through the rounding pattern, so the truth
+    // keeps the nominal one; subpixel and dispersed-mask: a drifted, tilted prism (band 7 lands
+    // 14.49 columns and 0.38 rows away) that the preset must recover
+    let drifted = drifted_prism();
     let cases = [
         (
             DispersionModel::Rounded,
@@ -533,14 +539,7 @@ fn the_blur_pass_moves_the_blur_alone() {
 /// of 11 scores before it), where `max_evaluations` would let it run on.
 #[test]
 fn the_texture_fit_keeps_to_its_budget() {
-    let truth = Mismatch {
-        dx: 1.3,
-        dy: -0.8,
-        theta_deg: 0.35,
-        a1: 2.07,
-        alpha_deg: 1.5,
-        ..Mismatch::nominal(2.0)
-    };
+    let truth = drifted_prism();
     let model = DispersionModel::Subpixel;
     let (y, mask) = setup(96, 8, truth, model);
     let p = CalibrationProblem::nominal(&y, &mask, 8, 2.0, model).unwrap();
