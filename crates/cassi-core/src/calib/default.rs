@@ -160,9 +160,10 @@ pub struct DefaultPreset {
     /// `max_evaluations`, which it uses up in nearly every case (412 scores
     /// a case, 17 % of the time, on stop 50's timing runs). The scene fit
     /// that starts from its answer refines it: with 150 the tuning half
-    /// read all six within tolerance in 30 of 45 against 29 (stop 51; not
-    /// yet checked held out or on the real snapshots alone). `None` in
-    /// records made before it.
+    /// read all six within tolerance in 30 of 45 against 29 (stop 51), but
+    /// with one re-fitted hypothesis it moved three of the five real
+    /// snapshots along the dx–a1 and dy–α ridges (legoplant dy +0.10 →
+    /// +1.38 px): not the default. `None` in records made before it.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub texture_evaluations: Option<usize>,
 }
