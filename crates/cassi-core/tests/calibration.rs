@@ -230,8 +230,8 @@ fn drifted_prism() -> Mismatch {
 #[test]
 fn default_preset_recovers_a_known_mask_misalignment() {
     // rounded: a1 and α act only through the rounding pattern, so the truth
-    // keeps the nominal one; subpixel and dispersed-mask: a drifted, tilted prism (band 7 lands
-    // 14.49 columns and 0.38 rows away) that the preset must recover
+    // keeps the nominal one; the other models: the drifted, tilted prism,
+    // which the preset must recover
     let drifted = drifted_prism();
     let cases = [
         (
@@ -536,7 +536,8 @@ fn the_blur_pass_moves_the_blur_alone() {
 }
 
 /// The texture fit's Nelder–Mead stops at `texture_evaluations` (its σ grid
-/// of 11 scores before it), where `max_evaluations` would let it run on.
+/// of 11 scores before it); without one (the default) it has
+/// `max_evaluations`, which lets it run on.
 #[test]
 fn the_texture_fit_keeps_to_its_budget() {
     let truth = drifted_prism();
@@ -555,6 +556,8 @@ fn the_texture_fit_keeps_to_its_budget() {
     };
     let (budget, grid) = (12, 11);
     assert!(texture_evaluations(Some(budget)) <= budget + grid);
-    let unbounded = texture_evaluations(Some(400));
-    assert!(unbounded > budget + grid, "{unbounded}");
+    let by_default = texture_evaluations(None);
+    assert!(by_default > budget + grid, "{by_default}");
+    let max = DefaultPreset::default().max_evaluations;
+    assert_eq!(by_default, texture_evaluations(Some(max)));
 }

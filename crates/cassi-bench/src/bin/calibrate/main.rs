@@ -1061,6 +1061,18 @@ fn parse_args(argv: &[String]) -> Result<Args> {
                 half_name.replace('-', "_")
             ))
     });
+    // the record is written over --out at the end: never over the preset read
+    if let Some(path) = &preset_file {
+        let same = |a: &Path, b: &Path| match (std::fs::canonicalize(a), std::fs::canonicalize(b)) {
+            (Ok(a), Ok(b)) => a == b,
+            _ => false,
+        };
+        ensure!(
+            !same(path, &out),
+            "--out {} is the --preset-file it was read from",
+            out.display()
+        );
+    }
     ensure!(
         limits || limits_gap_tv.is_none(),
         "--limits-gap-tv: the limits are off (--no-limits)"
