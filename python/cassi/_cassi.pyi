@@ -115,6 +115,13 @@ class Calibration:
         is {parameters, score} of the answer a choosing stage did not keep (a held curvature's
         restart from the nominal a1), else None."""
     @property
+    def ridge_probes(self) -> Optional[Dict[str, Any]]:
+        """What the ridge probes found (calibrate(..., ridge_probes=True)), else None:
+        {"ends": [{ridge, moved, step_px, dip_relative_objective, parameters, distance_px,
+        relative_objective, alternative}], "profiles": [{ridge, moved, steps_px,
+        relative_objective}]}; an end with alternative True is a placement the data do not
+        rule out (within 1 % of the answer's objective, half a pixel or more away)."""
+    @property
     def score(self) -> float: ...
     @property
     def nominal_score(self) -> float: ...
@@ -181,6 +188,7 @@ def calibrate(
     dispersion_a2: float = 0.0,
     blur_pass: bool | None = None,
     search_rows: int | Literal["all"] | None = None,
+    ridge_probes: bool = False,
     progress: Optional[Callable[[Dict[str, Any]], object]] = None,
 ) -> Calibration:
     """Self-calibration from the measurement and the nominal mask alone;
@@ -188,7 +196,9 @@ def calibrate(
     blur pass: σ refitted on the crisp-cell model); False leaves it out; True asks
     for it (an error with the paper preset). `search_rows`: the rows the search
     stages run on (None: the preset's own, the middle 256 of a taller frame; N;
-    "all"); an error with the paper preset."""
+    "all"); an error with the paper preset. `ridge_probes`: profile the scene fit's
+    objective along the dx–a1 and dy–α ridges and report placements it does not rule out
+    (Calibration.ridge_probes); an error with the paper preset."""
 
 def combine_calibrations(
     calibrations: List[Calibration],

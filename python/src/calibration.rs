@@ -116,6 +116,53 @@ impl PyCalibration {
         Ok(list)
     }
 
+    /// What the ridge probes found (`calibrate(..., ridge_probes=True)`),
+    /// else None: {"ends": [{ridge ("dx_a1" or "dy_alpha"), moved ("first"
+    /// or "last": the end band the profile moved), step_px,
+    /// dip_relative_objective, parameters, distance_px,
+    /// relative_objective, alternative}], "profiles": [{ridge, moved,
+    /// steps_px, relative_objective}]}. An end with alternative True
+    /// scored within the margin of the answer, half a pixel or more away:
+    /// the data do not rule it out, and the errors reach it.
+    #[getter]
+    fn ridge_probes<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
+        let Some(report) = &self.inner.ridge_probes else {
+            return Ok(None);
+        };
+        let key = |v: serde_json::Value| v.as_str().unwrap_or_default().to_string();
+        let named = |ridge, moved| -> (String, String) {
+            (key(serde_json::json!(ridge)), key(serde_json::json!(moved)))
+        };
+        let ends = PyList::empty(py);
+        for e in &report.ends {
+            let d = PyDict::new(py);
+            let (ridge, moved) = named(e.ridge, e.moved);
+            d.set_item("ridge", ridge)?;
+            d.set_item("moved", moved)?;
+            d.set_item("step_px", e.step_px)?;
+            d.set_item("dip_relative_objective", e.dip_relative_objective)?;
+            d.set_item("parameters", params::to_dict(py, &e.parameters)?)?;
+            d.set_item("distance_px", e.distance_px)?;
+            d.set_item("relative_objective", e.relative_objective)?;
+            d.set_item("alternative", e.alternative)?;
+            ends.append(d)?;
+        }
+        let profiles = PyList::empty(py);
+        for p in &report.profiles {
+            let d = PyDict::new(py);
+            let (ridge, moved) = named(p.ridge, p.moved);
+            d.set_item("ridge", ridge)?;
+            d.set_item("moved", moved)?;
+            d.set_item("steps_px", p.steps_px.clone())?;
+            d.set_item("relative_objective", p.relative_objective.clone())?;
+            profiles.append(d)?;
+        }
+        let d = PyDict::new(py);
+        d.set_item("ends", ends)?;
+        d.set_item("profiles", profiles)?;
+        Ok(Some(d))
+    }
+
     /// Proxy score of the estimate (the final proxy).
     #[getter]
     fn score(&self) -> f64 {
@@ -342,7 +389,8 @@ pub fn combine_calibrations(
 
 enum Message {
     Stage(StageReport),
-    Done(Result<calib::Calibration, Failure>),
+    // boxed: a calibration is several times a stage report's size
+    Done(Box<Result<calib::Calibration, Failure>>),
 }
 
 /// Self-calibration: estimates the mismatch ψ between the nominal model and
@@ -383,6 +431,13 @@ enum Message {
 ///         the middle's detail), an int N that many rows, "all" every row (the
 ///         CLI's --search-rows); the texture and scene fits always use
 ///         every row. An error with the paper preset.
+///     ridge_probes: after the default preset's scene fit, profile its
+///         objective a pixel and a half along the dx–a1 and dy–α ridges
+///         (each end band moved, the other held), refit from any dip, and
+///         report the ends that score within 1 % of the answer (the CLI's
+///         --ridge-probes; `Calibration.ridge_probes`); the answer is kept,
+///         the errors reach the alternatives. An error with the paper
+///         preset.
 ///     progress: called with a dict {name, evaluations, seconds,
 ///         parameters, score} as each stage finishes.
 ///
@@ -399,7 +454,7 @@ enum Message {
 ///
 /// The GIL is released while the calibration runs.
 #[pyfunction]
-#[pyo3(signature = (y, mask, *, bands=28, stride=2.0, model=None, preset="default", dispersion_a2=0.0, blur_pass=None, search_rows=None, progress=None))]
+#[pyo3(signature = (y, mask, *, bands=28, stride=2.0, model=None, preset="default", dispersion_a2=0.0, blur_pass=None, search_rows=None, ridge_probes=false, progress=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn calibrate(
     py: Python<'_>,
@@ -412,6 +467,7 @@ pub fn calibrate(
     dispersion_a2: f64,
     blur_pass: Option<bool>,
     search_rows: Option<Bound<'_, PyAny>>,
+    ridge_probes: bool,
     progress: Option<Bound<'_, PyAny>>,
 ) -> PyResult<PyCalibration> {
     let mut preset = Preset::by_name(preset, stride)
@@ -434,6 +490,11 @@ pub fn calibrate(
         preset = preset
             .with_search_rows(rows)
             .map_err(|e| value_error(py, format!("search_rows: {e}")))?;
+    }
+    if ridge_probes {
+        preset = preset
+            .with_ridge_probes()
+            .map_err(|e| value_error(py, format!("ridge_probes: {e}")))?;
     }
     let model = match model {
         Some(name) => params::model(py, name)?,
@@ -474,7 +535,7 @@ pub fn calibrate(
                 };
                 Ok(calib::calibrate(&problem, &preset, &mut on_stage)?)
             });
-            let _ = tx.send(Message::Done(result));
+            let _ = tx.send(Message::Done(Box::new(result)));
         })
         .map_err(|e| value_error(py, format!("cannot start the calibration thread: {e}")))?;
     let mut rx = rx;
@@ -492,7 +553,7 @@ pub fn calibrate(
             }
             Ok(Message::Done(result)) => {
                 let _ = worker.join();
-                return Ok(PyCalibration { inner: result? });
+                return Ok(PyCalibration { inner: (*result)? });
             }
             Err(mpsc::RecvTimeoutError::Timeout) => {}
             Err(mpsc::RecvTimeoutError::Disconnected) => {

@@ -201,6 +201,32 @@ def test_search_rows_puts_the_search_stages_on_a_band(case):
         cassi.calibrate(y, mask, bands=8, preset="paper", search_rows=64)
 
 
+def test_ridge_probes_report_their_profiles_and_keep_the_answer(case):
+    scene, mask, _ = case
+    y = cassi.simulate(scene, mask, dict(TRUTH, a1=2.03), model="dispersed-mask", noise=False)
+    plain = cassi.calibrate(y, mask, bands=8, blur_pass=False)
+    assert plain.ridge_probes is None
+    probed = cassi.calibrate(y, mask, bands=8, blur_pass=False, ridge_probes=True)
+    # the probes keep the answer; the errors only widen
+    assert probed.parameters == plain.parameters
+    for k, s in plain.standard_errors.items():
+        assert s is None or probed.standard_errors[k] >= s - 1e-12, k
+    report = probed.ridge_probes
+    assert [(p["ridge"], p["moved"]) for p in report["profiles"]] == [
+        ("dx_a1", "first"), ("dx_a1", "last"), ("dy_alpha", "first"), ("dy_alpha", "last")
+    ]
+    for p in report["profiles"]:
+        # the answer itself at step 0, relative objective 0
+        i = p["steps_px"].index(0.0)
+        assert p["relative_objective"][i] == 0.0
+        assert len(p["steps_px"]) == len(p["relative_objective"]) == 13
+    for e in report["ends"]:
+        assert e["alternative"] == (e["relative_objective"] <= 0.01 and e["distance_px"] >= 0.5)
+    assert json.loads(probed.to_json())["ridge_probes"]["profiles"]
+    with pytest.raises(ValueError, match="ridge_probes"):
+        cassi.calibrate(y, mask, bands=8, preset="paper", ridge_probes=True)
+
+
 def test_calibrated_reconstruction_beats_the_nominal_model(case):
     scene, mask, y = case
     cal = cassi.calibrate(y, mask, bands=8, model="rounded")

@@ -18,6 +18,7 @@ use serde::{Deserialize, Serialize};
 
 use super::blur_bootstrap::BlurBootstrap;
 use super::blur_pass::BlurPass;
+use super::ridge_probes::{RidgeProbes, farthest_alternative};
 use super::rounded_dispersion::{rounded_dispersion, rounding_intervals};
 use super::row_window::{RowBand, RowWindow};
 use super::scene_fit::{
@@ -167,6 +168,12 @@ pub struct DefaultPreset {
     /// +1.38 px): not the default. `None` in records made before it.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub texture_evaluations: Option<usize>,
+    /// After the scene fit's fine pass: probes a pixel along the dx–a1 and
+    /// dy–α ridges ([`RidgeProbes`]), whose ends that score within its
+    /// margin of the answer are reported and widen the stated errors.
+    /// `None` (the default, and records made before it): not run.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ridge_probes: Option<RidgeProbes>,
 }
 
 fn yes() -> bool {
@@ -221,6 +228,7 @@ impl Default for DefaultPreset {
             blur_pass: Some(BlurPass::default()),
             search_rows: Some(256),
             texture_evaluations: None,
+            ridge_probes: None,
         }
     }
 }
@@ -317,6 +325,7 @@ pub fn calibrate_default(
             trade_offs: Vec::new(),
             fit: None,
             evaluations,
+            ridge_probes: None,
         }
     };
     // a cancelled run's stages ended on failed scores: no result from them
@@ -336,6 +345,7 @@ pub fn calibrate_default(
         interval_95: u.interval_95,
         trade_offs: u.trade_offs,
         uncertainty_fit: u.fit,
+        ridge_probes: u.ridge_probes,
         model_blur_sigma_px,
         snapshots: None,
         stages: run.into_reports(),
@@ -907,13 +917,64 @@ fn scene_fit_stage(
             // its score is the penalised one on the finer scene: not
             // comparable with the first pass's
             let name = format!("scene fit's fine pass ({}-px scene, ridge)", pass.cell_px);
-            Ok((run.finish(stage, name, scored(&refined)), u))
+            let answer = run.finish(stage, name, scored(&refined));
+            match preset.ridge_probes {
+                Some(probes) => {
+                    problem.check_cancelled()?;
+                    let u = ridge_probe_stage(run, probes, &fine, &refined.best, &moved, u)?;
+                    Ok((answer, u))
+                }
+                None => Ok((answer, u)),
+            }
         }
         _ => {
             let u = scene_fit_uncertainty(first_fit, &found, &free, start);
             Ok((pending.finish(run), u))
         }
     }
+}
+
+/// The ridge probes from the fine pass's `answer` on its own objective
+/// (`fit`, over `free`): the stated errors `u` widened to reach the
+/// farthest end that scores within the probes' margin, the ends kept in
+/// it. The stage reports the answer (kept) and, passed over, the end that
+/// scored lowest.
+fn ridge_probe_stage(
+    run: &mut StageRunner<'_>,
+    probes: RidgeProbes,
+    fit: &SceneFit<'_>,
+    answer: &super::scene_fit::Solved,
+    free: &[Parameter],
+    u: UncertaintyEstimate,
+) -> Result<UncertaintyEstimate> {
+    let stage = run.start();
+    let probed = probes.run(fit, answer, free, fit.problem().bands())?;
+    stage.count(probed.evaluations);
+    let far = farthest_alternative(&answer.psi, &probed.report.ends);
+    let mut u = with_restart_disagreement(u, &answer.psi, &far);
+    let kept = Scored {
+        parameters: answer.psi,
+        score: probed.answer_score,
+    };
+    let lowest = probed
+        .report
+        .ends
+        .iter()
+        .min_by(|a, b| a.relative_objective.total_cmp(&b.relative_objective));
+    match lowest {
+        Some(end) => {
+            let passed_over = PassedOver {
+                parameters: end.parameters,
+                score: probed.answer_score * (1.0 + end.relative_objective),
+            };
+            run.finish_choosing(stage, RIDGE_PROBES_STAGE, kept, passed_over);
+        }
+        None => {
+            run.finish(stage, RIDGE_PROBES_STAGE, kept);
+        }
+    }
+    u.ridge_probes = Some(probed.report);
+    Ok(u)
 }
 
 /// A stage whose report waits until the next stage starts (the last one
@@ -1067,6 +1128,10 @@ pub const SCENE_FIT_STAGE: &str = "scene fit (coarse scene per ψ)";
 /// reports: its first pass from the nominal dispersion and the choice.
 pub const NOMINAL_START_STAGE: &str =
     "scene fit from the nominal dispersion, the lower objective kept";
+
+/// The name of the ridge probes' stage ([`RidgeProbes`]) in the stage
+/// reports: the answer kept, the lowest-scoring end passed over.
+pub const RIDGE_PROBES_STAGE: &str = "ridge probes: a pixel along dx–a1 and dy–α, the answer kept";
 
 /// The name of the scene fit's detail pass in the stage reports.
 pub const DETAIL_PASS_STAGE: &str = "scene fit's detail pass (coarse scene × texture)";

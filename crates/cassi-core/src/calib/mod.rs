@@ -24,6 +24,7 @@ mod objective;
 mod paper;
 mod quasi_newton;
 mod residual_weights;
+mod ridge_probes;
 mod rounded_dispersion;
 mod row_window;
 mod scene_fit;
@@ -47,8 +48,8 @@ pub use blur_bootstrap::BlurBootstrap;
 pub use blur_pass::BlurPass;
 pub use default::{
     BLUR_BOOTSTRAP_STAGE, BLUR_PASS_STAGE, DETAIL_PASS_STAGE, DefaultPreset,
-    NOMINAL_A1_RESTART_PREFIX, NOMINAL_A1_RESTART_STAGE, NOMINAL_START_STAGE, SCENE_FIT_STAGE,
-    calibrate_default, texture_fit,
+    NOMINAL_A1_RESTART_PREFIX, NOMINAL_A1_RESTART_STAGE, NOMINAL_START_STAGE, RIDGE_PROBES_STAGE,
+    SCENE_FIT_STAGE, calibrate_default, texture_fit,
 };
 pub use detail_pass::{DetailPass, DetailSource};
 pub use gradient::Parameter;
@@ -59,6 +60,9 @@ pub use nelder_mead::nelder_mead;
 pub use nominal_start::NominalStart;
 pub use paper::{GradientStage, PaperPreset, calibrate_paper};
 pub use residual_weights::ResidualWeighting;
+pub use ridge_probes::{
+    BandEnd, DISTINCT_PX, ProbeEnd, Ridge, RidgeProbeReport, RidgeProbes, RidgeProfile,
+};
 pub use scene_fit::{
     FinePass, FinePassFree, RidgeAnchor, SceneFitSettings, coarse_scene_of,
     reweighted_scene_fit_scores, scene_fit_score,
@@ -153,6 +157,14 @@ pub struct Calibration {
     /// curvature-based errors and in records written before it.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub uncertainty_fit: Option<Fit>,
+    /// Where the ridge probes ended, when they ran (`default` preset with
+    /// [`DefaultPreset::ridge_probes`]; `None` otherwise and in records
+    /// made before them): each a dip of the objective's profile along the
+    /// dx–a1 or dy–α ridge, refitted (none: no dip); those marked
+    /// `alternative` scored within the probes' margin of `parameters`, and
+    /// the stated errors reach them.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ridge_probes: Option<RidgeProbeReport>,
     /// σ as `model` itself fits it, where the stage that set
     /// `parameters.blur_sigma_px` read it on another model: the default's
     /// blur pass reads the instrument's blur on the crisp-cell model, while
@@ -366,6 +378,26 @@ impl Preset {
                 value: 1.0,
                 reason: "the paper preset does not fit a blur; the blur pass needs the default \
                          preset"
+                    .into(),
+            }),
+        }
+    }
+
+    /// The preset with the [`RidgeProbes`] on (after the scene fit's fine
+    /// pass: starts a pixel along the dx–a1 and dy–α ridges refitted, the
+    /// ends that score within their margin reported and reached by the
+    /// stated errors). Only the default preset's scene fit has them.
+    pub fn with_ridge_probes(self) -> crate::error::Result<Self> {
+        match self {
+            Self::Default(p) => Ok(Self::Default(DefaultPreset {
+                ridge_probes: Some(RidgeProbes::default()),
+                ..p
+            })),
+            Self::Paper(_) => Err(crate::error::CassiError::InvalidParameter {
+                name: "ridge_probes",
+                value: 1.0,
+                reason: "the paper preset has no scene fit to probe from; the ridge probes \
+                         need the default preset"
                     .into(),
             }),
         }

@@ -177,6 +177,7 @@ pub fn calibrate_paper(
         interval_95: Uncertainty::default(),
         trade_offs: Vec::new(),
         uncertainty_fit: None,
+        ridge_probes: None,
         model_blur_sigma_px: None,
         snapshots: None,
         stages: run.into_reports(),

@@ -826,12 +826,20 @@ pub(crate) fn fit_scene_from(
     scene: Option<&[f32]>,
     free: &[Parameter],
 ) -> Result<SceneFitResult> {
+    fit_scene_within(fit, start, scene, free, fit.settings().max_steps)
+}
+
+/// [`fit_scene_from`] in at most `max_steps` BFGS steps (a probe's short
+/// refit on a pass's own objective).
+pub(crate) fn fit_scene_within(
+    fit: &SceneFit<'_>,
+    start: &Mismatch,
+    scene: Option<&[f32]>,
+    free: &[Parameter],
+    max_steps: usize,
+) -> Result<SceneFitResult> {
     let first = fit.solve_cold(start, scene)?;
-    let found = minimise(
-        &OverParameters { fit, free },
-        first,
-        fit.settings().max_steps,
-    )?;
+    let found = minimise(&OverParameters { fit, free }, first, max_steps)?;
     Ok(SceneFitResult {
         best: found.best,
         jacobian: found.jacobian,

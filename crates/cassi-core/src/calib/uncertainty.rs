@@ -2,6 +2,7 @@
 //! (the `default` preset), or from the proxy score's curvature (`paper`).
 
 use super::quasi_newton::normal_equations;
+use super::ridge_probes::RidgeProbeReport;
 use super::scene_fit::{SceneFit, SceneFitResult};
 use super::texture::{BLOCKS_PER_SIDE, TextureFit, block_contributions};
 use super::{CalibrationProblem, ProxyParams, Uncertainty};
@@ -471,6 +472,9 @@ pub(crate) struct UncertaintyEstimate {
     pub fit: Option<Fit>,
     /// Scores spent.
     pub evaluations: usize,
+    /// Where the ridge probes ended, when they ran ([`super::RidgeProbes`];
+    /// `None`: not run).
+    pub ridge_probes: Option<RidgeProbeReport>,
 }
 
 /// Standard errors of the texture fit's `free` parameters at `at`: the block
@@ -517,6 +521,7 @@ pub(crate) fn texture_uncertainty(
             trade_offs: Vec::new(),
             fit: Some(Fit::Texture),
             evaluations,
+            ridge_probes: None,
         }
     };
     let Some(c0) = contributions(at) else {
@@ -623,6 +628,7 @@ fn stated(
         trade_offs,
         fit: Some(fit),
         evaluations,
+        ridge_probes: None,
     }
 }
 
@@ -748,6 +754,7 @@ fn unstated(fit: Fit, free: &[Parameter]) -> UncertaintyEstimate {
         trade_offs: Vec::new(),
         fit: Some(fit),
         evaluations: 0,
+        ridge_probes: None,
     }
 }
 
