@@ -1131,7 +1131,8 @@ pub const NOMINAL_START_STAGE: &str =
 
 /// The name of the ridge probes' stage ([`RidgeProbes`]) in the stage
 /// reports: the answer kept, the lowest-scoring end passed over.
-pub const RIDGE_PROBES_STAGE: &str = "ridge probes: a pixel along dx–a1 and dy–α, the answer kept";
+pub const RIDGE_PROBES_STAGE: &str =
+    "ridge probes: the objective along dx–a1 and dy–α, the answer kept";
 
 /// The name of the scene fit's detail pass in the stage reports.
 pub const DETAIL_PASS_STAGE: &str = "scene fit's detail pass (coarse scene × texture)";
