@@ -168,9 +168,10 @@ pub struct DefaultPreset {
     /// +1.38 px): not the default. `None` in records made before it.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub texture_evaluations: Option<usize>,
-    /// After the scene fit's fine pass: probes a pixel along the dx–a1 and
-    /// dy–α ridges ([`RidgeProbes`]), whose ends that score within its
-    /// margin of the answer are reported and widen the stated errors.
+    /// After the scene fit's fine pass: the objective profiled along the
+    /// dx–a1 and dy–α ridges and refitted from its dips ([`RidgeProbes`]);
+    /// the ends that score within its margin of the answer are reported
+    /// and widen the stated errors.
     /// `None` (the default, and records made before it): not run.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub ridge_probes: Option<RidgeProbes>,
@@ -937,8 +938,9 @@ fn scene_fit_stage(
 /// The ridge probes from the fine pass's `answer` on its own objective
 /// (`fit`, over `free`): the stated errors `u` widened to reach the
 /// farthest end that scores within the probes' margin, the ends kept in
-/// it. The stage reports the answer (kept) and, passed over, the end that
-/// scored lowest.
+/// it. The stage reports the answer, kept; no end as "passed over" (that
+/// names an answer a choosing stage scored higher, and an end may score
+/// lower: the ends are in the report).
 fn ridge_probe_stage(
     run: &mut StageRunner<'_>,
     probes: RidgeProbes,
@@ -956,23 +958,7 @@ fn ridge_probe_stage(
         parameters: answer.psi,
         score: probed.answer_score,
     };
-    let lowest = probed
-        .report
-        .ends
-        .iter()
-        .min_by(|a, b| a.relative_objective.total_cmp(&b.relative_objective));
-    match lowest {
-        Some(end) => {
-            let passed_over = PassedOver {
-                parameters: end.parameters,
-                score: probed.answer_score * (1.0 + end.relative_objective),
-            };
-            run.finish_choosing(stage, RIDGE_PROBES_STAGE, kept, passed_over);
-        }
-        None => {
-            run.finish(stage, RIDGE_PROBES_STAGE, kept);
-        }
-    }
+    run.finish(stage, RIDGE_PROBES_STAGE, kept);
     u.ridge_probes = Some(probed.report);
     Ok(u)
 }
@@ -1130,7 +1116,7 @@ pub const NOMINAL_START_STAGE: &str =
     "scene fit from the nominal dispersion, the lower objective kept";
 
 /// The name of the ridge probes' stage ([`RidgeProbes`]) in the stage
-/// reports: the answer kept, the lowest-scoring end passed over.
+/// reports: the answer, kept.
 pub const RIDGE_PROBES_STAGE: &str =
     "ridge probes: the objective along dx–a1 and dy–α, the answer kept";
 
