@@ -262,6 +262,9 @@ pub fn calibrate_default(
     if let Some(pass) = preset.blur_pass {
         pass.check()?;
     }
+    if let Some(probes) = preset.ridge_probes {
+        probes.check()?;
+    }
     let mut run = StageRunner::new(on_stage);
     let band = search_band(problem, preset)?;
     let scores = Scores::new(problem, preset, band.as_ref())?;
