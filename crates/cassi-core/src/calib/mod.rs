@@ -384,9 +384,9 @@ impl Preset {
     }
 
     /// The preset with the [`RidgeProbes`] on (after the scene fit's fine
-    /// pass: starts a pixel along the dx–a1 and dy–α ridges refitted, the
-    /// ends that score within their margin reported and reached by the
-    /// stated errors). Only the default preset's scene fit has them.
+    /// pass: its objective profiled along the dx–a1 and dy–α ridges, the
+    /// second dips refitted, the ends that score within the margin
+    /// reported and reached by the stated errors). Only the default preset's scene fit has them.
     pub fn with_ridge_probes(self) -> crate::error::Result<Self> {
         match self {
             Self::Default(p) => Ok(Self::Default(DefaultPreset {

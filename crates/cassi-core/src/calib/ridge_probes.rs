@@ -273,7 +273,14 @@ impl RidgeProbes {
                 "at most 64 points each way: a wider spacing or a shorter reach",
             );
         }
-        if !(self.within >= 0.0 && self.refit_below >= self.within) {
+        if !(self.within >= 0.0 && self.within.is_finite()) {
+            return bad(
+                "ridge_probes.within",
+                self.within,
+                "the margin an end counts as an alternative within: 0 or more",
+            );
+        }
+        if !(self.refit_below >= self.within && self.refit_below.is_finite()) {
             return bad(
                 "ridge_probes.refit_below",
                 self.refit_below,
@@ -529,6 +536,13 @@ mod tests {
             ),
             (
                 RidgeProbes {
+                    within: f64::NAN,
+                    ..Default::default()
+                },
+                "within",
+            ),
+            (
+                RidgeProbes {
                     max_steps: 0,
                     ..Default::default()
                 },
@@ -536,7 +550,7 @@ mod tests {
             ),
         ] {
             let e = bad.check().unwrap_err().to_string();
-            assert!(e.contains(field), "{field}: {e}");
+            assert!(e.contains(&format!("ridge_probes.{field}")), "{field}: {e}");
         }
     }
 

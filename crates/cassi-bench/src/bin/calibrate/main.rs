@@ -1469,7 +1469,7 @@ fn run_case(
         "interval_95": per_parameter(|p| json!(cal.interval_95.get(p))),
         // the pairs the calibration said trade off (error correlation ≥ 0.8)
         "trade_offs": cal.trade_offs,
-        // where the ridge probes ended (`ridge_probes` in the preset; empty otherwise)
+        // the ridge probes' profiles and ends (`ridge_probes` in the preset; null otherwise)
         "ridge_probes": cal.ridge_probes,
         "within_tolerance": per_parameter(|p| json!(err(p).abs() <= tolerance(p))),
         "all_within_tolerance": Parameter::CALIBRATED.iter().all(|&p| err(p).abs() <= tolerance(p)),
