@@ -189,6 +189,7 @@ def calibrate(
     blur_pass: bool | None = None,
     search_rows: int | Literal["all"] | None = None,
     ridge_probes: bool = False,
+    fit_curvature: bool = False,
     progress: Optional[Callable[[Dict[str, Any]], object]] = None,
 ) -> Calibration:
     """Self-calibration from the measurement and the nominal mask alone;
@@ -198,7 +199,10 @@ def calibrate(
     stages run on (None: the preset's own, the middle 256 of a taller frame; N;
     "all"); an error with the paper preset. `ridge_probes`: profile the scene fit's
     objective along the dx–a1 and dy–α ridges and report placements it does not rule out
-    (Calibration.ridge_probes); an error with the paper preset."""
+    (Calibration.ridge_probes); an error with the paper preset. `fit_curvature`: fit the
+    dispersion's curvature a2 too, in the scene fit's fine pass, from `dispersion_a2` (a
+    local refinement: give a prism's design curvature where known); an error with the
+    paper preset."""
 
 def combine_calibrations(
     calibrations: List[Calibration],

@@ -438,6 +438,11 @@ enum Message {
 ///         --ridge-probes; `Calibration.ridge_probes`); the answer is kept,
 ///         the errors reach the alternatives. An error with the paper
 ///         preset.
+///     fit_curvature: fit the dispersion's curvature a2 too, in the scene
+///         fit's fine pass, from `dispersion_a2` (the CLI's
+///         --fit-curvature); a local refinement from that value: give a
+///         prism's design curvature where it is known. An error with the
+///         paper preset.
 ///     progress: called with a dict {name, evaluations, seconds,
 ///         parameters, score} as each stage finishes.
 ///
@@ -454,7 +459,7 @@ enum Message {
 ///
 /// The GIL is released while the calibration runs.
 #[pyfunction]
-#[pyo3(signature = (y, mask, *, bands=28, stride=2.0, model=None, preset="default", dispersion_a2=0.0, blur_pass=None, search_rows=None, ridge_probes=false, progress=None))]
+#[pyo3(signature = (y, mask, *, bands=28, stride=2.0, model=None, preset="default", dispersion_a2=0.0, blur_pass=None, search_rows=None, ridge_probes=false, fit_curvature=false, progress=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn calibrate(
     py: Python<'_>,
@@ -468,6 +473,7 @@ pub fn calibrate(
     blur_pass: Option<bool>,
     search_rows: Option<Bound<'_, PyAny>>,
     ridge_probes: bool,
+    fit_curvature: bool,
     progress: Option<Bound<'_, PyAny>>,
 ) -> PyResult<PyCalibration> {
     let mut preset = Preset::by_name(preset, stride)
@@ -490,6 +496,11 @@ pub fn calibrate(
         preset = preset
             .with_search_rows(rows)
             .map_err(|e| value_error(py, format!("search_rows: {e}")))?;
+    }
+    if fit_curvature {
+        preset = preset
+            .with_fitted_curvature()
+            .map_err(|e| value_error(py, format!("fit_curvature: {e}")))?;
     }
     if ridge_probes {
         preset = preset

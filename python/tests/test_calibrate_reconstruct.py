@@ -227,6 +227,19 @@ def test_ridge_probes_report_their_profiles_and_keep_the_answer(case):
         cassi.calibrate(y, mask, bands=8, preset="paper", ridge_probes=True)
 
 
+def test_fit_curvature_reports_a2_with_its_error(case):
+    scene, mask, _ = case
+    y = cassi.simulate(scene, mask, dict(TRUTH, a1=2.03), model="dispersed-mask", noise=False)
+    held = cassi.calibrate(y, mask, bands=8, blur_pass=False)
+    assert held.standard_errors["a2"] is None and held.parameters["a2"] == 0.0
+    fitted = cassi.calibrate(y, mask, bands=8, blur_pass=False, fit_curvature=True)
+    # a straight instrument: the curvature stays small, with its own error
+    assert abs(fitted.parameters["a2"]) < 0.01
+    assert fitted.standard_errors["a2"] > 0
+    with pytest.raises(ValueError, match="fit_curvature"):
+        cassi.calibrate(y, mask, bands=8, preset="paper", fit_curvature=True)
+
+
 def test_calibrated_reconstruction_beats_the_nominal_model(case):
     scene, mask, y = case
     cal = cassi.calibrate(y, mask, bands=8, model="rounded")

@@ -570,6 +570,10 @@ fn a_curved_dispersion_travels_from_the_calibration_to_the_model() {
             &["--preset", "paper", "--search-rows", "32"][..],
             &["--search-rows", "paper preset"][..],
         ),
+        (
+            &["--preset", "paper", "--fit-curvature"][..],
+            &["--fit-curvature", "paper preset"][..],
+        ),
     ] {
         let args = calibrate(extra);
         assert_fails(

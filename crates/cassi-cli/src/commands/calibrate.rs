@@ -41,6 +41,12 @@ pub struct CalibrateArgs {
     /// fitted. Default 0 (straight). Default preset only.
     #[arg(long, allow_hyphen_values = true, default_value_t = 0.0)]
     pub dispersion_a2: f64,
+    /// Fit the dispersion's curvature a2 too, in the scene fit's fine pass
+    /// (from `--dispersion-a2`, 0 by default), for a prism whose
+    /// dispersion is not linear in the band index. a2's ± is the fine
+    /// pass's own (README: Fitting the curvature). Default preset only.
+    #[arg(long)]
+    pub fit_curvature: bool,
     /// Leave out the blur pass, the default preset's last stage: σ as the
     /// scene fit leaves it. The pass refits σ alone on the crisp-cell model
     /// with GAP-TV's texture, the geometry held, on the middle quarter of
@@ -110,6 +116,9 @@ pub fn run(args: &CalibrateArgs, reporter: &Reporter) -> anyhow::Result<()> {
     }
     if let Some(SearchRows(rows)) = args.search_rows {
         preset = preset.with_search_rows(rows).context("--search-rows")?;
+    }
+    if args.fit_curvature {
+        preset = preset.with_fitted_curvature().context("--fit-curvature")?;
     }
     if args.ridge_probes {
         preset = preset.with_ridge_probes().context("--ridge-probes")?;

@@ -37,8 +37,9 @@ mod texture;
 mod uncertainty;
 
 pub use uncertainty::{
-    A1_SHORT_TILT_DEG, Fit, SHARP_BLUR_PX, TRADE_OFF_CORRELATION, TradeOff, WIDE_BLUR_PX,
-    grid_phase, interval_95_floor, model_error_floor,
+    A1_SHORT_TILT_DEG, CURVATURE_FLOOR, CURVATURE_FLOOR_95, Fit, SHARP_BLUR_PX,
+    TRADE_OFF_CORRELATION, TradeOff, WIDE_BLUR_PX, grid_phase, interval_95_floor,
+    model_error_floor,
 };
 
 use serde::{Deserialize, Serialize};
@@ -380,6 +381,38 @@ impl Preset {
                          preset"
                     .into(),
             }),
+        }
+    }
+
+    /// The preset with the dispersion's curvature a2 fitted in the scene
+    /// fit's fine pass ([`FinePassFree::GeometryAndCurvature`]), from the
+    /// value it holds ([`Preset::with_dispersion_a2`], 0 by default): for a
+    /// prism whose dispersion is not linear in the band index. Only the
+    /// default preset's fine pass can.
+    pub fn with_fitted_curvature(self) -> crate::error::Result<Self> {
+        let refused = |reason: &str| crate::error::CassiError::InvalidParameter {
+            name: "fit_curvature",
+            value: 1.0,
+            reason: reason.into(),
+        };
+        match self {
+            Self::Default(mut p) => {
+                let pass = p
+                    .scene_fit
+                    .as_mut()
+                    .and_then(|s| s.fine_pass.as_mut())
+                    .ok_or_else(|| {
+                        refused(
+                            "the curvature is fitted in the scene fit's fine pass, which is off",
+                        )
+                    })?;
+                pass.free = FinePassFree::GeometryAndCurvature;
+                Ok(Self::Default(p))
+            }
+            Self::Paper(_) => Err(refused(
+                "the paper preset models a straight dispersion; fitting a curvature needs the \
+                 default preset",
+            )),
         }
     }
 

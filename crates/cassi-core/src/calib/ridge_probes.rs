@@ -380,7 +380,8 @@ impl RidgeProbes {
 /// errors are widened to reach.
 pub(crate) fn farthest_alternative(answer: &Mismatch, ends: &[ProbeEnd]) -> Mismatch {
     let mut far = *answer;
-    for p in Parameter::CALIBRATED {
+    // every parameter: a fitted curvature moves with the ends too
+    for p in Parameter::ALL {
         let reach = ends
             .iter()
             .filter(|e| e.alternative)

@@ -189,13 +189,26 @@ pub enum FinePassFree {
     /// a sharper model buys back the detail), all six within tolerance
     /// 23 → 1 of 45, 8.6 s per case. Why σ stays the first pass's.
     All,
+    /// The geometry and the dispersion's curvature a2 (band k at a1·k +
+    /// a2·k²): the geometry refitted first with a2 held at the preset's
+    /// value (0 unless given), then all six from there, so the curved
+    /// answer never scores above the straight one; σ stays the first
+    /// pass's. For a prism whose dispersion is not linear in the band
+    /// index. A local refinement: from a straight start on an instrument
+    /// curved by −0.012 px/band² it stays near 0 (the straight fit's basin
+    /// places the red bands elsewhere); from a design value it converges.
+    /// The stated errors of the other five are the two passes' with a2
+    /// marginalised out of the fine block; a2's own is the fine pass's
+    /// block sandwich with its floors ([`super::CURVATURE_FLOOR`]).
+    GeometryAndCurvature,
 }
 
 impl FinePassFree {
-    pub const ALL: [FinePassFree; 3] = [
+    pub const ALL: [FinePassFree; 4] = [
         FinePassFree::PoseAndSlope,
         FinePassFree::Geometry,
         FinePassFree::All,
+        FinePassFree::GeometryAndCurvature,
     ];
 
     /// The name in settings files and on command lines.
@@ -204,6 +217,7 @@ impl FinePassFree {
             FinePassFree::PoseAndSlope => "pose-and-slope",
             FinePassFree::Geometry => "geometry",
             FinePassFree::All => "all",
+            FinePassFree::GeometryAndCurvature => "geometry-and-curvature",
         }
     }
 
@@ -219,6 +233,7 @@ impl FinePassFree {
             FinePassFree::PoseAndSlope => &[Dx, ThetaDeg, A1],
             FinePassFree::Geometry => &[Dx, Dy, ThetaDeg, A1, AlphaDeg],
             FinePassFree::All => &Parameter::CALIBRATED,
+            FinePassFree::GeometryAndCurvature => &[Dx, Dy, ThetaDeg, A1, AlphaDeg, A2],
         }
     }
 }

@@ -691,13 +691,68 @@ pub(crate) fn two_pass_uncertainty(
     ) else {
         return unstated(fit, free);
     };
-    let Some(cov) = with_block(&first_cov, free, &fine_cov, fine_free) else {
+    // what the first pass held (a fitted curvature) is marginalised out of
+    // the fine block: its sub-block over the rest
+    let shared: Vec<Parameter> = fine_free
+        .iter()
+        .copied()
+        .filter(|p| free.contains(p))
+        .collect();
+    let shared_cov = sub_block(&fine_cov, fine_free, &shared);
+    let Some(cov) = with_block(&first_cov, free, &shared_cov, &shared) else {
         return unstated(fit, free);
     };
     let (model, at) = (fine_fit.model(), &fine_found.best.psi);
     let weight = disagreement_weight(model, fit, fine_fit.problem(), at);
     let spread = with_disagreement(cov, free, (&first_found.best.psi, texture), weight);
-    stated(model, fit, free, at, &spread, 0)
+    let mut u = stated(model, fit, free, at, &spread, 0);
+    // and stated from the fine pass's sandwich (no other fit estimates it)
+    // with its own floors
+    let n = fine_free.len();
+    for (i, &p) in fine_free.iter().enumerate() {
+        if !free.contains(&p) {
+            let s = fine_cov[i * n + i].max(0.0).sqrt();
+            u.standard.0.insert(p, Some(s.hypot(CURVATURE_FLOOR)));
+            u.interval_95
+                .0
+                .insert(p, Some((2.0 * s).hypot(CURVATURE_FLOOR_95)));
+        }
+    }
+    u
+}
+
+/// The fitted curvature a2's standard-error floor, px/band², added in
+/// quadrature to the fine pass's block sandwich. Why: the sandwich alone
+/// is the width of the basin the fit ended in, and the fit is local — from
+/// a start 0.002 px/band² off an instrument's curvature it ends more than
+/// 0.001 off in 12 of 30 tuning cases (errors 0.0012–0.0021), where the
+/// sandwich read 0.00004–0.0010. Derived by `bench/curvature_floors.py` (68 % within in
+/// each regime, the Clopper–Pearson margin over all) on the tuning half:
+/// a straight instrument fitted from 0 (45 cases), one curved by −0.012
+/// fitted from −0.010 and from −0.012 (30 each;
+/// `bench/results/calibrate_physical_tuning_stop53/`): 0.00137, rounded up.
+/// Held out (fresh round 28): 1σ covers 24 of 35 from −0.010 (69 %), 35
+/// of 35 on the straight instrument. It does not cover a start farther
+/// off: from −0.006 (tuning) 9 of 45.
+pub const CURVATURE_FLOOR: f64 = 0.0014;
+
+/// The fitted curvature's 95 % floor, px/band² (as [`CURVATURE_FLOOR`]:
+/// 0.00198 on the tuning half, rounded up). Held out: 33 of 35 from
+/// −0.010 (94 %), 35 of 35 straight.
+pub const CURVATURE_FLOOR_95: f64 = 0.002;
+
+/// The covariance `cov` over `over` restricted to `keep` (each in `over`):
+/// the marginal covariance of those parameters.
+fn sub_block(cov: &[f64], over: &[Parameter], keep: &[Parameter]) -> Vec<f64> {
+    let n = over.len();
+    let index: Vec<usize> = keep
+        .iter()
+        .filter_map(|p| over.iter().position(|q| q == p))
+        .collect();
+    index
+        .iter()
+        .flat_map(|&a| index.iter().map(move |&b| cov[a * n + b]))
+        .collect()
 }
 
 /// The covariance `first` (over `free`) with the block of `moved` (a

@@ -141,6 +141,22 @@ impl Dispersion {
                 reason: "the dispersion needs at least one band".into(),
             });
         }
+        // the bands land in order: the slope a1 + 2·a2·k, linear in k and
+        // above the floor at k = 0 (validated), stays so at the last band —
+        // else a band lands before band 0 and off the operator's columns
+        let end_slope = params.a1 + 2.0 * params.a2 * (bands - 1) as f64;
+        if end_slope < crate::params::MIN_SLOPE {
+            return Err(CassiError::InvalidParameter {
+                name: "a2",
+                value: params.a2,
+                reason: format!(
+                    "with a1 = {} the dispersion would turn back before band {} (slope {end_slope:.4} \
+                     px per band there): the bands must land in order",
+                    params.a1,
+                    bands - 1
+                ),
+            });
+        }
         let alpha = params.alpha_deg.to_radians();
         let offsets: Vec<(f64, f64)> = (0..bands)
             .map(|k| {
@@ -444,6 +460,23 @@ mod tests {
         let t = d.taps(4);
         assert!((t.iter().map(|t| t.weight).sum::<f32>() - 1.0).abs() < 1e-6);
         assert!(t.iter().any(|t| t.row == 1) && t.iter().all(|t| t.row >= 0));
+    }
+
+    #[test]
+    fn a_dispersion_that_turns_back_is_refused_by_name() {
+        let params = DispersionParams {
+            a1: 2.0,
+            alpha_deg: 0.0,
+            a2: -0.04,
+        };
+        // slope 2 − 0.08·k: positive through band 24, zero at 25
+        assert!(Dispersion::new(25, params, DispersionModel::DispersedMask).is_ok());
+        for bands in [26, 28] {
+            let err = Dispersion::new(bands, params, DispersionModel::DispersedMask)
+                .unwrap_err()
+                .to_string();
+            assert!(err.contains("a2") && err.contains("in order"), "{err}");
+        }
     }
 
     #[test]

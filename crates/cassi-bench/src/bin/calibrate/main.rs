@@ -1493,6 +1493,27 @@ fn run_case(
             stage
         }).collect::<Vec<_>>(),
     });
+    // a fitted curvature (`--fine-pass-free geometry-and-curvature`),
+    // scored against the instrument's: ψ's truth above carries none
+    if let Some(u) = cal.uncertainty.get(Parameter::A2) {
+        let (a2, truth_a2) = (est.a2, physical.a2);
+        eprintln!(
+            "  a2 {} px/band² (instrument {}, error {}) ± {u:.5}",
+            Parameter::A2.format(a2),
+            Parameter::A2.format(truth_a2),
+            Parameter::A2.format(a2 - truth_a2)
+        );
+        record["curvature"] = json!({
+            "estimate": a2,
+            "instrument": truth_a2,
+            "error": a2 - truth_a2,
+            "uncertainty": u,
+            "interval_95": cal.interval_95.get(Parameter::A2),
+            // the floors inside them (bench/curvature_floors.py re-derives them)
+            "uncertainty_floor": cassi_core::calib::CURVATURE_FLOOR,
+            "interval_95_floor": cassi_core::calib::CURVATURE_FLOOR_95,
+        });
+    }
     if args.recon {
         let t = Instant::now();
         // II, III and IV in the calibrated model's family
