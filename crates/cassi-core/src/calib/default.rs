@@ -1161,7 +1161,7 @@ fn texture_step(p: Parameter) -> f64 {
 
 #[cfg(test)]
 mod tests {
-    use super::super::scene_fit::tests::{BANDS, measured};
+    use super::super::scene_fit::tests::{BANDS, measured, truth};
     use super::*;
     use crate::calib::{CalibrationProblem, Preset};
     use crate::optics::DispersionModel;
@@ -1175,15 +1175,8 @@ mod tests {
     /// 95 %), the geometry within bounds the straight model meets too.
     #[test]
     fn the_fitted_curvature_follows_a_curved_prism() {
-        let straight_prism = Mismatch {
-            dx: 0.6,
-            dy: -0.4,
-            theta_deg: 0.2,
-            a1: 2.03,
-            alpha_deg: 0.3,
-            blur_sigma_px: 0.5,
-            a2: 0.0,
-        };
+        // the scene fit's tests' instrument: a straight prism
+        let straight_prism = truth();
         let curved_prism = Mismatch {
             a2: -0.03,
             ..straight_prism
