@@ -385,10 +385,13 @@ impl Preset {
     }
 
     /// The preset with the dispersion's curvature a2 fitted in the scene
-    /// fit's fine pass ([`FinePassFree::GeometryAndCurvature`]), from the
-    /// value it holds ([`Preset::with_dispersion_a2`], 0 by default): for a
-    /// prism whose dispersion is not linear in the band index. Only the
-    /// default preset's fine pass can.
+    /// fit's fine pass ([`FinePassFree::GeometryAndCurvature`]: after its
+    /// straight refit, from the value the preset holds —
+    /// [`Preset::with_dispersion_a2`], 0 by default): for a prism whose
+    /// dispersion is not linear in the band index. A local refinement: on
+    /// the benchmark it reaches an instrument's a2 from 0.002 px/band² off
+    /// in 21 of 35 held-out cases, from 0.006 off rarely (README: Fitting
+    /// the curvature). Only the default preset's fine pass can.
     pub fn with_fitted_curvature(self) -> crate::error::Result<Self> {
         let refused = |reason: &str| crate::error::CassiError::InvalidParameter {
             name: "fit_curvature",
