@@ -62,7 +62,7 @@
 //! [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene]
 //! [--fine-pass-free pose-and-slope|geometry|all|geometry-and-curvature] [--scene-cell PX] [--scene-nodes N]
 //! [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv ITERATIONS] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N]]
-//! [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX | --limits-tv-scene WEIGHT] [--out PATH] [--scene-transform none|flip-cols|flip-rows|transpose|coarse|smooth-PX] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--model-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--detail-cold-above PX|none] [--blur-bootstrap crisp-cells|dispersed-mask [--blur-bootstrap-noise] [--blur-bootstrap-residual] [--blur-bootstrap-min PX]] [--snapshots N [--joint [--joint-model MODEL]]] [--verbose]`
+//! [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX | --limits-tv-scene WEIGHT] [--out PATH] [--scene-transform none|flip-cols|flip-rows|transpose|coarse|real-band-light|smooth-PX] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--model-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--detail-cold-above PX|none] [--blur-bootstrap crisp-cells|dispersed-mask [--blur-bootstrap-noise] [--blur-bootstrap-residual] [--blur-bootstrap-min PX]] [--snapshots N [--joint [--joint-model MODEL]]] [--verbose]`
 //! (`--no-texture`: the default preset without its texture fit, as it was
 //! before issue #14 — the "before" row; `--no-scene-fit`: without its
 //! scene fit, ending in the texture fit as the records `*_texture.json`
@@ -111,7 +111,8 @@
 //! `--scene-transform`: every scene flipped or transposed — the
 //! tuning scenes in three more configurations against the mask, with their
 //! own `--seed-round`, for the uncertainty floors; `coarse`: every scene
-//! as the scene fit's first-pass basis holds it, `smooth-PX`: every band
+//! as the scene fit's first-pass basis holds it, `real-band-light`: every
+//! band scaled by the real snapshots' light per band, `smooth-PX`: every band
 //! blurred by a Gaussian of σ PX — diagnoses of what the blind scene
 //! leaves out); without flags it
 //! reproduces the README's held-out table (every scene of the held-out
@@ -362,7 +363,22 @@ enum SceneTransform {
     /// the frame, so the borders darken within ~2σ): the scene's texture
     /// below that scale taken out (a diagnosis, as `Coarse`).
     Smooth(f64),
+    /// Every band scaled by [`REAL_BAND_LIGHT`]: the light per band the
+    /// five real TSA snapshots carry (their red end three to four times
+    /// their blue end's), where the CAVE scenes are sampled at the band
+    /// centres — a diagnosis of why the real ridges are flat (stop 53).
+    RealBandLight,
 }
+
+/// Per-band light of the five real TSA snapshots, relative to band 27:
+/// the mean over the five of each GAP-TV cube's per-band mean over its
+/// cube mean, at stop 52's straight calibrations (docs/calibration-notebook.md,
+/// "Stop 53", last paragraph).
+const REAL_BAND_LIGHT: [f32; 28] = [
+    0.254, 0.257, 0.245, 0.237, 0.251, 0.247, 0.250, 0.242, 0.246, 0.250, 0.244, 0.268, 0.282,
+    0.283, 0.304, 0.319, 0.331, 0.339, 0.373, 0.369, 0.386, 0.436, 0.473, 0.530, 0.711, 0.753,
+    0.882, 1.000,
+];
 
 impl SceneTransform {
     fn name(self) -> String {
@@ -373,6 +389,7 @@ impl SceneTransform {
             Self::Transpose => "transpose".into(),
             Self::Coarse => "coarse".into(),
             Self::Smooth(px) => format!("smooth-{px}"),
+            Self::RealBandLight => "real-band-light".into(),
         }
     }
 
@@ -391,12 +408,13 @@ impl SceneTransform {
             Self::FlipRows,
             Self::Transpose,
             Self::Coarse,
+            Self::RealBandLight,
         ]
         .into_iter()
         .find(|t| t.name() == v)
         .ok_or_else(|| {
             anyhow!(
-                "--scene-transform {v}: expected none, flip-cols, flip-rows, transpose, coarse or smooth-PX"
+                "--scene-transform {v}: expected none, flip-cols, flip-rows, transpose, coarse, real-band-light or smooth-PX"
             )
         })
     }
@@ -408,6 +426,22 @@ impl SceneTransform {
             Self::Coarse => {
                 let settings = SceneFitSettings::default();
                 return Ok(cassi_core::calib::coarse_scene_of(&scene, &settings));
+            }
+            Self::RealBandLight => {
+                ensure!(
+                    bands == REAL_BAND_LIGHT.len(),
+                    "--scene-transform real-band-light: the real snapshots' {} bands, got {bands}",
+                    REAL_BAND_LIGHT.len()
+                );
+                let mut out = scene;
+                for (band, &gain) in out
+                    .as_mut_slice()
+                    .chunks_exact_mut(rows * cols)
+                    .zip(&REAL_BAND_LIGHT)
+                {
+                    band.iter_mut().for_each(|v| *v *= gain);
+                }
+                return Ok(out);
             }
             Self::Smooth(px) => {
                 let blur = GaussianBlur::new(px, rows, cols)?;
@@ -449,7 +483,7 @@ impl SceneTransform {
 const USAGE: &str = "calibrate [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] \
                      [--no-aligned] [--no-inverse-crime] [--no-wide-blur] [--model rounded|subpixel|dispersed-mask|crisp-cells] \
                      [--preset NAME | --preset-file PATH] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all|geometry-and-curvature] [--scene-cell PX] [--scene-nodes N] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv N] [--detail-pre-smooth PX] [--search-rows N] [--fine-pass-detail] [--fine-pass-weighted WINDOW_PX,FLOOR_QUANTILE] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N]] [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX | --limits-tv-scene WEIGHT] [--out PATH] \
-                     [--scene-transform none|flip-cols|flip-rows|transpose|coarse|smooth-PX] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--snapshots N [--joint [--joint-model MODEL]]] [--verbose]";
+                     [--scene-transform none|flip-cols|flip-rows|transpose|coarse|real-band-light|smooth-PX] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--snapshots N [--joint [--joint-model MODEL]]] [--verbose]";
 
 fn parse_args(argv: &[String]) -> Result<Args> {
     let mut half_name = "held-out".to_string();
