@@ -306,8 +306,9 @@ fn value_error_here(msg: String) -> PyErr {
 ///
 /// Raises:
 ///     InputError (a ValueError): fewer than two, or calibrations of
-///         different models, presets or held curvatures (named by
-///         position); measurements not one per calibration, without a
+///         different models or presets, or curvatures held at different
+///         values (named by position; curvatures fitted in every
+///         calibration combine like the other parameters); measurements not one per calibration, without a
 ///         mask, of the wrong shape, or of calibrations whose preset or
 ///         model has no scene fit.
 ///

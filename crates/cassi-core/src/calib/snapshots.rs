@@ -111,9 +111,10 @@ struct Combined {
     interval_95: Option<f64>,
 }
 
-/// `calibrations` (two or more, of one instrument: the same model, held
-/// curvature and preset) combined into one [`Calibration`]: each
-/// calibrated parameter centred as `params` says (by default the median),
+/// `calibrations` (two or more, of one instrument: the same model and
+/// preset, and one held curvature or a curvature fitted in every one)
+/// combined into one [`Calibration`]: each calibrated parameter (a fitted
+/// curvature too) centred as `params` says (by default the median),
 /// with the larger of
 /// two error bars — the snapshots' stated errors combined as correlated at
 /// [`CombineParams::snapshot_correlation`] (σ √((1 + ρ(K − 1))/K) for the
@@ -140,6 +141,11 @@ pub fn combine_snapshots(
         });
     }
     let first = calibrations[0];
+    // a curvature every snapshot fitted (each states its error) combines
+    // like the other parameters; a held one must be one value
+    let fitted_curvature = calibrations
+        .iter()
+        .all(|c| c.uncertainty.get(Parameter::A2).is_some());
     for (i, c) in calibrations.iter().enumerate() {
         if c.model != first.model {
             return Err(CassiError::Meaningless {
@@ -160,11 +166,13 @@ pub fn combine_snapshots(
                 ),
             });
         }
-        if c.parameters.a2 != first.parameters.a2 {
+        if !fitted_curvature && c.parameters.a2 != first.parameters.a2 {
             return Err(CassiError::Meaningless {
                 what: format!("snapshot {i}'s calibration"),
                 reason: format!(
-                    "held curvature a2 {}, snapshot 0's {}: one instrument, one curvature",
+                    "curvature a2 {}, snapshot 0's {}, not fitted in all of them (no stated \
+                     error): one instrument, one held curvature — hold one value, or fit it in \
+                     every snapshot (--fit-curvature)",
                     c.parameters.a2, first.parameters.a2
                 ),
             });
@@ -174,7 +182,10 @@ pub fn combine_snapshots(
     let mut standard = Uncertainty::default();
     let mut interval_95 = Uncertainty::default();
     let mut consistency = Vec::new();
-    for p in Parameter::CALIBRATED {
+    let combined_parameters = Parameter::CALIBRATED
+        .into_iter()
+        .chain(fitted_curvature.then_some(Parameter::A2));
+    for p in combined_parameters {
         let values: Vec<f64> = calibrations.iter().map(|c| p.get(&c.parameters)).collect();
         let sigmas: Option<Vec<f64>> = calibrations.iter().map(|c| c.uncertainty.get(p)).collect();
         let halves: Option<Vec<f64>> = calibrations.iter().map(|c| c.interval_95.get(p)).collect();
@@ -539,10 +550,47 @@ mod tests {
         let mut c = snapshot(0.1, 0.01);
         c.parameters.a2 = 0.001;
         assert!(combine_snapshots(&[&a, &c], &CombineParams::default()).is_err());
+        // a fitted curvature in one snapshot, held in the other: refused
+        c.uncertainty.0.insert(Parameter::A2, Some(0.001));
+        let e = combine_snapshots(&[&a, &c], &CombineParams::default()).unwrap_err();
+        assert!(e.to_string().contains("--fit-curvature"), "{e}");
         let mut d = snapshot(0.1, 0.01);
         d.preset = "paper".into();
         let e = combine_snapshots(&[&a, &d], &CombineParams::default()).unwrap_err();
         assert!(e.to_string().contains("preset"), "{e}");
+    }
+
+    /// Snapshots that each fitted the curvature (each stating its error)
+    /// combine it like the other parameters: its value the centre of
+    /// theirs, its error stated.
+    #[test]
+    fn fitted_curvatures_combine_like_the_other_parameters() {
+        let cals: Vec<Calibration> = [(0.0, -0.001), (0.1, -0.002), (0.2, -0.003)]
+            .iter()
+            .map(|&(dx, a2)| {
+                let mut c = snapshot(dx, 0.01);
+                c.parameters.a2 = a2;
+                c.uncertainty.0.insert(Parameter::A2, Some(0.0014));
+                c.interval_95.0.insert(Parameter::A2, Some(0.002));
+                c
+            })
+            .collect();
+        let refs: Vec<&Calibration> = cals.iter().collect();
+        let combined = combine_snapshots(&refs, &CombineParams::default()).unwrap();
+        assert!(
+            (combined.parameters.a2 + 0.002).abs() < 1e-12,
+            "{combined:?}"
+        );
+        // its errors are the rule's for these values and stated errors
+        let rule = combine(
+            &[-0.001, -0.002, -0.003],
+            Some(&[0.0014; 3]),
+            Some(&[0.002; 3]),
+            &CombineParams::default(),
+        );
+        assert_eq!(combined.uncertainty.get(Parameter::A2), rule.standard);
+        assert_eq!(combined.interval_95.get(Parameter::A2), rule.interval_95);
+        assert!(rule.standard.is_some_and(|s| s > 0.0));
     }
 
     /// Where the snapshots stated no error bar of a kind (the rounded
