@@ -32,6 +32,11 @@ from uncertainty_floors import covers, smallest  # noqa: E402
 LEVELS = {"standard error": (1.0, 0.68), "95 % half-width": (2.0, 0.95)}
 
 
+def sandwich(k):
+    """The sandwich part of a case's stated a2 error: its floor taken out."""
+    return math.sqrt(max(k["uncertainty"] ** 2 - (k.get("uncertainty_floor") or 0.0) ** 2, 0.0))
+
+
 def rows(path):
     """(|a2 error|, sandwich part, blur, regime, scene) per case that states a2."""
     run = json.load(open(path))
@@ -44,9 +49,7 @@ def rows(path):
         k = c.get("curvature")
         if not k:
             continue
-        floor = k.get("uncertainty_floor") or 0.0
-        s = math.sqrt(max(k["uncertainty"] ** 2 - floor**2, 0.0))
-        out.append((abs(k["error"]), s, 0.0, regime, c["scene"]))
+        out.append((abs(k["error"]), sandwich(k), 0.0, regime, c["scene"]))
     return out
 
 
@@ -88,7 +91,7 @@ def main():
             if floors is None:
                 return k["uncertainty"], k["interval_95"]
             f, f95 = floors
-            s = math.sqrt(max(k["uncertainty"] ** 2 - (k.get("uncertainty_floor") or 0.0) ** 2, 0.0))
+            s = sandwich(k)
             return math.hypot(s, f), math.hypot(2 * s, f95)
 
         one = sum(abs(k["error"]) <= bounds(k)[0] for k in stated)
@@ -98,6 +101,7 @@ def main():
             f"{path}: n {n}, a2 error RMS {rms:.5f}; within 1σ {one} ({100 * one / n:.0f} %), "
             f"within the 95 % interval {ninety_five} ({100 * ninety_five / n:.0f} %)"
         )
+
 
 if __name__ == "__main__":
     main()

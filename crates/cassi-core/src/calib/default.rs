@@ -1223,7 +1223,7 @@ mod tests {
             free.a2.abs() < 0.003 && free.a2.abs() <= a2_95,
             "{free:?} ± {a2_95}"
         );
-        // the freedom costs a little along dx–a1 (here a1 0.002 → 0.011 off):
+        // the freedom costs a little along dx–a1 (here a1 0.002 → 0.010 off):
         // within these bounds, not more
         for (par, bound) in [
             (Parameter::Dx, 0.1),

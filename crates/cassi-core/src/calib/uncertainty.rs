@@ -96,6 +96,9 @@ pub fn model_error_floor(
     p: Parameter,
     blur_sigma_px: f64,
 ) -> f64 {
+    if p == Parameter::A2 {
+        return CURVATURE_FLOOR;
+    }
     let f = Floors::of(model, fit);
     ramped(measured(&f.sharp, p), measured(&f.wide, p), blur_sigma_px)
 }
@@ -126,6 +129,9 @@ pub fn interval_95_floor(
     p: Parameter,
     blur_sigma_px: f64,
 ) -> f64 {
+    if p == Parameter::A2 {
+        return CURVATURE_FLOOR_95;
+    }
     let f = Floors::of(model, fit);
     ramped(
         measured(&f.sharp_95, p),
@@ -134,8 +140,9 @@ pub fn interval_95_floor(
     )
 }
 
-/// A floor table's entry for `p`: 0 for a parameter no preset fits (the
-/// curvature a2, held where it is given), whose floor was never measured.
+/// A floor table's entry for `p` (the six a preset fits; a fitted
+/// curvature's floors are their own, [`CURVATURE_FLOOR`], one for every
+/// blur and fit).
 fn measured(table: &[f64; FLOORED], p: Parameter) -> f64 {
     table.get(p.index()).copied().unwrap_or(0.0)
 }
@@ -707,15 +714,18 @@ pub(crate) fn two_pass_uncertainty(
     let spread = with_disagreement(cov, free, (&first_found.best.psi, texture), weight);
     let mut u = stated(model, fit, free, at, &spread, 0);
     // and stated from the fine pass's sandwich (no other fit estimates it)
-    // with its own floors
+    // with its floors
     let n = fine_free.len();
     for (i, &p) in fine_free.iter().enumerate() {
         if !free.contains(&p) {
             let s = fine_cov[i * n + i].max(0.0).sqrt();
-            u.standard.0.insert(p, Some(s.hypot(CURVATURE_FLOOR)));
+            let floor = |f: FloorFn| f(model, fit, p, at.blur_sigma_px);
+            u.standard
+                .0
+                .insert(p, Some(s.hypot(floor(model_error_floor))));
             u.interval_95
                 .0
-                .insert(p, Some((2.0 * s).hypot(CURVATURE_FLOOR_95)));
+                .insert(p, Some((2.0 * s).hypot(floor(interval_95_floor))));
         }
     }
     u

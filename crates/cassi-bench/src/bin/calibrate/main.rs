@@ -133,7 +133,7 @@ use cassi_bench::{
 use cassi_core::calib::{
     BlurBootstrap, BlurPass, Calibration, CalibrationProblem, CombineParams, DefaultPreset,
     DetailPass, DetailSource, FinePass, FinePassFree, PRESET_NAMES, Preset, ResidualWeighting,
-    SCENE_FIT_STAGE, SceneFitSettings, calibrate, grid_phase, model_error_floor,
+    SCENE_FIT_STAGE, SceneFitSettings, calibrate, grid_phase, interval_95_floor, model_error_floor,
 };
 use cassi_core::metrics::psnr;
 use cassi_core::optics::blur::GaussianBlur;
@@ -1532,6 +1532,10 @@ fn run_case(
     // scored against the instrument's: ψ's truth above carries none
     if let Some(u) = cal.uncertainty.get(Parameter::A2) {
         let (a2, truth_a2) = (est.a2, physical.a2);
+        let floor = |f: fn(DispersionModel, cassi_core::calib::Fit, Parameter, f64) -> f64| {
+            cal.uncertainty_fit
+                .map(|fit| f(args.model, fit, Parameter::A2, est.blur_sigma_px))
+        };
         eprintln!(
             "  a2 {} px/band² (instrument {}, error {}) ± {u:.5}",
             Parameter::A2.format(a2),
@@ -1545,8 +1549,8 @@ fn run_case(
             "uncertainty": u,
             "interval_95": cal.interval_95.get(Parameter::A2),
             // the floors inside them (bench/curvature_floors.py re-derives them)
-            "uncertainty_floor": cassi_core::calib::CURVATURE_FLOOR,
-            "interval_95_floor": cassi_core::calib::CURVATURE_FLOOR_95,
+            "uncertainty_floor": floor(model_error_floor),
+            "interval_95_floor": floor(interval_95_floor),
         });
     }
     if args.recon {
