@@ -372,8 +372,9 @@ enum SceneTransform {
 
 /// Per-band light of the five real TSA snapshots, relative to band 27:
 /// the mean over the five of each GAP-TV cube's per-band mean over its
-/// cube mean, at stop 52's straight calibrations (docs/calibration-notebook.md,
-/// "Stop 53", last paragraph).
+/// cube mean, at stop 52's straight calibrations
+/// (`bench/results/real/stop53_curvature/band_light.json`, by
+/// `bench/real_band_light.py`; docs/calibration-notebook.md, "Stop 53").
 const REAL_BAND_LIGHT: [f32; 28] = [
     0.254, 0.257, 0.245, 0.237, 0.251, 0.247, 0.250, 0.242, 0.246, 0.250, 0.244, 0.268, 0.282,
     0.283, 0.304, 0.319, 0.331, 0.339, 0.373, 0.369, 0.386, 0.436, 0.473, 0.530, 0.711, 0.753,
