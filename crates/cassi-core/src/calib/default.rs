@@ -917,6 +917,7 @@ fn scene_fit_stage(
                 // one. Why: refitted from the first pass's answer on the
                 // five real snapshots, two went down another basin along
                 // dx–a1 and ended 0.7–0.8 % above the straight fit
+                // (bench/results/real/stop53_curvature/one_step/)
                 let straight: Vec<Parameter> = moved.iter().copied().filter(|&p| p != A2).collect();
                 let first = fit_scene_from(&fine, &found.best.psi, Some(&scene), &straight)?;
                 stage.count(first.evaluations);
