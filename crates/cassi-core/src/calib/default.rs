@@ -22,8 +22,8 @@ use super::ridge_probes::{RidgeProbes, farthest_alternative};
 use super::rounded_dispersion::{rounded_dispersion, rounding_intervals};
 use super::row_window::{RowBand, RowWindow};
 use super::scene_fit::{
-    FinePassFree, RidgeAnchor, SceneFit, SceneFitResult, SceneFitSettings, fit_scene,
-    fit_scene_from, scene_fit_score,
+    FinePassFree, SceneFit, SceneFitResult, SceneFitSettings, fit_scene, fit_scene_from,
+    scene_fit_score,
 };
 use super::stages::{Scored, Stage, StageRunner, lowest};
 use super::subpixel_tilt::subpixel_tilt;
@@ -889,27 +889,8 @@ fn scene_fit_stage(
             pending.finish(run);
             problem.check_cancelled()?;
             let stage = run.start();
-            let fine_settings = SceneFitSettings {
-                cell_px: pass.cell_px,
-                cold_solve: pass.first_solve,
-                max_steps: pass.max_steps,
-                fine_pass: None,
-                ..settings
-            };
-            let mut fine = SceneFit::new(problem, fine_settings)?;
-            // the smooth factor's nodes either way: `fit` is the plain basis
-            let scene = fine.coefficients_from(&fit, &found.best.z);
-            if let Some(map) = fine_detail {
-                fine = fine.with_detail(map);
-            }
-            let anchor = match pass.anchor {
-                RidgeAnchor::Zero => None,
-                RidgeAnchor::FirstPassScene => Some(scene.clone()),
-            };
-            let mut fine = fine.with_ridge(pass.ridge, anchor);
-            if let Some(weighting) = &pass.weighting {
-                fine = fine.with_weights(weighting, &found.best)?;
-            }
+            let (fine, scene) =
+                pass.scene_fit(problem, settings, (&fit, &found.best), fine_detail)?;
             let moved = moved_by(pass.free);
             let refined = if moved.contains(&A2) {
                 // the curvature from the straight pass's answer, its scene
@@ -1214,6 +1195,7 @@ mod tests {
         assert!((f.a1 - curved_prism.a1).abs() < 0.01, "{f:?}");
         let a2_95 = fitted.interval_95.get(Parameter::A2).unwrap();
         assert!((f.a2 - curved_prism.a2).abs() <= a2_95, "{f:?} ± {a2_95}");
+        slope_carries_the_curvature(&fitted, &curved_prism);
 
         let plain = run(&straight_prism, &preset(0.0, false)).parameters;
         let freed = run(&straight_prism, &preset(0.0, true));
@@ -1235,5 +1217,25 @@ mod tests {
             assert!(error(&plain) < bound, "{par:?}: {plain:?}");
             assert!(error(&free) < bound, "{par:?}: {free:?} against {plain:?}");
         }
+        slope_carries_the_curvature(&freed, &straight_prism);
+    }
+
+    /// With a2 fitted, a1's 95 % interval holds its error and carries a2's
+    /// floor along their ridge (band k at a1·k + a2·k²: an a2 off by the
+    /// floor moves a1 by about (K − 1) times that), and the pair is
+    /// reported as a trade-off.
+    fn slope_carries_the_curvature(c: &Calibration, truth: &Mismatch) {
+        let (a1, a1_95) = (c.parameters.a1, c.interval_95.get(Parameter::A1).unwrap());
+        eprintln!("a1 {a1} ± {a1_95} (95 %), trade-offs {:?}", c.trade_offs);
+        assert!((a1 - truth.a1).abs() <= a1_95, "a1 {a1} ± {a1_95}");
+        let carried = 0.5 * (BANDS - 1) as f64 * super::super::CURVATURE_FLOOR_95;
+        assert!(a1_95 >= carried, "a1 ± {a1_95} carries less than {carried}");
+        assert!(
+            c.trade_offs
+                .iter()
+                .any(|t| (t.a, t.b) == (Parameter::A1, Parameter::A2) && t.correlation < 0.0),
+            "{:?}",
+            c.trade_offs
+        );
     }
 }

@@ -9,6 +9,7 @@
 //! `Objective` (`objective.rs`): a score over a subset of ψ's parameters.
 
 pub(crate) mod adam;
+mod band_shifts;
 mod blur_bootstrap;
 mod blur_pass;
 mod coarse_scene;
@@ -45,6 +46,7 @@ pub use uncertainty::{
 use serde::{Deserialize, Serialize};
 
 pub use adam::AdamSettings;
+pub use band_shifts::{BandShiftFit, BandShifts, fit_band_shifts};
 pub use blur_bootstrap::BlurBootstrap;
 pub use blur_pass::BlurPass;
 pub use default::{

@@ -295,6 +295,45 @@ impl Default for FinePass {
     }
 }
 
+impl FinePass {
+    /// The pass's scene fit (`settings` with its nodes, first solve and
+    /// steps), started from `first`, a solve of the first pass's fit
+    /// `coarse`: that scene refined onto the pass's nodes (returned with
+    /// it, the pass's first solve starts there), times `detail` where
+    /// given, the ridge anchored as [`Self::anchor`] says, the residual
+    /// weighted from `first`'s where [`Self::weighting`] says.
+    pub(crate) fn scene_fit<'a>(
+        &self,
+        problem: &'a CalibrationProblem<'a>,
+        settings: SceneFitSettings,
+        (coarse, first): (&SceneFit<'_>, &Solved),
+        detail: Option<Vec<f32>>,
+    ) -> Result<(SceneFit<'a>, Vec<f32>)> {
+        let fine_settings = SceneFitSettings {
+            cell_px: self.cell_px,
+            cold_solve: self.first_solve,
+            max_steps: self.max_steps,
+            fine_pass: None,
+            ..settings
+        };
+        let mut fine = SceneFit::new(problem, fine_settings)?;
+        // the smooth factor's nodes either way: `coarse` is the plain basis
+        let scene = fine.coefficients_from(coarse, &first.z);
+        if let Some(map) = detail {
+            fine = fine.with_detail(map);
+        }
+        let anchor = match self.anchor {
+            RidgeAnchor::Zero => None,
+            RidgeAnchor::FirstPassScene => Some(scene.clone()),
+        };
+        let mut fine = fine.with_ridge(self.ridge, anchor);
+        if let Some(weighting) = &self.weighting {
+            fine = fine.with_weights(weighting, first)?;
+        }
+        Ok((fine, scene))
+    }
+}
+
 impl SceneFitSettings {
     /// These settings with the first pass alone (the detail and fine
     /// passes off): the objective scans and choices score with.
@@ -340,6 +379,26 @@ fn difference_step(p: Parameter) -> f64 {
         Parameter::A2 => 0.00002,
         Parameter::AlphaDeg => 0.01,
     }
+}
+
+/// Forward-difference step of a band shift's Jacobian column, pixels (dx's).
+pub(crate) const BAND_SHIFT_STEP: f64 = 0.01;
+
+/// `base`'s instrument with band k landing `along[k]` px further along the
+/// dispersion: as `base` with its mask moved `along[0]` along the
+/// dispersion (direction α) and the other bands shifted relative to band 0.
+/// Why: a common shift of every band is that move (the scene, free,
+/// follows the light), and the operator's columns start where band 0
+/// lands, so band 0 is never shifted itself.
+pub(crate) fn shifted_instrument(base: &Mismatch, along: &[f64]) -> (Mismatch, Vec<f64>) {
+    let common = along.first().copied().unwrap_or(0.0);
+    let alpha = base.alpha_deg.to_radians();
+    let psi = Mismatch {
+        dx: base.dx + common * alpha.cos(),
+        dy: base.dy + common * alpha.sin(),
+        ..*base
+    };
+    (psi, along.iter().map(|d| d - common).collect())
 }
 
 pub(super) fn settled_step(p: Parameter) -> f64 {
@@ -614,27 +673,43 @@ impl<'a> SceneFit<'a> {
         out.iter_mut().zip(frame).for_each(|(o, &f)| *o = f - *o);
     }
 
-    fn operator(&self, psi: &Mismatch) -> Result<SceneOperator<'_>> {
+    /// K at `psi`, band k moved `along[k]` px along the dispersion where
+    /// `along` is given ([`ModelOperator::with_band_shifts`]).
+    fn operator(&self, psi: &Mismatch, along: Option<&[f64]>) -> Result<SceneOperator<'_>> {
         self.problem.check_cancelled()?;
         let p = self.problem;
-        Ok(SceneOperator {
-            fit: self,
-            op: ModelOperator::new(p.nominal_mask(), p.bands(), psi, p.model())?,
-        })
+        let op = match along {
+            None => ModelOperator::new(p.nominal_mask(), p.bands(), psi, p.model())?,
+            Some(along) => {
+                ModelOperator::with_band_shifts(p.nominal_mask(), p.bands(), psi, p.model(), along)?
+            }
+        };
+        Ok(SceneOperator { fit: self, op })
     }
 
     /// ψ with its coarse scene solved, from `warm`'s z (or from zero).
     pub(crate) fn solve(&self, psi: &Mismatch, warm: Option<&[f32]>) -> Result<Solved> {
+        self.solve_shifted(psi, None, warm)
+    }
+
+    /// [`Self::solve`] with band k moved `along[k]` px along the
+    /// dispersion where `along` is given.
+    pub(crate) fn solve_shifted(
+        &self,
+        psi: &Mismatch,
+        along: Option<&[f64]>,
+        warm: Option<&[f32]>,
+    ) -> Result<Solved> {
         match warm {
-            Some(z) => self.solve_with(psi, Some(z), self.settings.warm_solve),
-            None => self.solve_with(psi, None, self.settings.cold_solve),
+            Some(z) => self.solve_with(psi, along, Some(z), self.settings.warm_solve),
+            None => self.solve_with(psi, along, None, self.settings.cold_solve),
         }
     }
 
     /// ψ with its coarse scene solved as a first solve (`cold_solve`) from
     /// `from` (or zero).
     pub(crate) fn solve_cold(&self, psi: &Mismatch, from: Option<&[f32]>) -> Result<Solved> {
-        self.solve_with(psi, from, self.settings.cold_solve)
+        self.solve_with(psi, None, from, self.settings.cold_solve)
     }
 
     /// ‖H y‖² (weighted where the fit is): the score's denominator.
@@ -646,10 +721,11 @@ impl<'a> SceneFit<'a> {
     fn solve_with(
         &self,
         psi: &Mismatch,
+        along: Option<&[f64]>,
         from: Option<&[f32]>,
         params: CglsParams,
     ) -> Result<Solved> {
-        let k = self.operator(psi)?;
+        let k = self.operator(psi, along)?;
         let mut z = match from {
             Some(z) => z.to_vec(),
             None => vec![0.0; k.domain_len()],
@@ -698,7 +774,51 @@ impl<'a> SceneFit<'a> {
     /// which leaves Jᵀr alone only where r ⊥ K z, so not with a ridge (there
     /// Kᵀr = λz, and the brightness is penalised, not free).
     pub(crate) fn jacobian(&self, at: &Solved, free: &[Parameter]) -> Result<Vec<Vec<f32>>> {
-        let k = self.operator(&at.psi)?;
+        self.difference_columns(at, free.len(), |i| {
+            let (p, h) = (free[i], difference_step(free[i]));
+            let mut moved = at.psi;
+            p.set(&mut moved, p.get(&at.psi) + h);
+            moved.blur_sigma_px = moved.blur_sigma_px.abs();
+            Ok((self.operator(&moved, None)?, h))
+        })
+    }
+
+    /// Columns ∂r/∂δₖ for every band k at `at`, solved at
+    /// [`shifted_instrument`]`(base, along)` (z held, forward differences
+    /// of [`BAND_SHIFT_STEP`]), as [`Self::jacobian`].
+    pub(crate) fn band_shift_jacobian(
+        &self,
+        at: &Solved,
+        base: &Mismatch,
+        along: &[f64],
+    ) -> Result<Vec<Vec<f32>>> {
+        self.difference_columns(at, along.len(), |k| {
+            let mut moved = along.to_vec();
+            moved[k] += BAND_SHIFT_STEP;
+            let (psi, relative) = shifted_instrument(base, &moved);
+            Ok((self.operator(&psi, Some(&relative))?, BAND_SHIFT_STEP))
+        })
+    }
+
+    /// [`Self::solve`] at [`shifted_instrument`]`(base, along)`.
+    pub(crate) fn solve_band_shifted(
+        &self,
+        base: &Mismatch,
+        along: &[f64],
+        warm: Option<&[f32]>,
+    ) -> Result<Solved> {
+        let (psi, relative) = shifted_instrument(base, along);
+        self.solve_shifted(&psi, Some(&relative), warm)
+    }
+
+    /// `count` columns −(K′ z − K z) / h, K′ and h from `moved` per column,
+    /// the brightness direction K z projected out where no ridge holds it.
+    fn difference_columns<'s>(
+        &'s self,
+        at: &Solved,
+        count: usize,
+        moved: impl Fn(usize) -> Result<(SceneOperator<'s>, f64)>,
+    ) -> Result<Vec<Vec<f32>>> {
         let n = self.data.len();
         let mut images = Vec::new();
         self.basis.band_images(&at.z, &mut images);
@@ -710,19 +830,14 @@ impl<'a> SceneFit<'a> {
             .map(|(&d, &r)| d - r)
             .collect();
         let kz_energy: f64 = kz.iter().map(|&v| v as f64 * v as f64).sum();
-        drop(k);
-        let mut columns = Vec::with_capacity(free.len());
-        for &p in free {
-            let h = difference_step(p);
-            let mut moved = at.psi;
-            p.set(&mut moved, p.get(&at.psi) + h);
-            moved.blur_sigma_px = moved.blur_sigma_px.abs();
-            let km = self.operator(&moved)?;
+        let mut columns = Vec::with_capacity(count);
+        for i in 0..count {
+            let (km, h) = moved(i)?;
             let mut col = vec![0.0f32; n];
             crate::scratch::with_taken(&OPERATOR_SCRATCH, |s| {
                 km.frame_of_images(&images, &mut col, s)
             });
-            // ∂r/∂p = −(K_{ψ+h} z − K_ψ z) / h
+            // ∂r/∂p = −(K′ z − K z) / h
             let inv = 1.0 / h as f32;
             col.iter_mut()
                 .zip(&kz)
@@ -986,7 +1101,7 @@ pub(crate) mod tests {
         let fit = SceneFit::new(&problem, SceneFitSettings::default()).unwrap();
         for (a1, wider) in [(1.7, false), (2.4, true)] {
             let psi = Mismatch { a1, ..truth() };
-            let k = fit.operator(&psi).unwrap();
+            let k = fit.operator(&psi, None).unwrap();
             assert_eq!(k.op.measurement_shape().1 > y.cols(), wider);
             let e = adjoint_mismatch(&k, 3);
             assert!(e < 1e-5, "a1 {a1}: {e}");
@@ -1003,7 +1118,7 @@ pub(crate) mod tests {
             .fold((f32::MAX, 0.0f32), |(a, b), &v| (a.min(v), b.max(v)));
         assert!(hi > 1.5 * lo, "weights {lo}..{hi}");
         for a1 in [1.7, 2.4] {
-            let k = fit.operator(&Mismatch { a1, ..truth() }).unwrap();
+            let k = fit.operator(&Mismatch { a1, ..truth() }, None).unwrap();
             let e = adjoint_mismatch(&k, 3);
             assert!(e < 1e-5, "weighted, a1 {a1}: {e}");
         }
@@ -1176,7 +1291,7 @@ pub(crate) mod tests {
                 blur_sigma_px: sigma,
                 ..truth()
             };
-            let k = fit.operator(&psi).unwrap();
+            let k = fit.operator(&psi, None).unwrap();
             let mut fused = vec![0.0f32; k.range_len()];
             k.apply(&z, &mut fused);
             let mut cube = vec![0.0f32; fit.basis.range_len()];

@@ -720,15 +720,59 @@ pub(crate) fn two_pass_uncertainty(
         if !free.contains(&p) {
             let s = fine_cov[i * n + i].max(0.0).sqrt();
             let floor = |f: FloorFn| f(model, fit, p, at.blur_sigma_px);
-            u.standard
-                .0
-                .insert(p, Some(s.hypot(floor(model_error_floor))));
-            u.interval_95
-                .0
-                .insert(p, Some((2.0 * s).hypot(floor(interval_95_floor))));
+            let (floor_1, floor_95) = (floor(model_error_floor), floor(interval_95_floor));
+            u.standard.0.insert(p, Some(s.hypot(floor_1)));
+            u.interval_95.0.insert(p, Some((2.0 * s).hypot(floor_95)));
+            carry_along_slope(&mut u, (&fine_cov, fine_free), p, (floor_1, floor_95));
         }
     }
     u
+}
+
+/// A fitted curvature's floor carried into the slope a1 along their ridge.
+/// Band k lands at a1·k + a2·k², so an a2 off by δ is met by an a1 off by
+/// β·δ (β ≈ −(K − 1), from the fine block: cov(a1, a2) / var(a2)); a1's
+/// floors were measured with a2 held and do not contain it — with a2
+/// fitted they covered a1 in 17 of 30 tuning cases at 1σ and 31 of 35 held
+/// out at 95 % on a curved instrument (stop 53's records). a1 gets
+/// hypot(its error, |β|·a2's floor) at each level, and the pair is a
+/// trade-off when their total correlation reaches
+/// [`TRADE_OFF_CORRELATION`]. Only a1: the other parameters' floors cover
+/// with a2 fitted in every regime of those records.
+fn carry_along_slope(
+    u: &mut UncertaintyEstimate,
+    (cov, over): (&[f64], &[Parameter]),
+    curvature: Parameter,
+    (floor_1, floor_95): (f64, f64),
+) {
+    let n = over.len();
+    let (Some(i), Some(j)) = (
+        over.iter().position(|&q| q == Parameter::A1),
+        over.iter().position(|&q| q == curvature),
+    ) else {
+        return;
+    };
+    let (var_a1, var_a2, c) = (cov[i * n + i], cov[j * n + j], cov[i * n + j]);
+    if var_a2 <= 0.0 {
+        return;
+    }
+    let beta = c / var_a2;
+    for (level, floor) in [(&mut u.standard, floor_1), (&mut u.interval_95, floor_95)] {
+        if let Some(e) = level.get(Parameter::A1) {
+            level.0.insert(Parameter::A1, Some(e.hypot(beta * floor)));
+        }
+    }
+    // the two errors' correlation with the floor's shared part in both
+    let total_a1 = var_a1 + (beta * floor_1).powi(2);
+    let total_a2 = var_a2 + floor_1 * floor_1;
+    let correlation = (c + beta * floor_1 * floor_1) / (total_a1 * total_a2).sqrt();
+    if total_a1 > 0.0 && correlation.abs() >= TRADE_OFF_CORRELATION {
+        u.trade_offs.push(TradeOff {
+            a: Parameter::A1,
+            b: curvature,
+            correlation,
+        });
+    }
 }
 
 /// The fitted curvature a2's standard-error floor, px/band², added in

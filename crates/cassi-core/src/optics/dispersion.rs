@@ -206,6 +206,59 @@ impl Dispersion {
         })
     }
 
+    /// The same dispersion with band k moved `along[k]` pixels further
+    /// along its axis (direction α): band positions off the curve a1·k +
+    /// a2·k², e.g. a prism whose dispersion no low-order polynomial follows.
+    /// `along` must hold one shift per band, each finite; the bands must
+    /// still land in order along the axis, band 0 at or after its start.
+    pub fn shifted_along(&self, along: &[f64]) -> Result<Self> {
+        let bands = self.bands();
+        if along.len() != bands {
+            return Err(crate::error::shape_error(
+                "the band shifts",
+                format!("{} values", along.len()),
+                format!("{bands} (one per band)"),
+            ));
+        }
+        if let Some((k, &v)) = along.iter().enumerate().find(|(_, v)| !v.is_finite()) {
+            return Err(CassiError::NonFinite {
+                what: "the band shifts".into(),
+                value: v as f32,
+                location: format!("band {k}"),
+            });
+        }
+        let alpha = self.params.alpha_deg.to_radians();
+        let (c, r) = (alpha.cos(), alpha.sin());
+        let position = |k: usize| self.params.along(k as f64) + along[k];
+        // the operator's columns start where band 0 lands
+        if position(0) < 0.0 {
+            return Err(CassiError::InvalidParameter {
+                name: "band shift",
+                value: along[0],
+                reason:
+                    "band 0 would land before the mask's first column; shift the others instead"
+                        .into(),
+            });
+        }
+        if let Some(k) =
+            (1..bands).find(|&k| position(k) - position(k - 1) < crate::params::MIN_SLOPE)
+        {
+            return Err(CassiError::InvalidParameter {
+                name: "band shift",
+                value: along[k],
+                reason: format!(
+                    "band {k} would land {:.3} px from band {} along the dispersion: the bands must land in order",
+                    position(k) - position(k - 1),
+                    k - 1
+                ),
+            });
+        }
+        let offsets = (0..bands)
+            .map(|k| (position(k) * c, position(k) * r))
+            .collect();
+        Self::from_offsets(self.params, offsets, self.model)
+    }
+
     /// The nominal design: integer stride, no tilt.
     pub fn nominal(bands: usize, stride: f64, model: DispersionModel) -> Result<Self> {
         Self::new(
@@ -341,6 +394,28 @@ fn band_taps(dc: f64, dr: f64, model: DispersionModel) -> Vec<Tap> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn band_shifts_are_checked_and_no_shift_changes_nothing() {
+        let params = DispersionParams {
+            a1: 2.0,
+            alpha_deg: 0.5,
+            a2: 0.0,
+        };
+        let d = Dispersion::new(5, params, DispersionModel::DispersedMask).unwrap();
+        assert_eq!(d.shifted_along(&[0.0; 5]).unwrap(), d);
+        let s = d.shifted_along(&[0.0, 0.0, 0.4, 0.0, 0.0]).unwrap();
+        let (moved, before) = (s.offset(2), d.offset(2));
+        let along = (moved.0 - before.0).hypot(moved.1 - before.1);
+        assert!((along - 0.4).abs() < 1e-12, "{along}");
+        let refusal = |v: &[f64]| d.shifted_along(v).unwrap_err().to_string();
+        let e = refusal(&[0.0; 4]);
+        assert!(e.contains("4 values") && e.contains("5 (one per band)"), "{e}");
+        assert!(refusal(&[0.0, f64::NAN, 0.0, 0.0, 0.0]).contains("band 1"));
+        let e = refusal(&[0.0, 0.0, 2.5, 0.0, 0.0]);
+        assert!(e.contains("band 3") && e.contains("in order"), "{e}");
+        assert!(refusal(&[-0.1, 0.0, 0.0, 0.0, 0.0]).contains("band 0"));
+    }
 
     fn cols(d: &Dispersion) -> Vec<i32> {
         (0..d.bands()).map(|k| d.taps(k)[0].col).collect()

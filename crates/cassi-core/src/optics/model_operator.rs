@@ -6,7 +6,7 @@
 
 use super::blur::Blurred;
 use super::crisp_cells::CrispCellOperator;
-use super::dispersion::DispersionModel;
+use super::dispersion::{Dispersion, DispersionModel};
 use super::operator::{CassiOperator, CubeRows, checked_forward};
 use crate::cube::{Cube, Mask, Measurement};
 use crate::error::Result;
@@ -54,6 +54,28 @@ impl ModelOperator {
             other => other,
         };
         let sharp = CassiOperator::with_mismatch(nominal_mask, bands, &psi.sharp(), model)?;
+        Self::from_sharp(sharp, psi.blur_sigma_px)
+    }
+
+    /// `psi`'s instrument with band k landing `along[k]` px further along
+    /// the dispersion than a1·k + a2·k² ([`Dispersion::shifted_along`]); a
+    /// tapped model's (the crisp-cell model is refused with a blur).
+    pub fn with_band_shifts(
+        nominal_mask: &Mask,
+        bands: usize,
+        psi: &Mismatch,
+        model: DispersionModel,
+        along: &[f64],
+    ) -> Result<Self> {
+        psi.validate()?;
+        let model = match model {
+            DispersionModel::CrispCells if psi.blur_sigma_px == 0.0 => {
+                DispersionModel::DispersedMask
+            }
+            other => other,
+        };
+        let dispersion = Dispersion::new(bands, psi.dispersion(), model)?.shifted_along(along)?;
+        let sharp = CassiOperator::posed(nominal_mask, psi.pose(), dispersion)?;
         Self::from_sharp(sharp, psi.blur_sigma_px)
     }
 
@@ -223,5 +245,49 @@ mod tests {
             assert!(diff > 1.0, "the blur changed nothing: {diff}");
             assert!(blurred.forward(&Cube::zeros(3, 12, 14)).is_err());
         }
+    }
+
+    /// Band shifts: the adjoint holds, no shift is the plain operator, and
+    /// a shifted band moves its own light alone.
+    #[test]
+    fn a_shifted_band_moves_its_own_light_alone() {
+        let mask = random_binary_mask(12, 14, 0.5, 3).unwrap();
+        let psi = Mismatch {
+            blur_sigma_px: 0.6,
+            ..Mismatch::paper()
+        };
+        let one_band = |k: usize| {
+            let mut x = Cube::zeros(4, 12, 14);
+            x.band_mut(k).iter_mut().enumerate().for_each(|(i, v)| *v = (i % 7) as f32);
+            x
+        };
+        for model in DispersionModel::TAPPED {
+            let plain = ModelOperator::new(&mask, 4, &psi, model).unwrap();
+            let unshifted =
+                ModelOperator::with_band_shifts(&mask, 4, &psi, model, &[0.0; 4]).unwrap();
+            let shifted =
+                ModelOperator::with_band_shifts(&mask, 4, &psi, model, &[0.0, 0.0, 0.7, 0.0])
+                    .unwrap();
+            assert!(adjoint_mismatch(&shifted, 2) < 1e-5, "{model:?}");
+            for k in 0..4 {
+                let x = one_band(k);
+                let y = |op: &ModelOperator| op.forward(&x).unwrap().as_slice().to_vec();
+                assert_eq!(y(&plain), y(&unshifted), "{model:?} band {k}");
+                let moved = y(&plain) != y(&shifted);
+                assert_eq!(moved, k == 2, "{model:?} band {k}");
+            }
+        }
+        // the crisp-cell model places cells itself: no taps to shift
+        let e = ModelOperator::with_band_shifts(
+            &mask,
+            4,
+            &psi,
+            DispersionModel::CrispCells,
+            &[0.0; 4],
+        )
+        .err()
+        .unwrap()
+        .to_string();
+        assert!(e.contains("crisp-cells"), "{e}");
     }
 }

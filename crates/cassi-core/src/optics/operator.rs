@@ -81,6 +81,14 @@ pub fn validate_mask(mask: &Mask, what: &str) -> Result<()> {
     Ok(())
 }
 
+/// Why a tapped operator cannot be built for a model that places cells.
+fn places_cells_refusal(model: DispersionModel) -> CassiError {
+    CassiError::Meaningless {
+        what: format!("a tapped CASSI operator for the {} model", model.name()),
+        reason: "that model blurs each mask cell where it lands; build a ModelOperator".into(),
+    }
+}
+
 impl CassiOperator {
     /// The operator for an effective `mask` (what the detector sees, after any
     /// misalignment) and a `dispersion`.
@@ -115,15 +123,22 @@ impl CassiOperator {
             });
         }
         if model.places_cells() {
-            return Err(CassiError::Meaningless {
-                what: format!("a tapped CASSI operator for the {} model", model.name()),
-                reason: "that model blurs each mask cell where it lands; build a ModelOperator"
-                    .into(),
-            });
+            return Err(places_cells_refusal(model));
+        }
+        let dispersion = Dispersion::new(bands, mismatch.dispersion(), model)?;
+        Self::posed(nominal_mask, mismatch.pose(), dispersion)
+    }
+
+    /// The operator of `nominal_mask` moved by `pose`, its light landing
+    /// as `dispersion` says (any band positions, e.g. a
+    /// [`Dispersion::shifted_along`]; a tapped model's).
+    pub fn posed(nominal_mask: &Mask, pose: MaskPose, dispersion: Dispersion) -> Result<Self> {
+        let model = dispersion.model();
+        if model.places_cells() {
+            return Err(places_cells_refusal(model));
         }
         validate_mask(nominal_mask, "nominal mask")?;
-        let dispersion = Dispersion::new(bands, mismatch.dispersion(), model)?;
-        let pose = mismatch.pose();
+        let bands = dispersion.bands();
         if !model.samples_mask_per_band() {
             return Self::new(warp_mask(nominal_mask, &pose), dispersion);
         }
