@@ -23,6 +23,71 @@ pub fn shared_data() -> std::path::PathBuf {
     cassi_io::shared_data::default_dir()
 }
 
+/// The TSA snapshots a real-data bench reads, with the real mask: the real
+/// ones (`<shared data>/real/scene*.mat`, variable `meas_real`) or a
+/// control's simulated ones (`DIR/scene*.npy`).
+pub struct TsaSnapshots {
+    /// Where they were read from.
+    pub dir: std::path::PathBuf,
+    /// Those whose name contains one of the wanted names (all when none), sorted.
+    pub paths: Vec<std::path::PathBuf>,
+    pub mask: cassi_core::Mask,
+    mask_path: std::path::PathBuf,
+    variable: Option<&'static str>,
+}
+
+impl TsaSnapshots {
+    /// The snapshots in `measurements` (a control's folder; `None`: the real
+    /// ones) whose names contain one of `only`; refused when none match.
+    pub fn find(measurements: Option<&std::path::Path>, only: &[String]) -> anyhow::Result<Self> {
+        use anyhow::Context;
+        let real = shared_data().join("real");
+        let mask_path = real.join("tsa_real_mask660.mat");
+        let mask = cassi_io::load_frame(&mask_path, Some("mask"))?;
+        let (dir, ext, variable) = match measurements {
+            None => (real, "mat", Some("meas_real")),
+            Some(d) => (d.to_path_buf(), "npy", None),
+        };
+        let mut paths: Vec<_> = std::fs::read_dir(&dir)
+            .with_context(|| format!("{}: the snapshots are needed", dir.display()))?
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|p| {
+                let name = scene_name(p);
+                name.starts_with("scene")
+                    && p.extension().is_some_and(|e| e == ext)
+                    && (only.is_empty() || only.iter().any(|o| name.contains(o.as_str())))
+            })
+            .collect();
+        paths.sort();
+        anyhow::ensure!(
+            !paths.is_empty(),
+            "no snapshot scene*.{ext} in {} matches {only:?}",
+            dir.display()
+        );
+        Ok(Self {
+            dir,
+            paths,
+            mask,
+            mask_path,
+            variable,
+        })
+    }
+
+    /// The snapshot at `path`, refused unless it has the mask's rows.
+    pub fn load(&self, path: &std::path::Path) -> anyhow::Result<cassi_core::Measurement> {
+        let meas: cassi_core::Measurement = cassi_io::load_frame(path, self.variable)?;
+        anyhow::ensure!(
+            meas.rows() == self.mask.rows(),
+            "{}: {} rows, the mask {} has {}",
+            path.display(),
+            meas.rows(),
+            self.mask_path.display(),
+            self.mask.rows()
+        );
+        Ok(meas)
+    }
+}
+
 /// A scene's name in tables and records: its file name without the
 /// extension (`cave_beads`).
 pub fn scene_name(path: &std::path::Path) -> String {

@@ -10,23 +10,27 @@
 //! instrument has appears in both halves of one exposure (the same prism,
 //! other scene content), one the fit makes of the scene does not.
 //!
+//! The control (`bench/band_shifts_control.sh`): the same on measurements
+//! simulated from each snapshot's own reconstruction by the 4× oversampled
+//! instrument with a straight prism (`--measurements DIR` reads their
+//! `scene*.npy`): the shapes a straight dispersion leaves with this content.
+//!
 //! Run: `cargo run --release -p cassi-bench --bin band_shifts [-- --scene
-//! NAME]… [--out PATH]` → `bench/results/real/band_shifts.json` (or PATH,
-//! or $CASSI_BENCH_OUT). Needs `../shared/data/real` (or
-//! $CASSI_SHARED_DATA).
+//! NAME]… [--measurements DIR] [--out PATH]` →
+//! `bench/results/real/band_shifts.json` (or PATH, or $CASSI_BENCH_OUT).
+//! Needs `../shared/data/real` (or $CASSI_SHARED_DATA) for the mask.
 
-use anyhow::{Context, Result, anyhow, bail, ensure};
-use cassi_bench::{bench_out, scene_name, shared_data, write_record};
+use anyhow::{Result, anyhow, bail, ensure};
+use cassi_bench::{TsaSnapshots, bench_out, scene_name, write_record};
 use cassi_core::calib::{
     BandShiftFit, BandShifts, CalibrationProblem, Preset, StageReport, calibrate, fit_band_shifts,
 };
-use cassi_core::{Mask, Measurement};
 use cassi_eval::machine::Machine;
 use serde_json::json;
 
 const BANDS: usize = 28;
 const STRIDE: f64 = 2.0;
-const USAGE: &str = "band_shifts [--scene NAME]… [--out PATH]";
+const USAGE: &str = "band_shifts [--scene NAME]… [--measurements DIR] [--out PATH]";
 
 fn rms(v: impl Iterator<Item = f64>) -> f64 {
     let (sum, n) = v.fold((0.0, 0usize), |(s, n), x| (s + x * x, n + 1));
@@ -38,6 +42,7 @@ fn main() -> Result<()> {
     let argv: Vec<String> = std::env::args().skip(1).collect();
     let mut only: Vec<String> = Vec::new();
     let mut out: Option<String> = None;
+    let mut measurements: Option<std::path::PathBuf> = None;
     let mut it = argv.iter();
     while let Some(flag) = it.next() {
         let mut value = || {
@@ -48,6 +53,7 @@ fn main() -> Result<()> {
         match flag.as_str() {
             "--scene" => only.push(value()?),
             "--out" => out = Some(value()?),
+            "--measurements" => measurements = Some(value()?.into()),
             other => bail!("{other}: usage: {USAGE}"),
         }
     }
@@ -64,25 +70,7 @@ fn main() -> Result<()> {
         }
         None => bench_out("real/band_shifts.json")?,
     };
-    let real = shared_data().join("real");
-    let mask_path = real.join("tsa_real_mask660.mat");
-    let mask: Mask = cassi_io::load_frame(&mask_path, Some("mask"))?;
-    let mut snapshots: Vec<_> = std::fs::read_dir(&real)
-        .with_context(|| format!("{}: the snapshots are needed", real.display()))?
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| {
-            let name = scene_name(p);
-            name.starts_with("scene")
-                && p.extension().is_some_and(|e| e == "mat")
-                && (only.is_empty() || only.iter().any(|o| name.contains(o.as_str())))
-        })
-        .collect();
-    snapshots.sort();
-    ensure!(
-        !snapshots.is_empty(),
-        "no snapshot scene*.mat in {} matches {only:?}",
-        real.display()
-    );
+    let snapshots = TsaSnapshots::find(measurements.as_deref(), &only)?;
     let preset = Preset::by_name("default", STRIDE)?;
     let Preset::Default(default) = &preset else {
         bail!("the default preset is not the default's")
@@ -92,10 +80,10 @@ fn main() -> Result<()> {
         .ok_or_else(|| anyhow!("the default preset has no scene fit"))?;
     let model = preset.default_model();
     let mut cases = Vec::new();
-    for path in &snapshots {
+    for path in &snapshots.paths {
         let snapshot = scene_name(path);
-        let meas: Measurement = cassi_io::load_frame(path, Some("meas_real"))?;
-        let problem = CalibrationProblem::nominal(&meas, &mask, BANDS, STRIDE, model)?;
+        let meas = snapshots.load(path)?;
+        let problem = CalibrationProblem::nominal(&meas, &snapshots.mask, BANDS, STRIDE, model)?;
         let mut quiet = |_: &StageReport| {};
         let cal = calibrate(&problem, &preset, &mut quiet)?;
         let psi = cal.parameters;
@@ -155,7 +143,7 @@ fn main() -> Result<()> {
         "bench": "band_shifts",
         "preset": "default",
         "flags": argv,
-        "measurements": real.display().to_string(),
+        "measurements": snapshots.dir.display().to_string(),
         "machine": Machine::this(),
         "cases": cases,
     });

@@ -34,9 +34,8 @@
 //! Needs `../shared/data/real` (or $CASSI_SHARED_DATA) for the mask.
 
 use anyhow::{Context, Result, anyhow, bail, ensure};
-use cassi_bench::{bench_out, scene_name, shared_data};
+use cassi_bench::{TsaSnapshots, bench_out, scene_name};
 use cassi_core::calib::{CalibrationProblem, Preset, StageReport, calibrate};
-use cassi_core::{Mask, Measurement};
 use serde_json::json;
 
 const BANDS: usize = 28;
@@ -144,45 +143,15 @@ fn main() -> Result<()> {
         "real/regions/{source}_{}{suffix}.json",
         regions.key()
     ))?;
-    let real = shared_data().join("real");
-    let mask_path = real.join("tsa_real_mask660.mat");
-    let mask: Mask = cassi_io::load_frame(&mask_path, Some("mask"))?;
-    // the real snapshots (.mat), or the control's simulated ones (.npy)
-    let (dir, ext, variable) = match &measurements {
-        None => (real.clone(), "mat", Some("meas_real")),
-        Some(d) => (d.clone(), "npy", None),
-    };
-    let mut snapshots: Vec<_> = std::fs::read_dir(&dir)
-        .with_context(|| format!("{}: the snapshots are needed", dir.display()))?
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| {
-            let name = scene_name(p);
-            name.starts_with("scene")
-                && p.extension().is_some_and(|e| e == ext)
-                && (only.is_empty() || only.iter().any(|o| name.contains(o.as_str())))
-        })
-        .collect();
-    snapshots.sort();
-    ensure!(
-        !snapshots.is_empty(),
-        "no snapshot scene*.{ext} in {} matches {only:?}",
-        dir.display()
-    );
+    let snapshots = TsaSnapshots::find(measurements.as_deref(), &only)?;
+    let mask = &snapshots.mask;
     let preset = Preset::by_name("default", STRIDE)?;
     let model = preset.default_model();
     let mut cases = Vec::new();
-    for path in &snapshots {
+    for path in &snapshots.paths {
         let snapshot = scene_name(path);
-        let meas: Measurement = cassi_io::load_frame(path, variable)?;
+        let meas = snapshots.load(path)?;
         let truth = truth_of(path)?;
-        ensure!(
-            meas.rows() == mask.rows(),
-            "{}: {} rows, the mask {} has {}",
-            path.display(),
-            meas.rows(),
-            mask_path.display(),
-            mask.rows()
-        );
         for (region, first, end) in regions.bands(meas.rows()) {
             let m = meas.rows_range(first, end)?;
             let k = mask.rows_range(first, end)?;
@@ -210,7 +179,7 @@ fn main() -> Result<()> {
     let record = json!({
         "regions": regions.key(),
         "preset": "default",
-        "measurements": dir.display().to_string(),
+        "measurements": snapshots.dir.display().to_string(),
         "frame_rows": mask.rows(),
         "threads": rayon::current_num_threads(),
         "cases": cases,

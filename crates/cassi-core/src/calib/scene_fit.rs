@@ -199,8 +199,9 @@ pub enum FinePassFree {
     /// from −0.006 in 7 of 45 tuning cases (31 stay within 0.001 of their
     /// start: the straight fit's basin places the red bands elsewhere).
     /// The stated errors of the other five are the two passes' with a2
-    /// marginalised out of the fine block; a2's own is the fine pass's
-    /// block sandwich with its floors ([`super::model_error_floor`]).
+    /// marginalised out of the fine block, a1's with a2's floor carried
+    /// along their ridge; a2's own is the fine pass's block sandwich with
+    /// its floors ([`super::model_error_floor`]).
     GeometryAndCurvature,
 }
 

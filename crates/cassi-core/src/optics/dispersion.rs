@@ -410,7 +410,10 @@ mod tests {
         assert!((along - 0.4).abs() < 1e-12, "{along}");
         let refusal = |v: &[f64]| d.shifted_along(v).unwrap_err().to_string();
         let e = refusal(&[0.0; 4]);
-        assert!(e.contains("4 values") && e.contains("5 (one per band)"), "{e}");
+        assert!(
+            e.contains("4 values") && e.contains("5 (one per band)"),
+            "{e}"
+        );
         assert!(refusal(&[0.0, f64::NAN, 0.0, 0.0, 0.0]).contains("band 1"));
         let e = refusal(&[0.0, 0.0, 2.5, 0.0, 0.0]);
         assert!(e.contains("band 3") && e.contains("in order"), "{e}");

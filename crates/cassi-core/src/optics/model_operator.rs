@@ -258,7 +258,10 @@ mod tests {
         };
         let one_band = |k: usize| {
             let mut x = Cube::zeros(4, 12, 14);
-            x.band_mut(k).iter_mut().enumerate().for_each(|(i, v)| *v = (i % 7) as f32);
+            x.band_mut(k)
+                .iter_mut()
+                .enumerate()
+                .for_each(|(i, v)| *v = (i % 7) as f32);
             x
         };
         for model in DispersionModel::TAPPED {
@@ -278,16 +281,11 @@ mod tests {
             }
         }
         // the crisp-cell model places cells itself: no taps to shift
-        let e = ModelOperator::with_band_shifts(
-            &mask,
-            4,
-            &psi,
-            DispersionModel::CrispCells,
-            &[0.0; 4],
-        )
-        .err()
-        .unwrap()
-        .to_string();
+        let e =
+            ModelOperator::with_band_shifts(&mask, 4, &psi, DispersionModel::CrispCells, &[0.0; 4])
+                .err()
+                .unwrap()
+                .to_string();
         assert!(e.contains("crisp-cells"), "{e}");
     }
 }
