@@ -4,6 +4,7 @@ halves, and whether a shape is shared — between the halves of one exposure and
 across the snapshots of one camera.
 
     python3 bench/band_shifts_table.py RECORD.json [MORE.json …] [--control CONTROL.json]
+    python3 bench/band_shifts_table.py --applied APPLY.json [MORE.json …]
 
 RECORD: `cargo run --release -p cassi-bench --bin band_shifts` (one or several
 records; their cases pooled). Printed per snapshot: the whole frame's shape RMS
@@ -15,7 +16,8 @@ one out), the mean shape and its standard error per band. A shape the camera has
 is shared by the halves and by the snapshots; a shape the fit makes of the scene
 and the noise is not. --control: the same table for the control (measurements
 simulated with a straight prism, `bench/band_shifts_control.sh`), whose shapes
-are the fit's own.
+are the fit's own. --applied: `band_shifts --apply` records (the others' mean shape
+held on each snapshot: the objective's change with it and with its opposite).
 """
 import json
 import math
@@ -69,7 +71,25 @@ def table(cases, label):
         print(f"  bands whose mean is beyond 2 standard errors: {beyond} of {len(mean)}")
 
 
+def applied(path):
+    """An `--apply` record: each snapshot's objective with the others' mean shape and
+    its opposite, relative to no shift; the antisymmetric part (opposite − shape) / 2
+    is what the shape's sign does, the symmetric part what moving the bands at all does."""
+    run = json.load(open(path))
+    print(f"\n{path}: the others' mean shape applied (objective change, %)")
+    print(f"{'snapshot':<20} {'shape':>7} {'opposite':>9} {'(opp-shape)/2':>14} {'(opp+shape)/2':>14}")
+    for c in run["cases"]:
+        base = c["score_unshifted"]
+        s = 100 * (c["score_others_shape"] / base - 1)
+        o = 100 * (c["score_opposite_shape"] / base - 1)
+        print(f"{c['snapshot']:<20} {s:+7.2f} {o:+9.2f} {(o - s) / 2:+14.2f} {(o + s) / 2:+14.2f}")
+
+
 def main(argv):
+    if argv[:1] == ["--applied"]:
+        for p in argv[1:]:
+            applied(p)
+        return
     control = []
     if "--control" in argv:
         i = argv.index("--control")

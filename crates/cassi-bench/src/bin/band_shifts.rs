@@ -15,26 +15,88 @@
 //! instrument with a straight prism (`--measurements DIR` reads their
 //! `scene*.npy`): the shapes a straight dispersion leaves with this content.
 //!
+//! `--apply RECORD` (the test of a shared shape): instead of fitting, each
+//! snapshot's fine-pass objective with its bands held at the mean whole-frame
+//! shape of the *other* snapshots in RECORD (leave one out), at no shift, and
+//! at that shape's opposite — a camera's shape lowers the objective of a
+//! snapshot it was not measured on; on the control (a straight prism) it
+//! should not. `--at RECORD` takes each snapshot's ψ from RECORD's
+//! calibration instead of calibrating again.
+//!
 //! Run: `cargo run --release -p cassi-bench --bin band_shifts [-- --scene
-//! NAME]… [--measurements DIR] [--out PATH]` →
+//! NAME]… [--measurements DIR] [--at RECORD] [--apply RECORD] [--out PATH]` →
 //! `bench/results/real/band_shifts.json` (or PATH, or $CASSI_BENCH_OUT).
 //! Needs `../shared/data/real` (or $CASSI_SHARED_DATA) for the mask.
 
-use anyhow::{Result, anyhow, bail, ensure};
+use anyhow::{Context, Result, anyhow, bail, ensure};
 use cassi_bench::{TsaSnapshots, bench_out, scene_name, write_record};
+use cassi_core::Mismatch;
 use cassi_core::calib::{
-    BandShiftFit, BandShifts, CalibrationProblem, Preset, StageReport, calibrate, fit_band_shifts,
+    BandShiftFit, BandShifts, CalibrationProblem, Preset, StageReport, band_shift_scores,
+    calibrate, fit_band_shifts,
 };
+use cassi_core::solvers::CglsParams;
 use cassi_eval::machine::Machine;
 use serde_json::json;
 
 const BANDS: usize = 28;
+/// CGLS iterations of `--apply`'s solves (no tolerance: all of them).
+const SOLVE_TO_CONVERGENCE: usize = 600;
 const STRIDE: f64 = 2.0;
-const USAGE: &str = "band_shifts [--scene NAME]… [--measurements DIR] [--out PATH]";
+const USAGE: &str =
+    "band_shifts [--scene NAME]… [--measurements DIR] [--at RECORD] [--apply RECORD] [--out PATH]";
 
 fn rms(v: impl Iterator<Item = f64>) -> f64 {
     let (sum, n) = v.fold((0.0, 0usize), |(s, n), x| (s + x * x, n + 1));
     (sum / n.max(1) as f64).sqrt()
+}
+
+/// The case of `snapshot` in the band_shifts record at `path`.
+fn case_of(path: &str, snapshot: &str) -> Result<serde_json::Value> {
+    cases_of(path)?
+        .into_iter()
+        .find(|c| c["snapshot"] == snapshot)
+        .ok_or_else(|| anyhow!("{path}: no case for the snapshot {snapshot}"))
+}
+
+fn cases_of(path: &str) -> Result<Vec<serde_json::Value>> {
+    let text = std::fs::read_to_string(path).with_context(|| format!("reading {path}"))?;
+    let record: serde_json::Value =
+        serde_json::from_str(&text).with_context(|| format!("{path}: not JSON"))?;
+    match record["cases"].as_array() {
+        Some(cases) => Ok(cases.clone()),
+        None => bail!("{path}: no `cases` (a band_shifts record has them)"),
+    }
+}
+
+/// The mean whole-frame shape of every snapshot in the record at `path` but
+/// `snapshot` (refused with fewer than one other, or shapes of another band
+/// count).
+fn others_mean_shape(path: &str, snapshot: &str) -> Result<Vec<f64>> {
+    let mut shapes = Vec::new();
+    for case in cases_of(path)?.iter().filter(|c| c["snapshot"] != snapshot) {
+        let whole = case["windows"]
+            .as_array()
+            .and_then(|w| w.iter().find(|w| w["window"] == "whole"))
+            .ok_or_else(|| anyhow!("{path}: {} has no whole-frame fit", case["snapshot"]))?;
+        let shape: Vec<f64> = serde_json::from_value(whole["shifts"]["shape"].clone())
+            .with_context(|| format!("{path}: {}'s shape", case["snapshot"]))?;
+        ensure!(
+            shape.len() == BANDS,
+            "{path}: {}'s shape has {} bands, expected {BANDS}",
+            case["snapshot"],
+            shape.len()
+        );
+        shapes.push(shape);
+    }
+    ensure!(
+        !shapes.is_empty(),
+        "{path}: no snapshot other than {snapshot}"
+    );
+    let n = shapes.len() as f64;
+    Ok((0..BANDS)
+        .map(|k| shapes.iter().map(|s| s[k]).sum::<f64>() / n)
+        .collect())
 }
 
 fn main() -> Result<()> {
@@ -43,6 +105,8 @@ fn main() -> Result<()> {
     let mut only: Vec<String> = Vec::new();
     let mut out: Option<String> = None;
     let mut measurements: Option<std::path::PathBuf> = None;
+    let mut at: Option<String> = None;
+    let mut apply: Option<String> = None;
     let mut it = argv.iter();
     while let Some(flag) = it.next() {
         let mut value = || {
@@ -54,6 +118,8 @@ fn main() -> Result<()> {
             "--scene" => only.push(value()?),
             "--out" => out = Some(value()?),
             "--measurements" => measurements = Some(value()?.into()),
+            "--at" => at = Some(value()?),
+            "--apply" => apply = Some(value()?),
             other => bail!("{other}: usage: {USAGE}"),
         }
     }
@@ -70,6 +136,10 @@ fn main() -> Result<()> {
         }
         None => bench_out("real/band_shifts.json")?,
     };
+    // the records read before any work
+    for record in at.iter().chain(&apply) {
+        cases_of(record)?;
+    }
     let snapshots = TsaSnapshots::find(measurements.as_deref(), &only)?;
     let preset = Preset::by_name("default", STRIDE)?;
     let Preset::Default(default) = &preset else {
@@ -79,15 +149,56 @@ fn main() -> Result<()> {
         .scene_fit
         .ok_or_else(|| anyhow!("the default preset has no scene fit"))?;
     let model = preset.default_model();
+    // --apply's scores with each scene solved to convergence: the pass's
+    // first solve stops at a relative tolerance, and where it stops moves
+    // a score by about 1 % between two operators (the control's shapes both
+    // ways lowered the real snapshots' objective at the pass's own solve)
+    let mut converged = settings;
+    if let Some(pass) = converged.fine_pass.as_mut() {
+        pass.first_solve = CglsParams {
+            iterations: SOLVE_TO_CONVERGENCE,
+            tolerance: 0.0,
+        };
+    }
     let mut cases = Vec::new();
     for path in &snapshots.paths {
         let snapshot = scene_name(path);
         let meas = snapshots.load(path)?;
         let problem = CalibrationProblem::nominal(&meas, &snapshots.mask, BANDS, STRIDE, model)?;
-        let mut quiet = |_: &StageReport| {};
-        let cal = calibrate(&problem, &preset, &mut quiet)?;
-        let psi = cal.parameters;
-        eprintln!("{snapshot}: {psi:?} ({:.1} s)", cal.seconds);
+        let cal = match &at {
+            Some(record) => case_of(record, &snapshot)?["calibration"].clone(),
+            None => {
+                let mut quiet = |_: &StageReport| {};
+                let cal = calibrate(&problem, &preset, &mut quiet)?;
+                eprintln!("{snapshot}: calibrated in {:.1} s", cal.seconds);
+                serde_json::to_value(&cal)?
+            }
+        };
+        let psi: Mismatch = serde_json::from_value(cal["parameters"].clone())
+            .with_context(|| format!("{snapshot}: the calibration's parameters"))?;
+        eprintln!("{snapshot}: {psi:?}");
+        if let Some(record) = &apply {
+            let shape = others_mean_shape(record, &snapshot)?;
+            let opposite: Vec<f64> = shape.iter().map(|v| -v).collect();
+            let tables = [vec![0.0; BANDS], shape.clone(), opposite];
+            let scores = band_shift_scores(&problem, &psi, &BandShiftFit::new(converged), &tables)?;
+            let change = |i: usize| scores[i] / scores[0] - 1.0;
+            eprintln!(
+                "  objective {:.5}; with the others' shape {:+.2} %, its opposite {:+.2} %",
+                scores[0],
+                100.0 * change(1),
+                100.0 * change(2)
+            );
+            cases.push(json!({
+                "snapshot": snapshot,
+                "calibration": cal,
+                "others_mean_shape": shape,
+                "score_unshifted": scores[0],
+                "score_others_shape": scores[1],
+                "score_opposite_shape": scores[2],
+            }));
+            continue;
+        }
         let rows = meas.rows();
         let mut windows = Vec::new();
         let mut shapes: Vec<(String, BandShifts)> = Vec::new();
@@ -133,14 +244,14 @@ fn main() -> Result<()> {
         );
         cases.push(json!({
             "snapshot": snapshot,
-            "calibration": serde_json::to_value(&cal)?,
+            "calibration": cal,
             "windows": windows,
             "halves_mean_shape_rms": halves_mean_rms,
             "halves_difference_rms": halves_difference_rms,
         }));
     }
     let record = json!({
-        "bench": "band_shifts",
+        "bench": if apply.is_some() { "band_shifts --apply" } else { "band_shifts" },
         "preset": "default",
         "flags": argv,
         "measurements": snapshots.dir.display().to_string(),

@@ -86,26 +86,7 @@ pub fn fit_band_shifts(
     at: &Mismatch,
     how: &BandShiftFit,
 ) -> Result<BandShifts> {
-    let Some(pass) = how.settings.fine_pass else {
-        return Err(CassiError::Meaningless {
-            what: "the band shifts' fit".into(),
-            reason: "it scores on the scene fit's fine pass, and these settings have none".into(),
-        });
-    };
-    let coarse = SceneFit::new(problem, how.settings.first_pass_only())?;
-    let first = coarse.solve_cold(at, None)?;
-    let (mut fine, scene) = pass.scene_fit(problem, how.settings, (&coarse, &first), None)?;
-    if let Some((start, end)) = how.rows {
-        let rows = problem.measurement.rows();
-        if start >= end || end > rows {
-            return Err(CassiError::InvalidParameter {
-                name: "rows",
-                value: end as f64,
-                reason: format!("rows {start}..{end} are not a window of the {rows} rows"),
-            });
-        }
-        fine = fine.with_row_window(start, end);
-    }
+    let (fine, scene) = objective(problem, at, how)?;
     // no shifts is `at`'s own operator: its cold solve from the first
     // pass's scene, as the fine pass starts
     let start = Shifted {
@@ -136,6 +117,53 @@ pub fn fit_band_shifts(
         score_shifted: found.best.solved.score,
         evaluations: 2 + found.evaluations,
     })
+}
+
+/// The fine-pass objective (as [`fit_band_shifts`] scores it) with the
+/// bands held at each of `tables` (shifts along the dispersion from `at`,
+/// one per band; the scene solved afresh for each): whether a shape
+/// measured elsewhere (another snapshot of the camera) explains this one.
+pub fn band_shift_scores(
+    problem: &CalibrationProblem<'_>,
+    at: &Mismatch,
+    how: &BandShiftFit,
+    tables: &[Vec<f64>],
+) -> Result<Vec<f64>> {
+    let (fine, scene) = objective(problem, at, how)?;
+    tables
+        .iter()
+        .map(|along| Ok(fine.solve_cold_band_shifted(at, along, Some(&scene))?.score))
+        .collect()
+}
+
+/// The fine pass's scene fit from `at` (and the first pass's scene on its
+/// nodes, where its solves start), on `how`'s rows.
+fn objective<'a>(
+    problem: &'a CalibrationProblem<'a>,
+    at: &Mismatch,
+    how: &BandShiftFit,
+) -> Result<(SceneFit<'a>, Vec<f32>)> {
+    let Some(pass) = how.settings.fine_pass else {
+        return Err(CassiError::Meaningless {
+            what: "the band shifts' fit".into(),
+            reason: "it scores on the scene fit's fine pass, and these settings have none".into(),
+        });
+    };
+    let coarse = SceneFit::new(problem, how.settings.first_pass_only())?;
+    let first = coarse.solve_cold(at, None)?;
+    let (mut fine, scene) = pass.scene_fit(problem, how.settings, (&coarse, &first), None)?;
+    if let Some((start, end)) = how.rows {
+        let rows = problem.measurement.rows();
+        if start >= end || end > rows {
+            return Err(CassiError::InvalidParameter {
+                name: "rows",
+                value: end as f64,
+                reason: format!("rows {start}..{end} are not a window of the {rows} rows"),
+            });
+        }
+        fine = fine.with_row_window(start, end);
+    }
+    Ok((fine, scene))
 }
 
 /// The least-squares [c, s] of c + s·k through v.
@@ -267,6 +295,38 @@ mod tests {
         assert!(rms(&miss) < 0.05, "missed by {:.3?}", miss);
         let (straight, _) = shapes(0.0);
         assert!(straight.shape_rms() < 0.05, "{:.3?}", straight.shape);
+    }
+
+    /// A shape held fixed scores the curved prism better than none, and its
+    /// opposite worse.
+    #[test]
+    fn a_known_shape_lowers_the_objective_and_its_opposite_raises_it() {
+        let a2 = -0.008;
+        let instrument = Mismatch { a2, ..truth() };
+        let (y, mask) = measured(&instrument, true);
+        let p = CalibrationProblem::nominal(&y, &mask, BANDS, 2.0, DispersionModel::DispersedMask)
+            .unwrap();
+        let k2: Vec<f64> = (0..BANDS).map(|k| a2 * (k * k) as f64).collect();
+        let line = straight_line(&k2);
+        let (at, _) = shifted_instrument(
+            &Mismatch {
+                a1: instrument.a1 + line[1],
+                a2: 0.0,
+                ..instrument
+            },
+            &[line[0]],
+        );
+        let shape: Vec<f64> = k2
+            .iter()
+            .enumerate()
+            .map(|(k, v)| v - (line[0] + line[1] * k as f64))
+            .collect();
+        let opposite: Vec<f64> = shape.iter().map(|v| -v).collect();
+        let how = BandShiftFit::new(SceneFitSettings::default());
+        let tables = [vec![0.0; BANDS], shape, opposite];
+        let s = band_shift_scores(&p, &at, &how, &tables).unwrap();
+        eprintln!("none {} shape {} opposite {}", s[0], s[1], s[2]);
+        assert!(s[1] < 0.9 * s[0] && s[2] > s[0], "{s:?}");
     }
 
     #[test]

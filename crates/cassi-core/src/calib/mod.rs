@@ -46,7 +46,7 @@ pub use uncertainty::{
 use serde::{Deserialize, Serialize};
 
 pub use adam::AdamSettings;
-pub use band_shifts::{BandShiftFit, BandShifts, fit_band_shifts};
+pub use band_shifts::{BandShiftFit, BandShifts, band_shift_scores, fit_band_shifts};
 pub use blur_bootstrap::BlurBootstrap;
 pub use blur_pass::BlurPass;
 pub use default::{

@@ -801,6 +801,17 @@ impl<'a> SceneFit<'a> {
         })
     }
 
+    /// [`Self::solve_cold`] at [`shifted_instrument`]`(base, along)`.
+    pub(crate) fn solve_cold_band_shifted(
+        &self,
+        base: &Mismatch,
+        along: &[f64],
+        from: Option<&[f32]>,
+    ) -> Result<Solved> {
+        let (psi, relative) = shifted_instrument(base, along);
+        self.solve_with(&psi, Some(&relative), from, self.settings.cold_solve)
+    }
+
     /// [`Self::solve`] at [`shifted_instrument`]`(base, along)`.
     pub(crate) fn solve_band_shifted(
         &self,
