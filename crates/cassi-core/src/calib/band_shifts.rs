@@ -103,12 +103,7 @@ pub fn fit_band_shifts(
         how.max_steps,
     )?;
     let along = found.best.along;
-    let line = straight_line(&along);
-    let shape = along
-        .iter()
-        .enumerate()
-        .map(|(k, d)| d - (line[0] + line[1] * k as f64))
-        .collect();
+    let (line, shape) = off_line(&along);
     Ok(BandShifts {
         along,
         line,
@@ -164,6 +159,17 @@ fn objective<'a>(
         fine = fine.with_row_window(start, end);
     }
     Ok((fine, scene))
+}
+
+/// v's least-squares line [c, s] (c + s·k) and v's departure from it.
+fn off_line(v: &[f64]) -> ([f64; 2], Vec<f64>) {
+    let line = straight_line(v);
+    let shape = v
+        .iter()
+        .enumerate()
+        .map(|(k, d)| d - (line[0] + line[1] * k as f64))
+        .collect();
+    (line, shape)
 }
 
 /// The least-squares [c, s] of c + s·k through v.
@@ -240,38 +246,38 @@ mod tests {
         );
     }
 
-    /// The shifts from a straight calibration of a curved prism (4×
-    /// oversampled simulator with blur and noise: not the fitted operator)
-    /// follow the curvature's departure from a straight line; on a straight
-    /// prism the shape stays near zero.
+    /// A measurement (4× oversampled simulator with blur and noise: not
+    /// the fitted operator) of a prism curved by `a2`, the straight ψ on
+    /// the curve's best line (its slope in a1, its common shift in the
+    /// mask's place: what a straight calibration leaves the shifts to
+    /// find) and the curvature's departure from that line.
+    fn curved_prism(a2: f64) -> (crate::Measurement, crate::Mask, Mismatch, Vec<f64>) {
+        let instrument = Mismatch { a2, ..truth() };
+        let (y, mask) = measured(&instrument, true);
+        let k2: Vec<f64> = (0..BANDS).map(|k| a2 * (k * k) as f64).collect();
+        let (line, departure) = off_line(&k2);
+        let straight = Mismatch {
+            a1: instrument.a1 + line[1],
+            a2: 0.0,
+            ..instrument
+        };
+        let (at, _) = shifted_instrument(&straight, &[line[0]]);
+        (y, mask, at, departure)
+    }
+
+    fn problem<'a>(y: &'a crate::Measurement, mask: &'a crate::Mask) -> CalibrationProblem<'a> {
+        CalibrationProblem::nominal(y, mask, BANDS, 2.0, DispersionModel::DispersedMask).unwrap()
+    }
+
+    /// The shifts from a straight calibration of a curved prism follow the
+    /// curvature's departure from a straight line; on a straight prism the
+    /// shape stays near zero.
     #[test]
     fn the_band_shifts_follow_a_curved_prism() {
         let shapes = |a2: f64| {
-            let instrument = Mismatch { a2, ..truth() };
-            let (y, mask) = measured(&instrument, true);
-            let p =
-                CalibrationProblem::nominal(&y, &mask, BANDS, 2.0, DispersionModel::DispersedMask)
-                    .unwrap();
-            // held straight on the curve's best line (its slope in a1, its
-            // common shift in the mask's place): what a straight
-            // calibration leaves the shifts to find
-            let k2: Vec<f64> = (0..BANDS).map(|k| a2 * (k * k) as f64).collect();
-            let line = straight_line(&k2);
-            let (at, _) = shifted_instrument(
-                &Mismatch {
-                    a1: instrument.a1 + line[1],
-                    a2: 0.0,
-                    ..instrument
-                },
-                &[line[0]],
-            );
+            let (y, mask, at, expected) = curved_prism(a2);
             let how = BandShiftFit::new(SceneFitSettings::default());
-            let fitted = fit_band_shifts(&p, &at, &how).unwrap();
-            let expected: Vec<f64> = k2
-                .iter()
-                .enumerate()
-                .map(|(k, v)| v - (line[0] + line[1] * k as f64))
-                .collect();
+            let fitted = fit_band_shifts(&problem(&y, &mask), &at, &how).unwrap();
             eprintln!(
                 "a2 {a2}: shape {:.3?}\nexpected {:.3?}\nscore {} -> {} ({} evaluations)",
                 fitted.shape,
@@ -301,30 +307,11 @@ mod tests {
     /// opposite worse.
     #[test]
     fn a_known_shape_lowers_the_objective_and_its_opposite_raises_it() {
-        let a2 = -0.008;
-        let instrument = Mismatch { a2, ..truth() };
-        let (y, mask) = measured(&instrument, true);
-        let p = CalibrationProblem::nominal(&y, &mask, BANDS, 2.0, DispersionModel::DispersedMask)
-            .unwrap();
-        let k2: Vec<f64> = (0..BANDS).map(|k| a2 * (k * k) as f64).collect();
-        let line = straight_line(&k2);
-        let (at, _) = shifted_instrument(
-            &Mismatch {
-                a1: instrument.a1 + line[1],
-                a2: 0.0,
-                ..instrument
-            },
-            &[line[0]],
-        );
-        let shape: Vec<f64> = k2
-            .iter()
-            .enumerate()
-            .map(|(k, v)| v - (line[0] + line[1] * k as f64))
-            .collect();
+        let (y, mask, at, shape) = curved_prism(-0.008);
         let opposite: Vec<f64> = shape.iter().map(|v| -v).collect();
         let how = BandShiftFit::new(SceneFitSettings::default());
         let tables = [vec![0.0; BANDS], shape, opposite];
-        let s = band_shift_scores(&p, &at, &how, &tables).unwrap();
+        let s = band_shift_scores(&problem(&y, &mask), &at, &how, &tables).unwrap();
         eprintln!("none {} shape {} opposite {}", s[0], s[1], s[2]);
         assert!(s[1] < 0.9 * s[0] && s[2] > s[0], "{s:?}");
     }
@@ -332,10 +319,10 @@ mod tests {
     #[test]
     fn a_fit_without_a_fine_pass_is_refused() {
         let (y, mask) = measured(&truth(), false);
-        let p = CalibrationProblem::nominal(&y, &mask, BANDS, 2.0, DispersionModel::DispersedMask)
-            .unwrap();
         let how = BandShiftFit::new(SceneFitSettings::default().first_pass_only());
-        let e = fit_band_shifts(&p, &truth(), &how).unwrap_err().to_string();
+        let e = fit_band_shifts(&problem(&y, &mask), &truth(), &how)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("fine pass"), "{e}");
     }
 }
