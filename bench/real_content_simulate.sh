@@ -13,13 +13,17 @@
 # ψ) and the truth moved off that ψ by dx +0.35 px, dy −0.25 px, θ +0.02°,
 # a1 +0.012, α −0.2° (what imprint is left pulls away from the truth).
 #
+# Any further flags go to `cassi simulate` (e.g. `--dispersion-step 22:0.5`: an instrument
+# whose bands from 22 on land 0.5 px further).
+#
 # The scenes and ψ come from bench/real_content.py. Run from the repository root:
-#   bench/real_content_simulate.sh OUTDIR [--decoupled]
+#   bench/real_content_simulate.sh OUTDIR [--decoupled] [SIMULATE_FLAG ...]
 # Needs ../shared/data/real, target/release/cassi and python3 with numpy.
 set -euo pipefail
 outdir=$1
+shift
 decoupled=0
-if [[ "${2:-}" == "--decoupled" ]]; then decoupled=1; fi
+if [[ "${1:-}" == "--decoupled" ]]; then decoupled=1; shift; fi
 data=../shared/data/real
 mask=$data/tsa_real_mask660.mat
 cassi=target/release/cassi
@@ -41,7 +45,7 @@ for meas in "$data"/scene*.mat; do
   fi
   # shellcheck disable=SC2086
   "$cassi" simulate --scene "$work/$name.scene.npy" --mask "$mask" --oversample 4 $psi \
-    --detector 660x714 --photon-peak 20000 --read-noise 3 --noise-seed "$seed" -q \
+    --detector 660x714 --photon-peak 20000 --read-noise 3 --noise-seed "$seed" -q "$@" \
     -o "$outdir/$name.npy"
   echo "$name: $psi"
 done

@@ -77,6 +77,7 @@ fn oversampled_simulation_has_the_fixed_detector_and_a_full_sidecar() {
             adc_bits: Some(12),
             halo: None,
             dispersion_a2: 0.0,
+            dispersion_step: None,
         }
     );
     assert_eq!(sidecar["measurement"]["shape"], serde_json::json!([32, 40]));
@@ -218,6 +219,14 @@ fn physical_flags_are_checked_and_name_themselves() {
             vec!["--oversample", "2", "--dispersion-a2", "0.6"],
             "--dispersion-a2",
         ),
+        (
+            vec!["--oversample", "2", "--dispersion-step", "2:3"],
+            "--dispersion-step",
+        ),
+        (
+            vec!["--oversample", "2", "--dispersion-step", "0:0.5"],
+            "K:PX",
+        ),
         (vec!["--blur", "0.5"], "--oversample"),
         (vec!["--oversample", "4", "--model", "rounded"], "--model"),
     ] {
@@ -244,6 +253,9 @@ fn physical_flags_are_checked_and_name_themselves() {
         o,
     ]);
     assert_fails(&a, &["blur_slope", "band 0"], &out);
+    // a step past the last band: refused once the band count is known
+    let a = args(&["--oversample", "4", "--dispersion-step", "4:0.5", "-o", o]);
+    assert_fails(&a, &["dispersion_step.from_band", "of the 4"], &out);
 }
 
 /// `--halo SHARE,SIGMA` goes into the sidecar's physical spec and into the
@@ -291,5 +303,19 @@ fn a_halo_is_simulated_and_recorded() {
         serde_json::from_slice(&std::fs::read(dir.join("curved.json")).unwrap()).unwrap();
     assert_eq!(sidecar["physical"]["dispersion_a2"], 0.01);
     let y = cassi_io::load_frame(&curved, None).unwrap();
+    assert!(y.as_slice() != plain.as_slice());
+
+    // and a stepped one
+    let stepped = dir.join("stepped.npy");
+    let mut a = args(&common);
+    a.extend(["--dispersion-step", "2:0.5", "-o", s(&stepped)]);
+    ok(&cassi(&a));
+    let sidecar: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("stepped.json")).unwrap()).unwrap();
+    assert_eq!(
+        sidecar["physical"]["dispersion_step"],
+        serde_json::json!({"from_band": 2, "px": 0.5})
+    );
+    let y = cassi_io::load_frame(&stepped, None).unwrap();
     assert!(y.as_slice() != plain.as_slice());
 }

@@ -6,7 +6,7 @@ use anyhow::{Context, bail};
 use cassi_core::Instrument;
 use cassi_core::limits::check_elements;
 use cassi_core::optics::{
-    DispersionModel, Halo, MaskCode, PhysicalSpec, SimulationSpec, mask_code,
+    DispersionModel, DispersionStep, Halo, MaskCode, PhysicalSpec, SimulationSpec, mask_code,
     physical_detector_shape, validate_mismatch_for_mask,
 };
 use cassi_eval::jobs::simulation::{SimulationInputs, declare_outputs, simulate_and_record};
@@ -84,6 +84,12 @@ pub struct PhysicalArgs {
     #[arg(long, value_name = "A2", requires = "oversample", allow_hyphen_values = true,
           value_parser = parse_dispersion_a2)]
     pub dispersion_a2: Option<f64>,
+    /// A step in the dispersion: band K and every later band land PX px
+    /// further along it (no calibration model has this; a study of what
+    /// the band-shift fit can see).
+    #[arg(long, value_name = "K:PX", requires = "oversample", allow_hyphen_values = true,
+          value_parser = parse_dispersion_step)]
+    pub dispersion_step: Option<DispersionStep>,
 }
 
 impl PhysicalArgs {
@@ -100,6 +106,7 @@ impl PhysicalArgs {
             adc_bits: self.adc_bits,
             halo: self.halo,
             dispersion_a2: self.dispersion_a2.unwrap_or(0.0),
+            dispersion_step: self.dispersion_step,
         };
         spec.validate().context("physical instrument")?;
         Ok(Some(spec))
@@ -188,6 +195,28 @@ fn parse_dispersion_a2(text: &str) -> Result<f64, String> {
             "'{text}': expected the dispersion's curvature in px per band², −{max} … {max}"
         )),
     }
+}
+
+/// `--dispersion-step K:PX`: a band index ≥ 1 and a step in pixels
+/// within ± the simulator's limit (the band count is checked when the
+/// scene is read).
+fn parse_dispersion_step(text: &str) -> Result<DispersionStep, String> {
+    let max = cassi_core::optics::physical::MAX_DISPERSION_STEP_PX;
+    let bad =
+        || format!("'{text}': expected K:PX, a band K ≥ 1 and a step PX in px, −{max} … {max}");
+    let (k, px) = text.split_once(':').ok_or_else(bad)?;
+    let step = DispersionStep {
+        from_band: k.trim().parse().map_err(|_| bad())?,
+        px: px.trim().parse().map_err(|_| bad())?,
+    };
+    let spec = PhysicalSpec {
+        dispersion_step: Some(step),
+        ..PhysicalSpec::default()
+    };
+    if step.from_band == 0 || spec.validate().is_err() {
+        return Err(bad());
+    }
+    Ok(step)
 }
 
 /// `--adc-bits`: 1 … 24.

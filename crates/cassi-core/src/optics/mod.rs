@@ -20,7 +20,7 @@ pub use model_operator::ModelOperator;
 pub use noise::NoiseModel;
 pub use operator::{CassiOperator, validate_mask};
 pub use physical::{
-    Halo, PhysicalSpec, physical_detector_shape, quantise_adc, simulate_physical,
+    DispersionStep, Halo, PhysicalSpec, physical_detector_shape, quantise_adc, simulate_physical,
     simulate_physical_clean,
 };
 pub use simulate::{SimulationSpec, simulate, simulate_oversampled};

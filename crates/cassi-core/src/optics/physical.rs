@@ -80,7 +80,23 @@ pub struct PhysicalSpec {
     /// written then).
     #[serde(default, skip_serializing_if = "is_zero")]
     pub dispersion_a2: f64,
+    /// A step in the dispersion: band `from_band` and every later band
+    /// land `px` further along it than the curve says (a model study's
+    /// instrument, e.g. whether the band-shift fit sees a step of that
+    /// size; `None`: none, not written then).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub dispersion_step: Option<DispersionStep>,
 }
+
+/// A step of `px` pixels along the dispersion from band `from_band` on.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct DispersionStep {
+    pub from_band: usize,
+    pub px: f64,
+}
+
+/// Largest |step| accepted, pixels (a band's whole spacing).
+pub const MAX_DISPERSION_STEP_PX: f64 = 2.0;
 
 fn is_zero(v: &f64) -> bool {
     *v == 0.0
@@ -107,6 +123,7 @@ impl Default for PhysicalSpec {
             adc_bits: None,
             halo: None,
             dispersion_a2: 0.0,
+            dispersion_step: None,
         }
     }
 }
@@ -157,6 +174,17 @@ impl PhysicalSpec {
                 value: self.dispersion_a2,
                 reason: format!(
                     "the dispersion's curvature must be within ±{MAX_DISPERSION_A2} px per band²"
+                ),
+            });
+        }
+        if let Some(step) = self.dispersion_step
+            && !(step.px.is_finite() && step.px.abs() <= MAX_DISPERSION_STEP_PX)
+        {
+            return Err(CassiError::InvalidParameter {
+                name: "dispersion_step.px",
+                value: step.px,
+                reason: format!(
+                    "the dispersion's step must be within ±{MAX_DISPERSION_STEP_PX} px"
                 ),
             });
         }
@@ -255,7 +283,27 @@ fn physical_dispersion(
     // study's error the calibration is not told about)
     let mut params = mismatch.dispersion();
     params.a2 += spec.dispersion_a2;
-    Dispersion::new(bands, params, DispersionModel::Subpixel)
+    let dispersion = Dispersion::new(bands, params, DispersionModel::Subpixel)?;
+    match spec.dispersion_step {
+        None => Ok(dispersion),
+        Some(step) => {
+            if step.from_band == 0 || step.from_band >= bands {
+                return Err(CassiError::InvalidParameter {
+                    name: "dispersion_step.from_band",
+                    value: step.from_band as f64,
+                    reason: format!(
+                        "a step must start at a band from 1 to {} of the {bands} (from band 0 it \
+                         is a shift of the mask)",
+                        bands.saturating_sub(1)
+                    ),
+                });
+            }
+            let along: Vec<f64> = (0..bands)
+                .map(|k| if k >= step.from_band { step.px } else { 0.0 })
+                .collect();
+            dispersion.shifted_along(&along)
+        }
+    }
 }
 
 /// y = the physical instrument's snapshot of `scene` (+ noise, + ADC).
@@ -1075,6 +1123,50 @@ mod tests {
         assert_eq!(in_psi.as_slice(), run(0.0, -0.02).as_slice());
         assert_eq!(in_psi.as_slice(), run(-0.01, -0.01).as_slice());
         assert_ne!(in_psi.as_slice(), run(0.0, 0.0).as_slice());
+    }
+
+    #[test]
+    fn a_stepped_dispersion_moves_the_bands_from_the_step_on() {
+        let (bands, rows, cols) = (6, 21, 21);
+        let mask = Frame::from_vec(rows, cols, vec![1.0; rows * cols]).unwrap();
+        let stepped = |from_band: usize, px: f64| PhysicalSpec {
+            dispersion_step: Some(DispersionStep { from_band, px }),
+            ..spec(4, 0.0)
+        };
+        let m = mismatch(0.0, 0.0, 0.0, 2.0, 10.0);
+        let a = f64::to_radians(10.0);
+        for (k, moved) in [(2usize, 0.0), (3, 0.5), (5, 0.5)] {
+            let mut scene = Cube::zeros(bands, rows, cols);
+            scene.set(k, 6, 8, 1.0);
+            let y = simulate_physical(
+                &scene,
+                &mask,
+                &wavelengths(bands),
+                &m,
+                &stepped(3, 0.5),
+                None,
+            )
+            .unwrap();
+            let along = 2.0 * k as f64 + moved;
+            let (r, c) = centroid(&y);
+            let (er, ec) = (6.0 + along * a.sin(), 8.0 + along * a.cos());
+            assert!(
+                (r - er).abs() < 1e-4 && (c - ec).abs() < 1e-4,
+                "band {k}: ({r}, {c}) vs ({er}, {ec})"
+            );
+        }
+        for (from, px, name) in [(0, 0.5, "from_band"), (6, 0.5, "from_band"), (3, 2.5, "px")] {
+            let scene = smooth_scene(bands, rows, cols);
+            let spec = stepped(from, px);
+            let e = spec
+                .validate()
+                .and_then(|_| {
+                    simulate_physical(&scene, &mask, &wavelengths(bands), &m, &spec, None)
+                })
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains(name), "{e}");
+        }
     }
 
     #[test]
