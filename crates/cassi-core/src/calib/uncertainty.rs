@@ -738,7 +738,10 @@ pub(crate) fn two_pass_uncertainty(
 /// hypot(its error, |β|·a2's floor) at each level, and the pair is a
 /// trade-off when their total correlation reaches
 /// [`TRADE_OFF_CORRELATION`]. Only a1: the other parameters' floors cover
-/// with a2 fitted in every regime of those records.
+/// with a2 fitted in every regime of those records. Fresh round 29, run
+/// once after: a1 covered 29 / 35 of 35 (1σ / 95 %) curved from a start
+/// 0.002 off, 35 / 35 straight — where its 1σ (median 0.036) is ten times
+/// its error: one snapshot cannot tell a right start from a short stop.
 fn carry_along_slope(
     u: &mut UncertaintyEstimate,
     (cov, over): (&[f64], &[Parameter]),

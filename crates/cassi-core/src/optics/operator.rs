@@ -81,14 +81,6 @@ pub fn validate_mask(mask: &Mask, what: &str) -> Result<()> {
     Ok(())
 }
 
-/// Why a tapped operator cannot be built for a model that places cells.
-fn places_cells_refusal(model: DispersionModel) -> CassiError {
-    CassiError::Meaningless {
-        what: format!("a tapped CASSI operator for the {} model", model.name()),
-        reason: "that model blurs each mask cell where it lands; build a ModelOperator".into(),
-    }
-}
-
 impl CassiOperator {
     /// The operator for an effective `mask` (what the detector sees, after any
     /// misalignment) and a `dispersion`.
@@ -122,9 +114,6 @@ impl CassiOperator {
                 reason: "the sharp CASSI operator has no blur; build a ModelOperator".into(),
             });
         }
-        if model.places_cells() {
-            return Err(places_cells_refusal(model));
-        }
         let dispersion = Dispersion::new(bands, mismatch.dispersion(), model)?;
         Self::posed(nominal_mask, mismatch.pose(), dispersion)
     }
@@ -135,7 +124,11 @@ impl CassiOperator {
     pub fn posed(nominal_mask: &Mask, pose: MaskPose, dispersion: Dispersion) -> Result<Self> {
         let model = dispersion.model();
         if model.places_cells() {
-            return Err(places_cells_refusal(model));
+            return Err(CassiError::Meaningless {
+                what: format!("a tapped CASSI operator for the {} model", model.name()),
+                reason: "that model blurs each mask cell where it lands; build a ModelOperator"
+                    .into(),
+            });
         }
         validate_mask(nominal_mask, "nominal mask")?;
         let bands = dispersion.bands();
