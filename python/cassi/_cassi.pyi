@@ -166,6 +166,7 @@ def simulate_physical(
     adc_bits: Optional[int] = None,
     halo: Optional[Tuple[float, float]] = None,
     dispersion_a2: float = 0.0,
+    dispersion_step: Optional[Tuple[int, float]] = None,
     wavelengths_nm: Optional[Sequence[float]] = None,
     noise: bool = True,
     photon_peak: Optional[float] = 1e5,
@@ -175,7 +176,8 @@ def simulate_physical(
 ) -> F32Array:
     """A snapshot through the physical (oversampled, blurred) instrument;
     `halo` = (share, sigma_px): that share of the light in a wider skirt;
-    `dispersion_a2`: band k lands a1·k + a2·k² px along the dispersion."""
+    `dispersion_a2`: band k lands a1·k + a2·k² px along the dispersion;
+    `dispersion_step` = (k, px): bands k onward land px further along it."""
 
 def calibrate(
     y: ArrayLike,

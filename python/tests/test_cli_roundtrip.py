@@ -76,6 +76,17 @@ def test_physical_simulation_matches_the_cli(cli, tmp_path, inputs):
     ours = cassi.simulate_physical(scene, mask, "paper", oversample=2, blur_sigma_px=0.5,
                                    dispersion_a2=0.004, noise=False)
     np.testing.assert_array_equal(ours, theirs)
+    # a stepped dispersion likewise
+    run(cli, "simulate", "--scene", "scene.npy", "--mask", "mask.npy", "--paper-mismatch",
+        "--oversample", 2, "--blur", 0.5, "--dispersion-step", "3:0.5", "--no-noise", "-o",
+        "stepped.npy", "-q", cwd=tmp_path)
+    stepped = cassi.load(tmp_path / "stepped.npy", kind="frame")
+    assert not np.array_equal(stepped, plain)
+    np.testing.assert_array_equal(
+        stepped, cassi.simulate_physical(scene, mask, "paper", oversample=2, blur_sigma_px=0.5,
+                                         dispersion_step=(3, 0.5), noise=False))
+    with pytest.raises(ValueError, match="dispersion_step"):
+        cassi.simulate_physical(scene, mask, "paper", oversample=2, dispersion_step=(3, 2.5))
     # and it is not the discrete operator's measurement
     discrete = cassi.simulate(scene, mask, "paper", model="subpixel", noise=False)
     assert discrete.shape == ours.shape and not np.allclose(discrete, ours, atol=1e-3)
