@@ -22,7 +22,8 @@ use pyo3::types::{PyDict, PyList};
 use cassi_core::limits::check_elements;
 use cassi_core::linop::LinearOperator;
 use cassi_core::optics::{
-    DispersionStep, Halo, ModelOperator, NoiseModel, PhysicalSpec, SimulationSpec, validate_mismatch_for_mask,
+    DispersionStep, Halo, ModelOperator, NoiseModel, PhysicalSpec, SimulationSpec,
+    validate_mismatch_for_mask,
 };
 use cassi_core::recon::registry::METHODS;
 use cassi_core::recon::{Method, MethodId, Model};
