@@ -51,52 +51,63 @@ fn rms(v: impl Iterator<Item = f64>) -> f64 {
     (sum / n.max(1) as f64).sqrt()
 }
 
-/// The case of `snapshot` in the band_shifts record at `path`.
-fn case_of(path: &str, snapshot: &str) -> Result<serde_json::Value> {
-    cases_of(path)?
-        .into_iter()
-        .find(|c| c["snapshot"] == snapshot)
-        .ok_or_else(|| anyhow!("{path}: no case for the snapshot {snapshot}"))
+/// A band_shifts record read once: its path (for errors) and its cases.
+struct Record {
+    path: String,
+    cases: Vec<serde_json::Value>,
 }
 
-fn cases_of(path: &str) -> Result<Vec<serde_json::Value>> {
-    let text = std::fs::read_to_string(path).with_context(|| format!("reading {path}"))?;
-    let record: serde_json::Value =
-        serde_json::from_str(&text).with_context(|| format!("{path}: not JSON"))?;
-    match record["cases"].as_array() {
-        Some(cases) => Ok(cases.clone()),
-        None => bail!("{path}: no `cases` (a band_shifts record has them)"),
+impl Record {
+    fn read(path: &str) -> Result<Self> {
+        let text = std::fs::read_to_string(path).with_context(|| format!("reading {path}"))?;
+        let record: serde_json::Value =
+            serde_json::from_str(&text).with_context(|| format!("{path}: not JSON"))?;
+        match record["cases"].as_array() {
+            Some(cases) => Ok(Self {
+                path: path.to_string(),
+                cases: cases.clone(),
+            }),
+            None => bail!("{path}: no `cases` (a band_shifts record has them)"),
+        }
     }
-}
 
-/// The mean whole-frame shape of every snapshot in the record at `path` but
-/// `snapshot` (refused with fewer than one other, or shapes of another band
-/// count).
-fn others_mean_shape(path: &str, snapshot: &str) -> Result<Vec<f64>> {
-    let mut shapes = Vec::new();
-    for case in cases_of(path)?.iter().filter(|c| c["snapshot"] != snapshot) {
-        let whole = case["windows"]
-            .as_array()
-            .and_then(|w| w.iter().find(|w| w["window"] == "whole"))
-            .ok_or_else(|| anyhow!("{path}: {} has no whole-frame fit", case["snapshot"]))?;
-        let shape: Vec<f64> = serde_json::from_value(whole["shifts"]["shape"].clone())
-            .with_context(|| format!("{path}: {}'s shape", case["snapshot"]))?;
+    /// The case of `snapshot`.
+    fn case(&self, snapshot: &str) -> Result<&serde_json::Value> {
+        self.cases
+            .iter()
+            .find(|c| c["snapshot"] == snapshot)
+            .ok_or_else(|| anyhow!("{}: no case for the snapshot {snapshot}", self.path))
+    }
+
+    /// The mean whole-frame shape of every snapshot but `snapshot` (refused
+    /// with no other, or shapes of another band count).
+    fn others_mean_shape(&self, snapshot: &str) -> Result<Vec<f64>> {
+        let path = &self.path;
+        let mut shapes = Vec::new();
+        for case in self.cases.iter().filter(|c| c["snapshot"] != snapshot) {
+            let whole = case["windows"]
+                .as_array()
+                .and_then(|w| w.iter().find(|w| w["window"] == "whole"))
+                .ok_or_else(|| anyhow!("{path}: {} has no whole-frame fit", case["snapshot"]))?;
+            let shape: Vec<f64> = serde_json::from_value(whole["shifts"]["shape"].clone())
+                .with_context(|| format!("{path}: {}'s shape", case["snapshot"]))?;
+            ensure!(
+                shape.len() == BANDS,
+                "{path}: {}'s shape has {} bands, expected {BANDS}",
+                case["snapshot"],
+                shape.len()
+            );
+            shapes.push(shape);
+        }
         ensure!(
-            shape.len() == BANDS,
-            "{path}: {}'s shape has {} bands, expected {BANDS}",
-            case["snapshot"],
-            shape.len()
+            !shapes.is_empty(),
+            "{path}: no snapshot other than {snapshot}"
         );
-        shapes.push(shape);
+        let n = shapes.len() as f64;
+        Ok((0..BANDS)
+            .map(|k| shapes.iter().map(|s| s[k]).sum::<f64>() / n)
+            .collect())
     }
-    ensure!(
-        !shapes.is_empty(),
-        "{path}: no snapshot other than {snapshot}"
-    );
-    let n = shapes.len() as f64;
-    Ok((0..BANDS)
-        .map(|k| shapes.iter().map(|s| s[k]).sum::<f64>() / n)
-        .collect())
 }
 
 fn main() -> Result<()> {
@@ -136,10 +147,16 @@ fn main() -> Result<()> {
         }
         None => bench_out("real/band_shifts.json")?,
     };
-    // the records read before any work
+    // the records read once, before any work, and never written over
     for record in at.iter().chain(&apply) {
-        cases_of(record)?;
+        let same = match (std::fs::canonicalize(record), std::fs::canonicalize(&out)) {
+            (Ok(a), Ok(b)) => a == b,
+            _ => false,
+        };
+        ensure!(!same, "--out {out} is the record {record} this run reads");
     }
+    let at = at.as_deref().map(Record::read).transpose()?;
+    let apply = apply.as_deref().map(Record::read).transpose()?;
     let snapshots = TsaSnapshots::find(measurements.as_deref(), &only)?;
     let preset = Preset::by_name("default", STRIDE)?;
     let Preset::Default(default) = &preset else {
@@ -167,7 +184,7 @@ fn main() -> Result<()> {
         let meas = snapshots.load(path)?;
         let problem = CalibrationProblem::nominal(&meas, &snapshots.mask, BANDS, STRIDE, model)?;
         let cal = match &at {
-            Some(record) => case_of(record, &snapshot)?["calibration"].clone(),
+            Some(record) => record.case(&snapshot)?["calibration"].clone(),
             None => {
                 let mut quiet = |_: &StageReport| {};
                 let cal = calibrate(&problem, &preset, &mut quiet)?;
@@ -179,7 +196,7 @@ fn main() -> Result<()> {
             .with_context(|| format!("{snapshot}: the calibration's parameters"))?;
         eprintln!("{snapshot}: {psi:?}");
         if let Some(record) = &apply {
-            let shape = others_mean_shape(record, &snapshot)?;
+            let shape = record.others_mean_shape(&snapshot)?;
             let opposite: Vec<f64> = shape.iter().map(|v| -v).collect();
             let tables = [vec![0.0; BANDS], shape.clone(), opposite];
             let scores = band_shift_scores(&problem, &psi, &BandShiftFit::new(converged), &tables)?;

@@ -127,7 +127,12 @@ pub fn band_shift_scores(
     let (fine, scene) = objective(problem, at, how)?;
     tables
         .iter()
-        .map(|along| Ok(fine.solve_cold_band_shifted(at, along, Some(&scene))?.score))
+        .map(|along| {
+            let cold = fine.settings().cold_solve;
+            Ok(fine
+                .solve_band_shifted((at, along), Some(&scene), cold)?
+                .score)
+        })
         .collect()
 }
 
@@ -215,9 +220,11 @@ impl LeastSquares for OverShifts<'_, '_> {
     }
     fn step(&self, at: &Shifted, step: &[f64]) -> Result<Shifted> {
         let along: Vec<f64> = at.along.iter().zip(step).map(|(a, d)| a + d).collect();
-        let solved = self
-            .fit
-            .solve_band_shifted(self.base, &along, Some(&at.solved.z))?;
+        let solved = self.fit.solve_band_shifted(
+            (self.base, &along),
+            Some(&at.solved.z),
+            self.fit.settings().warm_solve,
+        )?;
         Ok(Shifted { along, solved })
     }
     fn jacobian(&self, at: &Shifted) -> Result<Vec<Vec<f32>>> {

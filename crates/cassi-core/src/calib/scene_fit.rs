@@ -690,20 +690,9 @@ impl<'a> SceneFit<'a> {
 
     /// ψ with its coarse scene solved, from `warm`'s z (or from zero).
     pub(crate) fn solve(&self, psi: &Mismatch, warm: Option<&[f32]>) -> Result<Solved> {
-        self.solve_shifted(psi, None, warm)
-    }
-
-    /// [`Self::solve`] with band k moved `along[k]` px along the
-    /// dispersion where `along` is given.
-    pub(crate) fn solve_shifted(
-        &self,
-        psi: &Mismatch,
-        along: Option<&[f64]>,
-        warm: Option<&[f32]>,
-    ) -> Result<Solved> {
         match warm {
-            Some(z) => self.solve_with(psi, along, Some(z), self.settings.warm_solve),
-            None => self.solve_with(psi, along, None, self.settings.cold_solve),
+            Some(z) => self.solve_with(psi, None, Some(z), self.settings.warm_solve),
+            None => self.solve_with(psi, None, None, self.settings.cold_solve),
         }
     }
 
@@ -801,26 +790,17 @@ impl<'a> SceneFit<'a> {
         })
     }
 
-    /// [`Self::solve_cold`] at [`shifted_instrument`]`(base, along)`.
-    pub(crate) fn solve_cold_band_shifted(
-        &self,
-        base: &Mismatch,
-        along: &[f64],
-        from: Option<&[f32]>,
-    ) -> Result<Solved> {
-        let (psi, relative) = shifted_instrument(base, along);
-        self.solve_with(&psi, Some(&relative), from, self.settings.cold_solve)
-    }
-
-    /// [`Self::solve`] at [`shifted_instrument`]`(base, along)`.
+    /// The coarse scene solved at [`shifted_instrument`]`(base, along)` by
+    /// `params` (the settings' `cold_solve` or `warm_solve`) from `from`'s
+    /// z (or from zero).
     pub(crate) fn solve_band_shifted(
         &self,
-        base: &Mismatch,
-        along: &[f64],
-        warm: Option<&[f32]>,
+        (base, along): (&Mismatch, &[f64]),
+        from: Option<&[f32]>,
+        params: CglsParams,
     ) -> Result<Solved> {
         let (psi, relative) = shifted_instrument(base, along);
-        self.solve_shifted(&psi, Some(&relative), warm)
+        self.solve_with(&psi, Some(&relative), from, params)
     }
 
     /// `count` columns −(K′ z − K z) / h, K′ and h from `moved` per column,

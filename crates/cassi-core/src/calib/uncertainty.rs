@@ -768,8 +768,11 @@ fn carry_along_slope(
     // the two errors' correlation with the floor's shared part in both
     let total_a1 = var_a1 + (beta * floor_1).powi(2);
     let total_a2 = var_a2 + floor_1 * floor_1;
+    if total_a1 <= 0.0 {
+        return;
+    }
     let correlation = (c + beta * floor_1 * floor_1) / (total_a1 * total_a2).sqrt();
-    if total_a1 > 0.0 && correlation.abs() >= TRADE_OFF_CORRELATION {
+    if correlation.abs() >= TRADE_OFF_CORRELATION {
         u.trade_offs.push(TradeOff {
             a: Parameter::A1,
             b: curvature,
