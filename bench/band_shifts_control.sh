@@ -4,13 +4,13 @@
 # (bench/real_content_simulate.sh --decoupled: its GAP-TV reconstruction,
 # smoothed, simulated by the 4× oversampled instrument off its calibrated ψ):
 # the shapes a straight dispersion leaves with that content → $OUT (default
-# bench/results/real/band_shifts_control.json).
+# bench/results/real/band_shifts/control.json).
 #
 # Run from the repository root: [OUT=PATH] bench/band_shifts_control.sh [--scene NAME]…
 # (the flags are band_shifts'; every snapshot is simulated). Needs
 # ../shared/data/real and python3 with numpy.
 set -euo pipefail
-out=${OUT:-bench/results/real/band_shifts_control.json}
+out=${OUT:-bench/results/real/band_shifts/control.json}
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 cargo build --release -q -p cassi-cli

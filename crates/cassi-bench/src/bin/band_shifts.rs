@@ -25,7 +25,7 @@
 //!
 //! Run: `cargo run --release -p cassi-bench --bin band_shifts [-- --scene
 //! NAME]… [--measurements DIR] [--at RECORD] [--apply RECORD] [--out PATH]` →
-//! `bench/results/real/band_shifts.json` (or PATH, or $CASSI_BENCH_OUT).
+//! `bench/results/real/band_shifts/real.json` (or PATH, or $CASSI_BENCH_OUT).
 //! Needs `../shared/data/real` (or $CASSI_SHARED_DATA) for the mask.
 
 use anyhow::{Context, Result, anyhow, bail, ensure};
@@ -145,7 +145,7 @@ fn main() -> Result<()> {
             }
             path
         }
-        None => bench_out("real/band_shifts.json")?,
+        None => bench_out("real/band_shifts/real.json")?,
     };
     // the records read once, before any work, and never written over
     for record in at.iter().chain(&apply) {
