@@ -376,6 +376,10 @@ pub fn combine_calibrations(
             .enumerate()
             .map(|(i, y)| {
                 CalibrationProblem::nominal(y, &mask, bands, stride, combined.model)
+                    .and_then(|p| match &combined.band_offsets {
+                        Some(o) => p.with_band_offsets(o),
+                        None => Ok(p),
+                    })
                     .and_then(|p| p.validate().map(|()| p))
                     .map_err(|e| {
                         Failure::Study(anyhow::Error::new(e).context(format!("measurements[{i}]")))

@@ -584,6 +584,86 @@ fn a_curved_dispersion_travels_from_the_calibration_to_the_model() {
     }
 }
 
+/// `--band-offsets FILE`: the table's shape is held, written into the
+/// calibration and used by `cassi reconstruct --calibration`; tables of
+/// the wrong length, in another unit or with the paper preset are refused
+/// naming the file or flag, nothing written.
+#[test]
+fn a_band_table_travels_from_the_calibration_to_the_model() {
+    let d = dir("band_table");
+    let (meas, mask) = simulated(&d);
+    let table = d.join("positions.txt");
+    // band 2 lands 0.4 px late: positions 0, 2, 4.4, 6
+    std::fs::write(&table, "# px along the dispersion\n0\n2\n4.4\n6\n").unwrap();
+    let record = calibrated(&d, &meas, &mask, &["--band-offsets", s(&table)], "cal.json");
+    let held = &record["band_offsets"];
+    let offsets: Vec<f64> = held["offsets"]
+        .as_array()
+        .unwrap_or_else(|| panic!("{record}"))
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    assert_eq!(offsets.len(), 4);
+    assert_eq!(offsets[0], 0.0);
+    // what is left of the table off its line through band 0: band 2 late
+    assert!(
+        offsets[2] > 0.2 && offsets[1] < 0.0 && offsets[3] < 0.0,
+        "{offsets:?}"
+    );
+    let out = d.join("r.npy");
+    let run = cassi(&[
+        "reconstruct",
+        s(&meas),
+        "--mask",
+        s(&mask),
+        "--calibration",
+        s(&d.join("cal.json")),
+        "--iterations",
+        "2",
+        "-o",
+        s(&out),
+        "--json",
+    ]);
+    ok(&run);
+    let report: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+    assert_eq!(report["band_offsets"], *held, "{report}");
+    // without a table, neither the calibration nor the reconstruction has one
+    let plain = calibrated(&d, &meas, &mask, &[], "plain.json");
+    assert!(plain.get("band_offsets").is_none());
+
+    let cal = d.join("refused.json");
+    let five = d.join("five.csv");
+    std::fs::write(&five, "0, 2, 4, 6, 8\n").unwrap();
+    let nm = d.join("nm.txt");
+    std::fs::write(&nm, "450 460 470 480\n").unwrap();
+    for (extra, needles) in [
+        (
+            vec!["--band-offsets", s(&five)],
+            vec!["five.csv", "5 values, expected 4"],
+        ),
+        (
+            vec!["--band-offsets", s(&nm)],
+            vec!["nm.txt", "wavelengths"],
+        ),
+        (
+            vec!["--preset", "paper", "--band-offsets", s(&table)],
+            vec!["--band-offsets", "paper preset"],
+        ),
+    ] {
+        let mut args = vec![
+            "calibrate",
+            s(&meas),
+            "--mask",
+            s(&mask),
+            "-o",
+            s(&cal),
+            "-q",
+        ];
+        args.extend(extra);
+        assert_fails(&args, &needles, &cal);
+    }
+}
+
 /// `cassi calibrate MEAS --mask MASK -o D/NAME -q EXTRA…`, which must
 /// succeed; the record it wrote.
 fn calibrated(d: &Path, meas: &Path, mask: &Path, extra: &[&str], name: &str) -> serde_json::Value {

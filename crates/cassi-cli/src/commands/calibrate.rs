@@ -2,17 +2,18 @@
 
 use std::path::PathBuf;
 
-use anyhow::Context;
+use anyhow::{Context, bail};
 use cassi_core::Parameter;
 use cassi_core::calib::{
     A1_SHORT_TILT_DEG, BandEnd, Calibration, CalibrationProblem, Fit, Preset, SHARP_BLUR_PX,
     StageReport, calibrate,
 };
-use cassi_core::optics::{DispersionModel, warp_mask};
+use cassi_core::optics::{BandOffsets, DispersionModel, warp_mask};
 use clap::Args;
 
 use cassi_io::OutputSet;
 
+use super::band_table::load_band_offsets;
 use super::inputs::{MeasurementArgs, UncodedMask};
 use crate::interrupt;
 use crate::report::Reporter;
@@ -78,6 +79,18 @@ pub struct CalibrateArgs {
     /// Default preset, dispersed-mask model.
     #[arg(long)]
     pub ridge_probes: bool,
+    /// Each band's position along the dispersion, held while the rest is
+    /// fitted: a monochromator scan of your camera (px, one per band; .txt
+    /// or .csv numbers, or a vector in .npy/.npz/.mat). The table's own
+    /// line through band 0 is removed (dx and a1 fit it); what is left —
+    /// the prism's departure from a1·k + a2·k² — is held in every
+    /// candidate and written into the calibration, which `cassi
+    /// reconstruct --calibration` then uses. Default preset only.
+    #[arg(long, value_name = "FILE")]
+    pub band_offsets: Option<PathBuf>,
+    /// Variable name inside the --band-offsets file.
+    #[arg(long, requires = "band_offsets")]
+    pub band_offsets_var: Option<String>,
     /// Output calibration JSON (for `cassi reconstruct --calibration`).
     #[arg(long, short)]
     pub output: PathBuf,
@@ -99,6 +112,9 @@ pub fn run(args: &CalibrateArgs, reporter: &Reporter) -> anyhow::Result<()> {
     check_output_json(&args.output)?;
     let mut set = OutputSet::new();
     args.input.declare_inputs(&mut set);
+    if let Some(p) = &args.band_offsets {
+        set.input("--band-offsets", p);
+    }
     set.output("-o", &args.output);
     if let Some(p) = &args.write_mask {
         cassi_io::check_output_format(p)?;
@@ -123,10 +139,32 @@ pub fn run(args: &CalibrateArgs, reporter: &Reporter) -> anyhow::Result<()> {
     if args.ridge_probes {
         preset = preset.with_ridge_probes().context("--ridge-probes")?;
     }
+    if args.band_offsets.is_some() && !matches!(preset, Preset::Default(_)) {
+        bail!(
+            "--band-offsets: the {} preset's gradient stages differentiate a1·k + a2·k² alone; hold a band table with the default preset",
+            args.preset
+        );
+    }
     let model = args.model.unwrap_or(preset.default_model());
     let (measurement, mask, bands) = args.input.load(reporter, UncodedMask::Refuse)?;
-    let problem =
+    let offsets = args
+        .band_offsets
+        .as_deref()
+        .map(|p| {
+            load_band_offsets(
+                p,
+                args.band_offsets_var.as_deref(),
+                bands,
+                args.input.stride,
+            )
+        })
+        .transpose()?;
+    let mut problem =
         CalibrationProblem::nominal(&measurement, &mask, bands, args.input.stride, model)?;
+    if let Some(o) = &offsets {
+        problem = problem.with_band_offsets(o)?;
+        reporter.say(&band_offsets_line(o));
+    }
     let mut on_stage = |s: &StageReport| {
         // between stages nothing is half-written: a signal ends the run here
         interrupt::stop_point();
@@ -171,6 +209,24 @@ pub fn run(args: &CalibrateArgs, reporter: &Reporter) -> anyhow::Result<()> {
     ));
     reporter.emit(&serde_json::to_value(&cal)?);
     Ok(())
+}
+
+/// What the calibration holds of a band table: its shape and the line the
+/// fit carries instead.
+fn band_offsets_line(o: &BandOffsets) -> String {
+    let (k, worst) = o
+        .as_slice()
+        .iter()
+        .enumerate()
+        .fold((0, 0.0f64), |(bk, bv), (k, &v)| {
+            if v.abs() > bv.abs() { (k, v) } else { (bk, bv) }
+        });
+    format!(
+        "holding the band offsets: RMS {:.3} px off the table's line through band 0 (largest \
+         {worst:+.3} px at band {k}); its slope {:.4} px per band is a1's to fit",
+        o.rms(),
+        o.table_line[1]
+    )
 }
 
 /// A stage's line as it finishes: its name, answer, score, cost.
@@ -383,6 +439,7 @@ pub(crate) mod tests {
             ridge_probes: None,
             model_blur_sigma_px: None,
             snapshots: None,
+            band_offsets: None,
             stages: Vec::new(),
             seconds: 0.0,
             evaluations: 0,

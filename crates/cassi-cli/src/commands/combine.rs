@@ -201,7 +201,11 @@ fn refit(
     let problems = loaded
         .iter()
         .map(|(y, mask, _)| {
-            CalibrationProblem::nominal(y, mask, bands, first.stride, combined.model)
+            let p = CalibrationProblem::nominal(y, mask, bands, first.stride, combined.model)?;
+            match &combined.band_offsets {
+                Some(o) => p.with_band_offsets(o),
+                None => Ok(p),
+            }
         })
         .collect::<cassi_core::Result<Vec<_>>>()?;
     let refit = reporter.stage("refitting the snapshots jointly", || {

@@ -1,3 +1,4 @@
+pub mod band_table;
 pub mod calibrate;
 pub mod combine;
 pub mod demo;

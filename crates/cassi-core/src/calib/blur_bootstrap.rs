@@ -42,7 +42,7 @@ use super::scene_fit::{SceneFit, SceneFitSettings, fit_scene};
 use super::score::gap_tv_reconstruction;
 use crate::cube::Measurement;
 use crate::error::Result;
-use crate::optics::{DispersionModel, ModelOperator, NoiseModel};
+use crate::optics::{DispersionModel, NoiseModel};
 use crate::params::{Mismatch, Parameter};
 use crate::rng::Rng;
 
@@ -108,9 +108,11 @@ impl BlurBootstrap {
         at: &Mismatch,
     ) -> Result<BlurBias> {
         problem.check_cancelled()?;
-        let (mask, bands) = (problem.nominal_mask(), problem.bands());
         let scene = gap_tv_reconstruction(problem, at, self.gap_iterations)?;
-        let mut made = ModelOperator::new(mask, bands, at, self.through)?.forward(&scene)?;
+        let mut made = problem
+            .with_model(self.through)
+            .operator(at)?
+            .forward(&scene)?;
         if let Some(noise) = &self.noise {
             made = noise.apply(&made)?;
         }
@@ -119,7 +121,7 @@ impl BlurBootstrap {
         let mut frame = Vec::new();
         reframe(made.as_slice(), made.cols(), &mut frame, cols);
         if self.residual_noise {
-            let fitted = ModelOperator::new(mask, bands, at, problem.model())?.forward(&scene)?;
+            let fitted = problem.operator(at)?.forward(&scene)?;
             let mut predicted = Vec::new();
             reframe(fitted.as_slice(), fitted.cols(), &mut predicted, cols);
             add_with_random_signs(&mut frame, problem.measurement.as_slice(), &predicted);

@@ -52,7 +52,6 @@ use serde::{Deserialize, Serialize};
 use super::scene_fit::FinePassFree;
 use super::score::{CalibrationProblem, ProxyParams, gap_tv_reconstruction, proxy_reconstruction};
 use crate::error::{CassiError, Result};
-use crate::optics::ModelOperator;
 use crate::optics::blur::GaussianBlur;
 use crate::params::Mismatch;
 
@@ -152,8 +151,7 @@ impl DetailPass {
         let (rows, cols) = problem.nominal_mask().shape();
         let cube = match self.source {
             DetailSource::Proxy => {
-                let (mask, bands) = (problem.nominal_mask(), problem.bands());
-                let op = ModelOperator::new(mask, bands, at, problem.model())?;
+                let op = problem.operator(at)?;
                 proxy_reconstruction(&op, problem.measurement, proxy)
             }
             DetailSource::GapTv { iterations } => {

@@ -219,6 +219,14 @@ impl CalibrationProblem<'_> {
                 reason: "exact score gradients are available for the sharp model only".into(),
             });
         }
+        if self.band_offsets().is_some() {
+            return Err(crate::error::CassiError::Meaningless {
+                what: "exact score gradients with band offsets held".into(),
+                reason:
+                    "the unrolled derivatives are written for a1·k + a2·k²; use the default preset"
+                        .into(),
+            });
+        }
         let dispersion = Dispersion::new(self.bands(), psi.dispersion(), self.model())?;
         let warp = warp_mask_with_derivatives(self.nominal_mask(), &psi.pose());
         let a = CassiOperator::new(warp.value.clone(), dispersion)?;

@@ -248,6 +248,16 @@ pub fn refit_jointly(
             p.model()
         )));
     }
+    if problems
+        .iter()
+        .any(|p| p.band_offsets() != combined.band_offsets.as_ref())
+    {
+        return Err(refuse(
+            "the measurements' problems must hold the band offsets the snapshots were \
+             calibrated with (the combination's)"
+                .into(),
+        ));
+    }
     if !combined.model.samples_mask_per_band() {
         return Err(refuse(format!(
             "the joint fit is the scene fit's, which the {:?} model does not run (it needs a model \

@@ -75,7 +75,7 @@ pub use smooth::{gaussian_taps, smooth_bands};
 pub use snapshots::{Centre, CombineParams, Consistency, SnapshotSpread, combine_snapshots};
 pub use texture::{SCENE_SMOOTH_PX, SceneEstimate};
 
-use crate::optics::DispersionModel;
+use crate::optics::{BandOffsets, DispersionModel};
 use crate::params::Mismatch;
 
 /// `dst` ← `src` (rows of `src_cols`) on rows of `dst_cols`: each row's
@@ -182,6 +182,12 @@ pub struct Calibration {
     /// agree; `stages` are then the snapshots' answers.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub snapshots: Option<SnapshotSpread>,
+    /// The bands' departures from the straight dispersion the calibration
+    /// held ([`CalibrationProblem::with_band_offsets`]): part of the
+    /// instrument, so a reconstruction with these parameters holds them
+    /// too. `None`: the dispersion a1·k + a2·k² alone.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub band_offsets: Option<BandOffsets>,
     pub stages: Vec<StageReport>,
     pub seconds: f64,
     pub evaluations: usize,

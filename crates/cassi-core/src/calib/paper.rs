@@ -136,6 +136,14 @@ pub fn calibrate_paper(
     on_stage: &mut dyn FnMut(&StageReport),
 ) -> Result<Calibration> {
     problem.validate()?;
+    if problem.band_offsets().is_some() {
+        return Err(crate::error::CassiError::Meaningless {
+            what: "the paper preset with band offsets held".into(),
+            reason: "its gradient stages differentiate a1·k + a2·k² alone; hold band offsets \
+                     with the default preset"
+                .into(),
+        });
+    }
     if problem.model().samples_mask_per_band() {
         // its gradient stages differentiate a mask shared by every band
         return Err(crate::error::CassiError::Meaningless {
@@ -180,6 +188,7 @@ pub fn calibrate_paper(
         ridge_probes: None,
         model_blur_sigma_px: None,
         snapshots: None,
+        band_offsets: None,
         stages: run.into_reports(),
         seconds,
         evaluations,

@@ -679,10 +679,25 @@ impl<'a> SceneFit<'a> {
     fn operator(&self, psi: &Mismatch, along: Option<&[f64]>) -> Result<SceneOperator<'_>> {
         self.problem.check_cancelled()?;
         let p = self.problem;
-        let op = match along {
-            None => ModelOperator::new(p.nominal_mask(), p.bands(), psi, p.model())?,
-            Some(along) => {
+        let op = match (along, p.band_offsets()) {
+            (None, _) => p.operator(psi)?,
+            (Some(along), None) => {
                 ModelOperator::with_band_shifts(p.nominal_mask(), p.bands(), psi, p.model(), along)?
+            }
+            // the shifts measured on top of the offsets held
+            (Some(along), Some(held)) => {
+                let total: Vec<f64> = along
+                    .iter()
+                    .zip(held.as_slice())
+                    .map(|(a, h)| a + h)
+                    .collect();
+                ModelOperator::with_band_shifts(
+                    p.nominal_mask(),
+                    p.bands(),
+                    psi,
+                    p.model(),
+                    &total,
+                )?
             }
         };
         Ok(SceneOperator { fit: self, op })
@@ -1044,6 +1059,17 @@ pub(crate) mod tests {
         noise: bool,
         scene_seed: u64,
     ) -> (crate::Measurement, crate::Mask) {
+        measured_stepped(truth, noise, scene_seed, None)
+    }
+
+    /// [`measured_scene`] of a prism whose bands from `step`'s on land
+    /// `step`'s px further along the dispersion.
+    pub(crate) fn measured_stepped(
+        truth: &Mismatch,
+        noise: bool,
+        scene_seed: u64,
+        step: Option<crate::optics::DispersionStep>,
+    ) -> (crate::Measurement, crate::Mask) {
         let (rows, cols, bands) = (SIZE, SIZE, BANDS);
         let wl: Vec<f64> = (0..bands)
             .map(|k| 450.0 + 200.0 / bands as f64 * k as f64)
@@ -1059,6 +1085,7 @@ pub(crate) mod tests {
         let spec = PhysicalSpec {
             oversample: 4,
             blur_sigma_px: truth.blur_sigma_px,
+            dispersion_step: step,
             ..PhysicalSpec::default()
         };
         let noise = noise.then_some(NoiseModel {

@@ -21,7 +21,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use crate::error::{CassiError, Result, shape_error};
 use crate::linop::LinearOperator;
-use crate::optics::{CassiOperator, DispersionModel, ModelOperator};
+use crate::optics::{BandOffsets, CassiOperator, DispersionModel, ModelOperator};
 use crate::params::Mismatch;
 use crate::recon::{Method, MethodId, Model};
 use crate::solvers::Silent;
@@ -105,6 +105,26 @@ impl<'a> CalibrationProblem<'a> {
         self.nominal.dispersion()
     }
 
+    /// The same problem with its bands `offsets` off the straight
+    /// dispersion, held in every candidate ([`BandOffsets`]).
+    pub fn with_band_offsets(&self, offsets: &'a BandOffsets) -> Result<Self> {
+        Ok(Self {
+            nominal: self.nominal.with_band_offsets(offsets)?,
+            ..*self
+        })
+    }
+
+    /// The bands' held departures from the straight dispersion, if any.
+    pub fn band_offsets(&self) -> Option<&'a BandOffsets> {
+        self.nominal.band_offsets()
+    }
+
+    /// The candidate ψ's forward operator (the family's, band offsets held):
+    /// every stage builds its operators here.
+    pub fn operator(&self, psi: &Mismatch) -> Result<ModelOperator> {
+        self.nominal.operator_at(psi)
+    }
+
     /// The same problem fitted with another dispersion family.
     pub fn with_model(&self, dispersion: DispersionModel) -> Self {
         Self {
@@ -135,7 +155,7 @@ impl<'a> CalibrationProblem<'a> {
     /// score(ψ) with the proxy `proxy` (ψ's blur included).
     pub fn score(&self, psi: &Mismatch, proxy: &ProxyParams) -> Result<f64> {
         self.check_cancelled()?;
-        let op = ModelOperator::new(self.nominal_mask(), self.bands(), psi, self.model())?;
+        let op = self.operator(psi)?;
         Ok(proxy_residual(&op, self.measurement, proxy))
     }
 }

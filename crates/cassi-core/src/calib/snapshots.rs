@@ -166,6 +166,14 @@ pub fn combine_snapshots(
                 ),
             });
         }
+        if c.band_offsets != first.band_offsets {
+            return Err(CassiError::Meaningless {
+                what: format!("snapshot {i}'s calibration"),
+                reason: "its band offsets differ from snapshot 0's: one instrument, one band \
+                         table held — calibrate every snapshot with the same --band-offsets"
+                    .into(),
+            });
+        }
         if !fitted_curvature && c.parameters.a2 != first.parameters.a2 {
             return Err(CassiError::Meaningless {
                 what: format!("snapshot {i}'s calibration"),
@@ -238,6 +246,7 @@ pub fn combine_snapshots(
         uncertainty_fit: None,
         ridge_probes: None,
         model_blur_sigma_px,
+        band_offsets: first.band_offsets.clone(),
         stages,
         seconds: calibrations.iter().map(|c| c.seconds).sum(),
         evaluations: calibrations.iter().map(|c| c.evaluations).sum(),
@@ -414,6 +423,7 @@ mod tests {
             uncertainty_fit: None,
             ridge_probes: None,
             model_blur_sigma_px: None,
+            band_offsets: None,
             snapshots: None,
             stages: Vec::new(),
             seconds: 1.0,

@@ -24,7 +24,6 @@ use super::score::{CalibrationProblem, ProxyParams, proxy_reconstruction};
 use super::smooth::{gaussian_taps, smooth_bands};
 use crate::error::{Result, shape_error};
 use crate::linop::LinearOperator;
-use crate::optics::ModelOperator;
 use crate::params::Mismatch;
 
 /// Smoothing of the scene estimate, pixels: the estimate keeps each region's
@@ -99,12 +98,7 @@ impl<'a> TextureFit<'a> {
         let (rows, cols) = problem.nominal_mask().shape();
         let (mut scene, smooth_px) = match estimate {
             SceneEstimate::Proxy { at } => {
-                let op = ModelOperator::new(
-                    problem.nominal_mask(),
-                    problem.bands(),
-                    &at,
-                    problem.model(),
-                )?;
+                let op = problem.operator(&at)?;
                 (
                     proxy_reconstruction(&op, problem.measurement, proxy),
                     SCENE_SMOOTH_PX,
@@ -148,7 +142,7 @@ impl<'a> TextureFit<'a> {
     fn with_template<R>(&self, psi: &Mismatch, f: impl FnOnce(&[f32]) -> R) -> Result<R> {
         let p = self.problem;
         p.check_cancelled()?;
-        let op = ModelOperator::new(p.nominal_mask(), p.bands(), psi, p.model())?;
+        let op = p.operator(psi)?;
         let (rows, det) = op.measurement_shape();
         let cols = p.measurement.cols();
         Ok(crate::scratch::with_taken(&TEMPLATE_SCRATCH, |s| {

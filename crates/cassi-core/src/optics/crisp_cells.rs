@@ -81,9 +81,26 @@ impl CrispCellOperator {
     /// says, for cubes of `bands` bands. Its detector is the dispersed-mask
     /// model's (same shape).
     pub fn new(nominal_mask: &Mask, bands: usize, psi: &Mismatch) -> Result<Self> {
+        let dispersion = Dispersion::new(bands, psi.dispersion(), DispersionModel::DispersedMask)?;
+        Self::dispersed(nominal_mask, psi, dispersion)
+    }
+
+    /// As [`Self::new`] with the bands landing where `dispersion` (the
+    /// dispersed-mask model's, e.g. [`Dispersion::shifted_along`]) puts them
+    /// rather than where ψ's a1, a2 and α do; ψ gives the pose and σ.
+    pub fn dispersed(nominal_mask: &Mask, psi: &Mismatch, dispersion: Dispersion) -> Result<Self> {
         psi.validate()?;
         validate_mask(nominal_mask, "nominal mask")?;
-        let dispersion = Dispersion::new(bands, psi.dispersion(), DispersionModel::DispersedMask)?;
+        if dispersion.model() != DispersionModel::DispersedMask {
+            return Err(crate::error::CassiError::Meaningless {
+                what: format!(
+                    "the crisp-cell model on the {} model's taps",
+                    dispersion.model().name()
+                ),
+                reason: "its columns are the dispersed-mask model's".into(),
+            });
+        }
+        let bands = dispersion.bands();
         let (rows, cols) = nominal_mask.shape();
         let det_cols = cols + dispersion.extra_cols();
         crate::limits::check_elements(

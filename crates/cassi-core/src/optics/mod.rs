@@ -1,6 +1,7 @@
 //! The CASSI optics model: mask misalignment, dispersion, the forward
 //! operator and its adjoint, detector noise, simulation.
 
+pub mod band_offsets;
 pub mod blur;
 pub mod crisp_cells;
 pub mod dispersion;
@@ -12,6 +13,7 @@ pub mod physical;
 pub mod simulate;
 pub mod warp;
 
+pub use band_offsets::BandOffsets;
 pub use blur::{Blurred, GaussianBlur, pixel_kernel, pixel_strip_kernel};
 pub use crisp_cells::CrispCellOperator;
 pub use dispersion::{Dispersion, DispersionModel, Tap};

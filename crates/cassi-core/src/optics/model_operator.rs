@@ -58,8 +58,7 @@ impl ModelOperator {
     }
 
     /// `psi`'s instrument with band k landing `along[k]` px further along
-    /// the dispersion than a1·k + a2·k² ([`Dispersion::shifted_along`]); a
-    /// tapped model's (the crisp-cell model is refused with a blur).
+    /// the dispersion than a1·k + a2·k² ([`Dispersion::shifted_along`]).
     pub fn with_band_shifts(
         nominal_mask: &Mask,
         bands: usize,
@@ -68,13 +67,22 @@ impl ModelOperator {
         along: &[f64],
     ) -> Result<Self> {
         psi.validate()?;
-        let model = match model {
-            DispersionModel::CrispCells if psi.blur_sigma_px == 0.0 => {
-                DispersionModel::DispersedMask
+        let (taps, cells) = match model {
+            // the crisp-cell model lands its cells where the dispersed-mask
+            // model's taps put the bands (sharp, it is that model)
+            DispersionModel::CrispCells => {
+                (DispersionModel::DispersedMask, psi.blur_sigma_px != 0.0)
             }
-            other => other,
+            other => (other, false),
         };
-        let dispersion = Dispersion::new(bands, psi.dispersion(), model)?.shifted_along(along)?;
+        let dispersion = Dispersion::new(bands, psi.dispersion(), taps)?.shifted_along(along)?;
+        if cells {
+            return Ok(Self::Cells(CrispCellOperator::dispersed(
+                nominal_mask,
+                psi,
+                dispersion,
+            )?));
+        }
         let sharp = CassiOperator::posed(nominal_mask, psi.pose(), dispersion)?;
         Self::from_sharp(sharp, psi.blur_sigma_px)
     }
@@ -264,7 +272,9 @@ mod tests {
                 .for_each(|(i, v)| *v = (i % 7) as f32);
             x
         };
-        for model in DispersionModel::TAPPED {
+        // the crisp-cell model too: it lands its cells where the shifted
+        // taps put the bands
+        for model in DispersionModel::ALL {
             let plain = ModelOperator::new(&mask, 4, &psi, model).unwrap();
             let unshifted =
                 ModelOperator::with_band_shifts(&mask, 4, &psi, model, &[0.0; 4]).unwrap();
@@ -280,12 +290,5 @@ mod tests {
                 assert_eq!(moved, k == 2, "{model:?} band {k}");
             }
         }
-        // the crisp-cell model places cells itself: no taps to shift
-        let e =
-            ModelOperator::with_band_shifts(&mask, 4, &psi, DispersionModel::CrispCells, &[0.0; 4])
-                .err()
-                .unwrap()
-                .to_string();
-        assert!(e.contains("crisp-cells"), "{e}");
     }
 }

@@ -1,12 +1,13 @@
 //! The assumed instrument a reconstruction inverts: the nominal mask, the
 //! cube's bands, the nominal stride, the mismatch ψ it is moved, dispersed
-//! and blurred by (nominal, calibrated or true) and the dispersion model.
+//! and blurred by (nominal, calibrated or true), the dispersion model and,
+//! where known, each band's fixed departure from the straight dispersion.
 //! One value, checked once, so every reconstruction entry point takes the
 //! same thing and none can drop a part of it (the blur, say) on the way.
 
 use crate::cube::Mask;
 use crate::error::{CassiError, Result};
-use crate::optics::{DispersionModel, ModelOperator, validate_mask};
+use crate::optics::{BandOffsets, DispersionModel, ModelOperator, validate_mask};
 use crate::params::Mismatch;
 
 /// The instrument a reconstruction assumes. Build it with [`Model::new`],
@@ -18,6 +19,7 @@ pub struct Model<'m> {
     stride: f64,
     mismatch: Mismatch,
     dispersion: DispersionModel,
+    band_offsets: Option<&'m BandOffsets>,
 }
 
 impl<'m> Model<'m> {
@@ -53,6 +55,7 @@ impl<'m> Model<'m> {
             stride,
             mismatch,
             dispersion,
+            band_offsets: None,
         })
     }
 
@@ -74,25 +77,38 @@ impl<'m> Model<'m> {
 
     /// This instrument with another mismatch (a scenario's, a calibration's).
     pub fn with_mismatch(&self, mismatch: Mismatch) -> Result<Self> {
-        Self::new(
-            self.nominal_mask,
-            self.bands,
-            self.stride,
-            mismatch,
-            self.dispersion,
-        )
+        mismatch.validate()?;
+        Ok(Self { mismatch, ..*self })
     }
 
     /// This instrument with `nominal_mask` in place of its own (a band of
-    /// its rows, say); bands, stride, mismatch and family kept.
-    pub fn with_mask<'n>(&self, nominal_mask: &'n Mask) -> Result<Model<'n>> {
-        Model::new(
+    /// its rows, say); bands, stride, mismatch, family and band offsets
+    /// kept.
+    pub fn with_mask<'n>(&self, nominal_mask: &'n Mask) -> Result<Model<'n>>
+    where
+        'm: 'n,
+    {
+        let model = Model::new(
             nominal_mask,
             self.bands,
             self.stride,
             self.mismatch,
             self.dispersion,
-        )
+        )?;
+        Ok(Model {
+            band_offsets: self.band_offsets,
+            ..model
+        })
+    }
+
+    /// This instrument with its bands `offsets` off the straight
+    /// dispersion ([`BandOffsets`]), held whatever ψ says.
+    pub fn with_band_offsets(&self, offsets: &'m BandOffsets) -> Result<Self> {
+        offsets.check(self.bands)?;
+        Ok(Self {
+            band_offsets: Some(offsets),
+            ..*self
+        })
     }
 
     /// This instrument fitted with another dispersion family (nothing the
@@ -126,14 +142,29 @@ impl<'m> Model<'m> {
         self.dispersion
     }
 
+    /// The bands' fixed departures from the straight dispersion, if held.
+    pub fn band_offsets(&self) -> Option<&'m BandOffsets> {
+        self.band_offsets
+    }
+
     /// B(σ)·A(ψ): the forward operator of this instrument.
     pub fn operator(&self) -> Result<ModelOperator> {
-        ModelOperator::new(
-            self.nominal_mask,
-            self.bands,
-            &self.mismatch,
-            self.dispersion,
-        )
+        self.operator_at(&self.mismatch)
+    }
+
+    /// The forward operator of this instrument moved, dispersed and blurred
+    /// as `psi` says (a calibration's candidate), its band offsets held.
+    pub fn operator_at(&self, psi: &Mismatch) -> Result<ModelOperator> {
+        match self.band_offsets {
+            None => ModelOperator::new(self.nominal_mask, self.bands, psi, self.dispersion),
+            Some(o) => ModelOperator::with_band_shifts(
+                self.nominal_mask,
+                self.bands,
+                psi,
+                self.dispersion,
+                o.as_slice(),
+            ),
+        }
     }
 }
 
@@ -168,6 +199,45 @@ mod tests {
         )
         .unwrap_err();
         assert!(e.to_string().contains("stride"), "{e}");
+        // band offsets: held by its operators, their count checked
+        let offsets = BandOffsets::from_table(&[0.0, 1.4, 0.4], 2.0).unwrap();
+        let held = ok.with_band_offsets(&offsets).unwrap();
+        let psi = Mismatch {
+            dx: 0.3,
+            ..Mismatch::nominal(2.0)
+        };
+        let shifted = ModelOperator::with_band_shifts(
+            &mask,
+            3,
+            &psi,
+            DispersionModel::Rounded,
+            offsets.as_slice(),
+        )
+        .unwrap();
+        let x = crate::cube::Cube::from_vec(3, 4, 4, (0..48).map(|v| v as f32).collect()).unwrap();
+        let y = |op: ModelOperator| op.forward(&x).unwrap().as_slice().to_vec();
+        assert_eq!(y(held.operator_at(&psi).unwrap()), y(shifted));
+        assert_eq!(
+            y(held.with_mismatch(psi).unwrap().operator().unwrap()),
+            y(ModelOperator::with_band_shifts(
+                &mask,
+                3,
+                &psi,
+                DispersionModel::Rounded,
+                offsets.as_slice()
+            )
+            .unwrap())
+        );
+        assert_ne!(
+            y(held.operator_at(&psi).unwrap()),
+            y(ok.operator_at(&psi).unwrap())
+        );
+        let four = BandOffsets::from_table(&[0.0, 0.6, 0.2, 0.1], 2.0).unwrap();
+        let e = ok.with_band_offsets(&four).unwrap_err().to_string();
+        assert!(
+            e.contains("band offsets") && e.contains("3 (one per band"),
+            "{e}"
+        );
         let bad_mask = Mask::from_vec(4, 4, vec![2.0; 16]).unwrap();
         assert!(Model::nominal(&bad_mask, 3, 2.0, DispersionModel::Rounded).is_err());
     }

@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
 use cassi_core::calib::Calibration;
-use cassi_core::optics::{DispersionModel, validate_mismatch_for_mask};
+use cassi_core::optics::{BandOffsets, DispersionModel, validate_mismatch_for_mask};
 use cassi_core::recon::MethodId;
 use cassi_core::recon::registry::all_names;
 use cassi_core::{Mismatch, Parameter};
@@ -64,10 +64,18 @@ fn method_names() -> impl TypedValueParser<Value = MethodId> {
         .map(|name| MethodId::parse(&name).expect("clap passes only registry names"))
 }
 
+/// What `--calibration` names: the parameters, the dispersion model where
+/// the file has one, the band offsets where a calibration held them.
+pub struct ModelFile {
+    pub parameters: Mismatch,
+    pub model: Option<DispersionModel>,
+    pub band_offsets: Option<BandOffsets>,
+}
+
 /// The model parameters and dispersion model `--calibration` names. Three
 /// shapes are accepted:
-/// - a calibration record (`cassi calibrate`'s output): its "parameters"
-///   and "model";
+/// - a calibration record (`cassi calibrate`'s output): its "parameters",
+///   "model" and "band_offsets" (where it held them);
 /// - a simulation sidecar: its "simulation" → "mismatch" and "model" (the
 ///   true instrument: the oracle model);
 /// - a parameter file written by hand: the parameters' object itself
@@ -78,13 +86,13 @@ fn method_names() -> impl TypedValueParser<Value = MethodId> {
 /// version, or another kind of record, is refused naming the file). In every
 /// shape the parameters are an object with exactly the named fields (never
 /// read by position), every value a number in range.
-pub fn read_model_file(path: &Path) -> anyhow::Result<(Mismatch, Option<DispersionModel>)> {
+pub fn read_model_file(path: &Path) -> anyhow::Result<ModelFile> {
     let file = JsonFile::read(path)?;
     let v = file.value();
     let named_at = |params: &serde_json::Value, field: &str| {
         named_mismatch(params).with_context(|| format!("{}: {field}", path.display()))
     };
-    let (m, model, field) = match file.format()? {
+    let (m, model, field, band_offsets) = match file.format()? {
         Some(Calibration::FORMAT) => {
             let field = "\"parameters\"";
             let m = named_at(&v["parameters"], field)?;
@@ -94,13 +102,13 @@ pub fn read_model_file(path: &Path) -> anyhow::Result<(Mismatch, Option<Dispersi
                 blur_sigma_px: cal.reconstruction_parameters().blur_sigma_px,
                 ..m
             };
-            (m, Some(cal.model), field)
+            (m, Some(cal.model), field, cal.band_offsets)
         }
         Some(SimulationRecord::FORMAT) => {
             let field = "\"simulation\".\"mismatch\"";
             let m = named_at(&v["simulation"]["mismatch"], field)?;
             let sidecar = file.parse::<SimulationRecord>()?.record;
-            (m, Some(sidecar.simulation.model), field)
+            (m, Some(sidecar.simulation.model), field, None)
         }
         Some(other) => bail!(
             "{} is a {other} record, not a calibration, a simulation sidecar or a parameter file",
@@ -114,7 +122,7 @@ pub fn read_model_file(path: &Path) -> anyhow::Result<(Mismatch, Option<Dispersi
                     .map(|m| serde_json::from_value(m.clone()))
                     .transpose()
                     .with_context(|| format!("{}: \"model\"", path.display()))?;
-                (named_at(params, field)?, model, field)
+                (named_at(params, field)?, model, field, None)
             }
             None => {
                 let m = named_mismatch(v).with_context(|| {
@@ -123,13 +131,17 @@ pub fn read_model_file(path: &Path) -> anyhow::Result<(Mismatch, Option<Dispersi
                         path.display()
                     )
                 })?;
-                (m, None, "the parameters")
+                (m, None, "the parameters", None)
             }
         },
     };
     m.validate()
         .with_context(|| format!("{}: {field}", path.display()))?;
-    Ok((m, model))
+    Ok(ModelFile {
+        parameters: m,
+        model,
+        band_offsets,
+    })
 }
 
 /// The mismatch from a JSON object with exactly the parameters' named
@@ -199,18 +211,39 @@ impl ReconstructArgs {
     /// `--calibration`'s, or the nominal instrument's.
     /// `mask` is the nominal mask the parameters move: a shift beyond it is
     /// refused, naming the file.
-    pub(crate) fn model_parameters(
-        &self,
-        mask: &cassi_core::Mask,
-    ) -> anyhow::Result<(Mismatch, Option<DispersionModel>)> {
+    pub(crate) fn model_parameters(&self, mask: &cassi_core::Mask) -> anyhow::Result<ModelFile> {
         match &self.calibration {
             Some(path) => {
-                let (m, model) = read_model_file(path)?;
-                validate_mismatch_for_mask(&m, mask.rows(), mask.cols())
+                let file = read_model_file(path)?;
+                validate_mismatch_for_mask(&file.parameters, mask.rows(), mask.cols())
                     .with_context(|| format!("{}", path.display()))?;
-                Ok((m, model))
+                Ok(file)
             }
-            None => Ok((Mismatch::nominal(self.input.stride), None)),
+            None => Ok(ModelFile {
+                parameters: Mismatch::nominal(self.input.stride),
+                model: None,
+                band_offsets: None,
+            }),
+        }
+    }
+
+    /// The instrument a solver assumes: `file`'s parameters, `model`, and
+    /// its band offsets where the calibration held them (checked against
+    /// the cube's bands, naming the file).
+    pub(crate) fn assumed<'m>(
+        &self,
+        mask: &'m cassi_core::Mask,
+        bands: usize,
+        file: &'m ModelFile,
+        model: DispersionModel,
+    ) -> anyhow::Result<cassi_core::recon::Model<'m>> {
+        let assumed =
+            cassi_core::recon::Model::new(mask, bands, self.input.stride, file.parameters, model)?;
+        match (&file.band_offsets, &self.calibration) {
+            (Some(o), Some(path)) => assumed
+                .with_band_offsets(o)
+                .with_context(|| format!("{}: \"band_offsets\"", path.display())),
+            _ => Ok(assumed),
         }
     }
 

@@ -74,7 +74,7 @@ fn run_learned(
 
     use cassi_core::metrics::Metrics;
     use cassi_core::recon::registry::NETWORK_STEP;
-    use cassi_core::recon::{MethodId, MethodKind, Model};
+    use cassi_core::recon::{MethodId, MethodKind};
     use cassi_core::solvers::IterationInfo;
     use cassi_core::{Cube, Instrument, MaskPose, Mismatch};
     use cassi_nets::{Network, PnpHsicnn, PnpHsicnnParams, Stage};
@@ -99,6 +99,9 @@ fn run_learned(
         Pnp {
             model_parameters: Mismatch,
             dispersion_model: cassi_core::optics::DispersionModel,
+            /// The calibration's held band offsets, which the model used.
+            #[serde(skip_serializing_if = "Option::is_none")]
+            band_offsets: Option<cassi_core::optics::BandOffsets>,
             params: PnpHsicnnParams,
             network_iterations: usize,
             tv_iterations: usize,
@@ -147,18 +150,19 @@ fn run_learned(
             args.method
         );
     }
-    let (params, file_model) = args.model_parameters(&mask)?;
+    let file = args.model_parameters(&mask)?;
+    let params = file.parameters;
     let truth = args.load_truth()?;
 
     let t0 = Instant::now();
     let pnp = args.method.kind() == MethodKind::LearnedPnp;
     let (cube, details, width_fitted): (Cube, Details, Option<(usize, usize)>) = if pnp {
-        let model = args.model.or(file_model).unwrap_or_default();
+        let model = args.model.or(file.model).unwrap_or_default();
         let settings = PnpHsicnnParams::default().with_overrides(args.iterations, args.weight);
         let mut pnp = reporter.stage("loading the HSI-SDeCNN weights", || {
             Ok(PnpHsicnn::load(&weights, settings)?)
         })?;
-        let assumed = Model::new(&mask, bands, args.input.stride, params, model)?;
+        let assumed = args.assumed(&mask, bands, &file, model)?;
         let progress =
             reporter.progress(&format!("{} ", args.method), settings.gap.iterations as u64);
         let mut observer = |info: &IterationInfo| {
@@ -173,6 +177,7 @@ fn run_learned(
         let details = Details::Pnp {
             model_parameters: params,
             dispersion_model: model,
+            band_offsets: file.band_offsets.clone(),
             params: settings,
             network_iterations: count(Stage::Dnn),
             tv_iterations: count(Stage::Tv),
@@ -184,12 +189,19 @@ fn run_learned(
         (r.reconstruction.cube, details, fitted)
     } else {
         let unused_dispersion = (args.calibration.is_some()
-            && (params.a1 != NETWORK_STEP as f64 || params.alpha_deg != 0.0))
-            .then(|| params.dispersion());
+            && (params.a1 != NETWORK_STEP as f64
+                || params.alpha_deg != 0.0
+                || file.band_offsets.is_some()))
+        .then(|| params.dispersion());
         if unused_dispersion.is_some() {
+            let offsets = if file.band_offsets.is_some() {
+                ", nor the band offsets it held"
+            } else {
+                ""
+            };
             reporter.say(&format!(
                 "note: {} keeps its trained dispersion (step {NETWORK_STEP}, α 0°); the \
-                 calibration's a1 = {}, α = {}° are not used (only the mask pose dx, dy, θ)",
+                 calibration's a1 = {}, α = {}°{offsets} are not used (only the mask pose dx, dy, θ)",
                 args.method, params.a1, params.alpha_deg
             ));
         }

@@ -6,9 +6,9 @@ use std::time::Instant;
 
 use anyhow::bail;
 use cassi_core::metrics::Metrics;
-use cassi_core::optics::DispersionModel;
+use cassi_core::optics::{BandOffsets, DispersionModel};
+use cassi_core::recon::Method;
 use cassi_core::recon::registry::learned_names;
-use cassi_core::recon::{Method, Model};
 use cassi_core::solvers::IterationInfo;
 use cassi_core::{Instrument, Mismatch};
 use cassi_io::CheckedSet;
@@ -27,6 +27,9 @@ struct ReconstructionReport {
     calibration: Option<PathBuf>,
     model_parameters: Mismatch,
     dispersion_model: DispersionModel,
+    /// The calibration's held band offsets, which the model used.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    band_offsets: Option<BandOffsets>,
     method: Method,
     bands: usize,
     iterations: usize,
@@ -55,13 +58,14 @@ pub fn run(
         );
     }
     let (measurement, mask, bands) = args.input.load(reporter, UncodedMask::Warn)?;
-    let (params, file_model) = args.model_parameters(&mask)?;
-    let model = args.model.or(file_model).unwrap_or_default();
+    let file = args.model_parameters(&mask)?;
+    let params = file.parameters;
+    let model = args.model.or(file.model).unwrap_or_default();
     let instrument = Instrument::with_bands(bands, args.input.stride)?;
     let truth = args.load_truth()?;
     let method = method.with_overrides(args.iterations, args.weight);
     let max_iter = method.iterations();
-    let assumed = Model::new(&mask, bands, args.input.stride, params, model)?;
+    let assumed = args.assumed(&mask, bands, &file, model)?;
 
     let progress = reporter.progress(&format!("{} ", method.name()), max_iter as u64);
     let mut observer = |info: &IterationInfo| {
@@ -83,6 +87,7 @@ pub fn run(
         calibration: args.calibration.clone(),
         model_parameters: params,
         dispersion_model: model,
+        band_offsets: file.band_offsets.clone(),
         method,
         bands,
         iterations: recon.solution_iterations,
