@@ -130,6 +130,10 @@ class Calibration:
     @property
     def evaluations(self) -> int: ...
     @property
+    def band_offsets(self) -> Optional[List[float]]:
+        """The bands' departures from the straight dispersion the calibration held
+        (calibrate(..., band_offsets=…)), px, one per band; else None."""
+    @property
     def snapshots(self) -> Optional[Dict[str, Any]]:
         """Where this combines several snapshots (`combine_calibrations`): each
         snapshot's parameters and, per parameter, whether they agree; else None."""
@@ -192,6 +196,7 @@ def calibrate(
     search_rows: int | Literal["all"] | None = None,
     ridge_probes: bool = False,
     fit_curvature: bool = False,
+    band_offsets: Optional[Sequence[float]] = None,
     progress: Optional[Callable[[Dict[str, Any]], object]] = None,
 ) -> Calibration:
     """Self-calibration from the measurement and the nominal mask alone;
@@ -204,7 +209,10 @@ def calibrate(
     (Calibration.ridge_probes); an error with the paper preset. `fit_curvature`: fit the
     dispersion's curvature a2 too, in the scene fit's fine pass, from `dispersion_a2` (a
     local refinement: give a prism's design curvature where known); an error with the
-    paper preset."""
+    paper preset. `band_offsets`: each band's position along the dispersion (px, one per
+    band; a monochromator scan), its own line through band 0 removed and the rest held in
+    every candidate (Calibration.band_offsets; reconstruct(calibration=…) holds it too);
+    an error with the paper preset."""
 
 def combine_calibrations(
     calibrations: List[Calibration],

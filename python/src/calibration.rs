@@ -163,6 +163,14 @@ impl PyCalibration {
         Ok(Some(d))
     }
 
+    /// The bands' departures from the straight dispersion (px along it, one
+    /// per band) the calibration held (`band_offsets=`), which a
+    /// reconstruction with this calibration holds too; None without.
+    #[getter]
+    fn band_offsets(&self) -> Option<Vec<f64>> {
+        self.inner.band_offsets.as_ref().map(|o| o.offsets.clone())
+    }
+
     /// Proxy score of the estimate (the final proxy).
     #[getter]
     fn score(&self) -> f64 {
@@ -448,6 +456,13 @@ enum Message {
 ///         --fit-curvature); a local refinement from that value: give a
 ///         prism's design curvature where it is known. An error with the
 ///         paper preset.
+///     band_offsets: each band's position along the dispersion, px, one per
+///         band (a monochromator scan of the camera), held while the rest
+///         is fitted (the CLI's --band-offsets): the table's own line
+///         through band 0 is removed (dx and a1 fit it), the rest held in
+///         every candidate and kept in the result
+///         (`Calibration.band_offsets`), which `reconstruct(calibration=…)`
+///         holds too. Default preset only.
 ///     progress: called with a dict {name, evaluations, seconds,
 ///         parameters, score} as each stage finishes.
 ///
@@ -464,7 +479,7 @@ enum Message {
 ///
 /// The GIL is released while the calibration runs.
 #[pyfunction]
-#[pyo3(signature = (y, mask, *, bands=28, stride=2.0, model=None, preset="default", dispersion_a2=0.0, blur_pass=None, search_rows=None, ridge_probes=false, fit_curvature=false, progress=None))]
+#[pyo3(signature = (y, mask, *, bands=28, stride=2.0, model=None, preset="default", dispersion_a2=0.0, blur_pass=None, search_rows=None, ridge_probes=false, fit_curvature=false, band_offsets=None, progress=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn calibrate(
     py: Python<'_>,
@@ -479,6 +494,7 @@ pub fn calibrate(
     search_rows: Option<Bound<'_, PyAny>>,
     ridge_probes: bool,
     fit_curvature: bool,
+    band_offsets: Option<Vec<f64>>,
     progress: Option<Bound<'_, PyAny>>,
 ) -> PyResult<PyCalibration> {
     let mut preset = Preset::by_name(preset, stride)
@@ -516,6 +532,29 @@ pub fn calibrate(
         Some(name) => params::model(py, name)?,
         None => preset.default_model(),
     };
+    let offsets = match band_offsets {
+        None => None,
+        Some(_) if !matches!(preset, Preset::Default(_)) => {
+            return Err(value_error(
+                py,
+                "band_offsets: the paper preset's gradient stages differentiate a1·k + a2·k² \
+                 alone; hold a band table with the default preset",
+            ));
+        }
+        Some(table) if table.len() != bands => {
+            return Err(value_error(
+                py,
+                format!(
+                    "band_offsets: {} values, expected {bands} (one position per band)",
+                    table.len()
+                ),
+            ));
+        }
+        Some(table) => Some(
+            cassi_core::optics::BandOffsets::from_table(&table, stride)
+                .map_err(|e| value_error(py, format!("band_offsets: {e}")))?,
+        ),
+    };
     let measurement = arrays::frame(y, "measurement y")?;
     let mask = arrays::frame(mask, "mask")?;
     // the CLI's checks, before any work
@@ -543,9 +582,12 @@ pub fn calibrate(
         .spawn(move || {
             let stages = tx.clone();
             let result = catch(|| {
-                let problem =
+                let mut problem =
                     CalibrationProblem::nominal(&measurement, &mask, bands, stride, model)?
                         .with_cancel(&cancel_worker);
+                if let Some(o) = &offsets {
+                    problem = problem.with_band_offsets(o)?;
+                }
                 let mut on_stage = |s: &StageReport| {
                     let _ = stages.send(Message::Stage(s.clone()));
                 };

@@ -369,7 +369,11 @@ fn assumed(
     mismatch: Option<&Bound<'_, PyAny>>,
     model: Option<&str>,
     params: Option<&Bound<'_, PyDict>>,
-) -> PyResult<(Mismatch, cassi_core::optics::DispersionModel)> {
+) -> PyResult<(
+    Mismatch,
+    cassi_core::optics::DispersionModel,
+    Option<cassi_core::optics::BandOffsets>,
+)> {
     match calibration {
         Some(cal) => {
             if mismatch.is_some() || params.is_some_and(|p| !p.is_empty()) {
@@ -391,11 +395,16 @@ fn assumed(
                     ),
                 ));
             }
-            Ok((cal.reconstruction_parameters(), cal.model))
+            Ok((
+                cal.reconstruction_parameters(),
+                cal.model,
+                cal.band_offsets.clone(),
+            ))
         }
         None => Ok((
             params::mismatch(py, stride, mismatch, params)?,
             params::model(py, model.unwrap_or("rounded"))?,
+            None,
         )),
     }
 }
@@ -447,7 +456,7 @@ fn reconstruct<'py>(
     return_info: bool,
     params: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let (psi, dispersion) = assumed(py, stride, calibration, mismatch, model, params)?;
+    let (psi, dispersion, offsets) = assumed(py, stride, calibration, mismatch, model, params)?;
     let id = MethodId::parse(method).map_err(|e| value_error(py, e.to_string()))?;
     // an iterative recipe, or a learned method's checked weights
     let (recipe, learned_weights) = match Method::defaults(id) {
@@ -470,6 +479,11 @@ fn reconstruct<'py>(
     let result = compute(py, || {
         cassi_core::optics::validate_measurement(&measurement, "measurement y")?;
         let model = Model::new(&mask, bands, stride, psi, dispersion)?;
+        // a calibration's held band offsets are part of its instrument
+        let model = match &offsets {
+            Some(o) => model.with_band_offsets(o)?,
+            None => model,
+        };
         // the library's observer: Ctrl-C and the progress callback, with
         // the GIL taken for a moment each iteration
         let mut observer = |info: &IterationInfo| -> Control {

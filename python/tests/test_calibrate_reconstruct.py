@@ -240,6 +240,30 @@ def test_fit_curvature_reports_a2_with_its_error(case):
         cassi.calibrate(y, mask, bands=8, preset="paper", fit_curvature=True)
 
 
+def test_a_band_table_is_held_and_travels_to_the_reconstruction(case):
+    scene, mask, _ = case
+    y = cassi.simulate(scene, mask, TRUTH, model="dispersed-mask", noise=False)
+    # band 2 lands 0.4 px late: positions 0, 2, 4.4, 6, …
+    table = [2.0 * k + (0.4 if k == 2 else 0.0) for k in range(8)]
+    cal = cassi.calibrate(y, mask, bands=8, blur_pass=False, band_offsets=table)
+    held = cal.band_offsets
+    assert len(held) == 8 and held[0] == 0.0 and held[2] > 0.3, held
+    assert json.loads(cal.to_json())["band_offsets"]["offsets"] == held
+    assert cassi.calibrate(y, mask, bands=8, blur_pass=False).band_offsets is None
+    # the reconstruction holds the calibration's table: not the same
+    # parameters without it
+    with_table = cassi.reconstruct(y, mask, bands=8, calibration=cal, iterations=3)
+    without = cassi.reconstruct(y, mask, bands=8, mismatch=cal.reconstruction_parameters,
+                                model=cal.model, iterations=3)
+    assert not np.array_equal(with_table, without)
+    with pytest.raises(ValueError, match="band_offsets: 3 values, expected 8"):
+        cassi.calibrate(y, mask, bands=8, band_offsets=[0.0, 2.0, 4.0])
+    with pytest.raises(ValueError, match="band_offsets.*paper preset"):
+        cassi.calibrate(y, mask, bands=8, preset="paper", band_offsets=table)
+    with pytest.raises(ValueError, match="wavelengths"):
+        cassi.calibrate(y, mask, bands=8, band_offsets=[450.0 + 7.0 * k for k in range(8)])
+
+
 def test_calibrated_reconstruction_beats_the_nominal_model(case):
     scene, mask, y = case
     cal = cassi.calibrate(y, mask, bands=8, model="rounded")
