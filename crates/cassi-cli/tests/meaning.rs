@@ -385,6 +385,17 @@ fn eval_resume_recomputes_a_scene_whose_mask_changed() {
 /// The model parameters `cassi reconstruct --calibration FILE` reports
 /// having used (two GAP-TV iterations).
 fn model_parameters(meas: &Path, mask: &Path, calibration: &Path, out: &Path) -> serde_json::Value {
+    reconstruction_report(meas, mask, calibration, out)["model_parameters"].clone()
+}
+
+/// The report of `cassi reconstruct --calibration FILE` (two GAP-TV
+/// iterations).
+fn reconstruction_report(
+    meas: &Path,
+    mask: &Path,
+    calibration: &Path,
+    out: &Path,
+) -> serde_json::Value {
     let run = cassi(&[
         "reconstruct",
         s(meas),
@@ -399,8 +410,7 @@ fn model_parameters(meas: &Path, mask: &Path, calibration: &Path, out: &Path) ->
         "--json",
     ]);
     ok(&run);
-    let report: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
-    report["model_parameters"].clone()
+    serde_json::from_slice(&run.stdout).unwrap()
 }
 
 #[test]
@@ -610,22 +620,7 @@ fn a_band_table_travels_from_the_calibration_to_the_model() {
         offsets[2] > 0.2 && offsets[1] < 0.0 && offsets[3] < 0.0,
         "{offsets:?}"
     );
-    let out = d.join("r.npy");
-    let run = cassi(&[
-        "reconstruct",
-        s(&meas),
-        "--mask",
-        s(&mask),
-        "--calibration",
-        s(&d.join("cal.json")),
-        "--iterations",
-        "2",
-        "-o",
-        s(&out),
-        "--json",
-    ]);
-    ok(&run);
-    let report: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+    let report = reconstruction_report(&meas, &mask, &d.join("cal.json"), &d.join("r.npy"));
     assert_eq!(report["band_offsets"], *held, "{report}");
     // without a table, neither the calibration nor the reconstruction has one
     let plain = calibrated(&d, &meas, &mask, &[], "plain.json");
