@@ -94,7 +94,10 @@
 //! `--halo SHARE,SIGMA_PX` and `--dispersion-a2 A2`: the simulated
 //! instrument with a wide skirt under its blur (`optics::Halo`) or a
 //! dispersion curved by A2·k² px (model studies: no model fitted has
-//! either); `--model-a2 A2`: the calibration holding the curvature A2
+//! either); `--dispersion-step K:PX`: the simulated prism's bands K onward
+//! landing PX px further (errors against a1 plus the step's line through
+//! band 0), `--hold-band-table`: the calibration holding that step as a
+//! band table (`cassi calibrate --band-offsets`); `--model-a2 A2`: the calibration holding the curvature A2
 //! (`DefaultPreset::dispersion_a2`; with `--dispersion-a2` the same value,
 //! the model that knows the curvature); `--mask-capture SIGMA_PX`: the
 //! instrument's mask a binary code (the file thresholded), rendered crisp,
@@ -138,7 +141,8 @@ use cassi_core::calib::{
 use cassi_core::metrics::psnr;
 use cassi_core::optics::blur::GaussianBlur;
 use cassi_core::optics::{
-    DispersionModel, Halo, NoiseModel, PhysicalSpec, SimulationSpec, simulate, simulate_physical,
+    BandOffsets, DispersionModel, DispersionStep, Halo, NoiseModel, PhysicalSpec, SimulationSpec,
+    simulate, simulate_physical,
 };
 use cassi_core::recon::{Method, Model};
 use cassi_core::solvers::Silent;
@@ -247,6 +251,12 @@ struct Args {
     /// `--dispersion-a2 A2`: the simulated prism's curvature, px per band²
     /// (a model study: every model fitted is linear in the band index).
     dispersion_a2: f64,
+    /// `--dispersion-step K:PX`: the simulated prism's bands K onward land
+    /// PX px further along the dispersion.
+    dispersion_step: Option<DispersionStep>,
+    /// `--hold-band-table`: the calibration holds that step as a band
+    /// table (`cassi calibrate --band-offsets`): the model that knows it.
+    band_table: Option<BandOffsets>,
     /// `--mask-capture SIGMA_PX`: the instrument's mask a binary code (the
     /// file thresholded at half its maximum) rendered crisp, the
     /// calibration handed that code blurred by a Gaussian of SIGMA_PX
@@ -513,6 +523,8 @@ fn parse_args(argv: &[String]) -> Result<Args> {
     let mut transform = SceneTransform::None;
     let mut halo = None;
     let mut dispersion_a2 = 0.0;
+    let mut dispersion_step: Option<DispersionStep> = None;
+    let mut hold_band_table = false;
     let mut mask_capture_px = None;
     let mut mask_sharpen = None;
     let mut model_a2: Option<f64> = None;
@@ -727,6 +739,28 @@ fn parse_args(argv: &[String]) -> Result<Args> {
                 .with_context(|| format!("--dispersion-a2 {v}"))?;
                 dispersion_a2 = a2;
             }
+            "--dispersion-step" => {
+                let v = value()?;
+                let (k, px) = v
+                    .split_once(':')
+                    .with_context(|| format!("--dispersion-step {v}: K:PX"))?;
+                let step = DispersionStep {
+                    from_band: k
+                        .parse()
+                        .with_context(|| format!("--dispersion-step {v}: K"))?,
+                    px: px
+                        .parse()
+                        .with_context(|| format!("--dispersion-step {v}: PX"))?,
+                };
+                PhysicalSpec {
+                    dispersion_step: Some(step),
+                    ..PhysicalSpec::default()
+                }
+                .validate()
+                .with_context(|| format!("--dispersion-step {v}"))?;
+                dispersion_step = Some(step);
+            }
+            "--hold-band-table" => hold_band_table = true,
             "--mask-capture" => {
                 let v = value()?;
                 let sigma: f64 = v.parse().with_context(|| format!("--mask-capture {v}"))?;
@@ -1113,6 +1147,28 @@ fn parse_args(argv: &[String]) -> Result<Args> {
         limits || limits_gap_tv.is_none(),
         "--limits-gap-tv: the limits are off (--no-limits)"
     );
+    ensure!(
+        dispersion_step.is_none() || !(recon || limits || inverse_crime || snapshots_n.is_some()),
+        "--dispersion-step: a calibration study (--no-recon --no-limits --no-inverse-crime, no \
+         --snapshots): the oracle, the limits and the discrete operator know no step"
+    );
+    ensure!(
+        !hold_band_table || dispersion_step.is_some(),
+        "--hold-band-table holds the simulated --dispersion-step; give one"
+    );
+    let band_table = match dispersion_step.filter(|_| hold_band_table) {
+        Some(step) => {
+            preset_name += &format!(
+                " (holding the band table of a {} px step at band {})",
+                step.px, step.from_band
+            );
+            Some(
+                BandOffsets::from_table(&step_table(step, STANDARD_WAVELENGTHS_NM.len()), 2.0)
+                    .context("--hold-band-table")?,
+            )
+        }
+        None => None,
+    };
     let scene_fit_passes = match &preset {
         Preset::Default(d) => d
             .scene_fit
@@ -1149,12 +1205,21 @@ fn parse_args(argv: &[String]) -> Result<Args> {
         transform,
         halo,
         dispersion_a2,
+        dispersion_step,
+        band_table,
         mask_capture_px,
         mask_sharpen,
         snapshots: snapshots_n,
         joint,
         joint_model,
     })
+}
+
+/// A step's band positions: `step.px` from band `step.from_band` on.
+fn step_table(step: DispersionStep, bands: usize) -> Vec<f64> {
+    (0..bands)
+        .map(|k| if k >= step.from_band { step.px } else { 0.0 })
+        .collect()
 }
 
 // ---------------------------------------------------------------- cases
@@ -1302,6 +1367,7 @@ fn measure(
                 detector: Some(DETECTOR),
                 halo: args.halo,
                 dispersion_a2: args.dispersion_a2,
+                dispersion_step: args.dispersion_step,
                 ..PhysicalSpec::default()
             };
             simulate_physical(
@@ -1409,7 +1475,10 @@ fn run_case(
 ) -> Result<(Value, Calibration, Measurement)> {
     let y = measure(case, scene, masks, Some(&noise(case.seed)), args)?;
     let mask = &masks.nominal;
-    let problem = CalibrationProblem::nominal(&y, mask, scene.bands(), 2.0, args.model)?;
+    let mut problem = CalibrationProblem::nominal(&y, mask, scene.bands(), 2.0, args.model)?;
+    if let Some(table) = &args.band_table {
+        problem = problem.with_band_offsets(table)?;
+    }
     let verbose = args.verbose;
     let cal = calibrate(&problem, &args.preset, &mut |st| {
         if verbose {
@@ -1453,8 +1522,15 @@ fn run_case(
         _ => None,
     };
     let sigma_reference = references.map(|(crisp, _)| crisp);
+    // a stepped prism's ψ in the model family: a1 carries the step's line
+    // through band 0 (what a held table leaves a1; band 0, so dx, unmoved)
+    let step_slope = args.dispersion_step.map_or(0.0, |step| {
+        BandOffsets::from_table(&step_table(step, scene.bands()), 2.0)
+            .map_or(0.0, |o| o.table_line[1])
+    });
     let truth = Mismatch {
         blur_sigma_px: sigma_reference.unwrap_or(case.truth.blur_sigma_px),
+        a1: case.truth.a1 + step_slope,
         ..case.truth
     };
     let instrument = Mismatch {
@@ -2035,7 +2111,10 @@ fn main() -> Result<()> {
                         "mask_sharpen_variance_px2": args.mask_sharpen,
                         "wavelengths_nm": STANDARD_WAVELENGTHS_NM,
                         "halo": args.halo.map(|h| json!({ "share": h.share, "sigma_px": h.sigma_px })),
-                        "dispersion_a2": args.dispersion_a2 },
+                        "dispersion_a2": args.dispersion_a2,
+                        "dispersion_step": args.dispersion_step.map(|s| json!({ "from_band": s.from_band, "px": s.px,
+                            "truth_a1": "the drawn a1 plus the step's least-squares line through band 0 (a held table's a1)" })),
+                        "band_table_held": args.band_table.as_ref().map(|o| o.as_slice().to_vec()) },
         "kinds": {
             "random": "dx, dy U(±2.5) px, θ U(±0.8)°, a1 U(1.93, 2.07), α U(±1)°, σ U(0, 0.8) px",
             "aligned_blur": { "mismatch": "nominal (stride 2)", "blur_sigma_px": ALIGNED_SIGMAS },
