@@ -534,26 +534,24 @@ pub fn calibrate(
     };
     let offsets = match band_offsets {
         None => None,
-        Some(_) if !matches!(preset, Preset::Default(_)) => {
-            return Err(value_error(
-                py,
-                "band_offsets: the paper preset's gradient stages differentiate a1·k + a2·k² \
-                 alone; hold a band table with the default preset",
-            ));
+        Some(table) => {
+            preset
+                .check_band_offsets()
+                .map_err(|e| value_error(py, format!("band_offsets: {e}")))?;
+            if table.len() != bands {
+                return Err(value_error(
+                    py,
+                    format!(
+                        "band_offsets: {} values, expected {bands} (one position per band)",
+                        table.len()
+                    ),
+                ));
+            }
+            Some(
+                cassi_core::optics::BandOffsets::from_table(&table, stride)
+                    .map_err(|e| value_error(py, format!("band_offsets: {e}")))?,
+            )
         }
-        Some(table) if table.len() != bands => {
-            return Err(value_error(
-                py,
-                format!(
-                    "band_offsets: {} values, expected {bands} (one position per band)",
-                    table.len()
-                ),
-            ));
-        }
-        Some(table) => Some(
-            cassi_core::optics::BandOffsets::from_table(&table, stride)
-                .map_err(|e| value_error(py, format!("band_offsets: {e}")))?,
-        ),
     };
     let measurement = arrays::frame(y, "measurement y")?;
     let mask = arrays::frame(mask, "mask")?;

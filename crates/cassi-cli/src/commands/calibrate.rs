@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-use anyhow::{Context, bail};
+use anyhow::Context;
 use cassi_core::Parameter;
 use cassi_core::calib::{
     A1_SHORT_TILT_DEG, BandEnd, Calibration, CalibrationProblem, Fit, Preset, SHARP_BLUR_PX,
@@ -139,11 +139,8 @@ pub fn run(args: &CalibrateArgs, reporter: &Reporter) -> anyhow::Result<()> {
     if args.ridge_probes {
         preset = preset.with_ridge_probes().context("--ridge-probes")?;
     }
-    if args.band_offsets.is_some() && !matches!(preset, Preset::Default(_)) {
-        bail!(
-            "--band-offsets: the {} preset's gradient stages differentiate a1·k + a2·k² alone; hold a band table with the default preset",
-            args.preset
-        );
+    if args.band_offsets.is_some() {
+        preset.check_band_offsets().context("--band-offsets")?;
     }
     let model = args.model.unwrap_or(preset.default_model());
     let (measurement, mask, bands) = args.input.load(reporter, UncodedMask::Refuse)?;

@@ -447,6 +447,22 @@ impl Preset {
         }
     }
 
+    /// An error unless this preset can hold band offsets
+    /// ([`CalibrationProblem::with_band_offsets`]): the paper preset's
+    /// unrolled gradients know a1·k + a2·k² alone. Callers check it before
+    /// loading data; [`calibrate`] checks it again.
+    pub fn check_band_offsets(&self) -> crate::error::Result<()> {
+        match self {
+            Self::Default(_) => Ok(()),
+            Self::Paper(_) => Err(crate::error::CassiError::Meaningless {
+                what: "band offsets with the paper preset".into(),
+                reason: "its gradient stages differentiate a1·k + a2·k² alone; hold a band \
+                         table with the default preset"
+                    .into(),
+            }),
+        }
+    }
+
     /// How many of the preset's first recorded stages are its search, before
     /// any refinement (the ablation's search-only variant stops there).
     pub fn search_stages(&self) -> usize {
@@ -471,6 +487,9 @@ pub fn calibrate(
     preset: &Preset,
     on_stage: &mut dyn FnMut(&StageReport),
 ) -> crate::error::Result<Calibration> {
+    if problem.band_offsets().is_some() {
+        preset.check_band_offsets()?;
+    }
     match preset {
         Preset::Default(p) => calibrate_default(problem, p, on_stage),
         Preset::Paper(p) => calibrate_paper(problem, p, on_stage),

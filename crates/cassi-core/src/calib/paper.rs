@@ -137,12 +137,7 @@ pub fn calibrate_paper(
 ) -> Result<Calibration> {
     problem.validate()?;
     if problem.band_offsets().is_some() {
-        return Err(crate::error::CassiError::Meaningless {
-            what: "the paper preset with band offsets held".into(),
-            reason: "its gradient stages differentiate a1·k + a2·k² alone; hold band offsets \
-                     with the default preset"
-                .into(),
-        });
+        super::Preset::Paper(preset.clone()).check_band_offsets()?;
     }
     if problem.model().samples_mask_per_band() {
         // its gradient stages differentiate a mask shared by every band

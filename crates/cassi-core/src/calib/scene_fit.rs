@@ -674,23 +674,24 @@ impl<'a> SceneFit<'a> {
         out.iter_mut().zip(frame).for_each(|(o, &f)| *o = f - *o);
     }
 
-    /// K at `psi`, band k moved `along[k]` px along the dispersion where
-    /// `along` is given ([`ModelOperator::with_band_shifts`]).
+    /// K at `psi` (the problem's band offsets held), band k moved a further
+    /// `along[k]` px along the dispersion where `along` is given
+    /// ([`ModelOperator::with_band_shifts`]).
     fn operator(&self, psi: &Mismatch, along: Option<&[f64]>) -> Result<SceneOperator<'_>> {
         self.problem.check_cancelled()?;
         let p = self.problem;
-        let op = match (along, p.band_offsets()) {
-            (None, _) => p.operator(psi)?,
-            (Some(along), None) => {
-                ModelOperator::with_band_shifts(p.nominal_mask(), p.bands(), psi, p.model(), along)?
-            }
-            // the shifts measured on top of the offsets held
-            (Some(along), Some(held)) => {
-                let total: Vec<f64> = along
-                    .iter()
-                    .zip(held.as_slice())
-                    .map(|(a, h)| a + h)
-                    .collect();
+        let op = match along {
+            None => p.operator(psi)?,
+            // the shifts measured on top of any offsets held
+            Some(along) => {
+                let total: Vec<f64> = match p.band_offsets() {
+                    Some(held) => along
+                        .iter()
+                        .zip(held.as_slice())
+                        .map(|(a, h)| a + h)
+                        .collect(),
+                    None => along.to_vec(),
+                };
                 ModelOperator::with_band_shifts(
                     p.nominal_mask(),
                     p.bands(),

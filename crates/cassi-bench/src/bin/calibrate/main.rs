@@ -97,7 +97,8 @@
 //! either); `--dispersion-step K:PX`: the simulated prism's bands K onward
 //! landing PX px further (errors against a1 plus the step's line through
 //! band 0), `--hold-band-table`: the calibration holding that step as a
-//! band table (`cassi calibrate --band-offsets`); `--model-a2 A2`: the calibration holding the curvature A2
+//! band table (`cassi calibrate --band-offsets`), `--hold-step K:PX` another
+//! step's (a wrong table); `--model-a2 A2`: the calibration holding the curvature A2
 //! (`DefaultPreset::dispersion_a2`; with `--dispersion-a2` the same value,
 //! the model that knows the curvature); `--mask-capture SIGMA_PX`: the
 //! instrument's mask a binary code (the file thresholded), rendered crisp,
@@ -525,6 +526,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
     let mut dispersion_a2 = 0.0;
     let mut dispersion_step: Option<DispersionStep> = None;
     let mut hold_band_table = false;
+    let mut held_step: Option<DispersionStep> = None;
     let mut mask_capture_px = None;
     let mut mask_sharpen = None;
     let mut model_a2: Option<f64> = None;
@@ -740,27 +742,10 @@ fn parse_args(argv: &[String]) -> Result<Args> {
                 dispersion_a2 = a2;
             }
             "--dispersion-step" => {
-                let v = value()?;
-                let (k, px) = v
-                    .split_once(':')
-                    .with_context(|| format!("--dispersion-step {v}: K:PX"))?;
-                let step = DispersionStep {
-                    from_band: k
-                        .parse()
-                        .with_context(|| format!("--dispersion-step {v}: K"))?,
-                    px: px
-                        .parse()
-                        .with_context(|| format!("--dispersion-step {v}: PX"))?,
-                };
-                PhysicalSpec {
-                    dispersion_step: Some(step),
-                    ..PhysicalSpec::default()
-                }
-                .validate()
-                .with_context(|| format!("--dispersion-step {v}"))?;
-                dispersion_step = Some(step);
+                dispersion_step = Some(parse_step("--dispersion-step", &value()?)?)
             }
             "--hold-band-table" => hold_band_table = true,
+            "--hold-step" => held_step = Some(parse_step("--hold-step", &value()?)?),
             "--mask-capture" => {
                 let v = value()?;
                 let sigma: f64 = v.parse().with_context(|| format!("--mask-capture {v}"))?;
@@ -1153,10 +1138,11 @@ fn parse_args(argv: &[String]) -> Result<Args> {
          --snapshots): the oracle, the limits and the discrete operator know no step"
     );
     ensure!(
-        !hold_band_table || dispersion_step.is_some(),
-        "--hold-band-table holds the simulated --dispersion-step; give one"
+        !hold_band_table || (dispersion_step.is_some() && held_step.is_none()),
+        "--hold-band-table holds the simulated --dispersion-step (give one), --hold-step another"
     );
-    let band_table = match dispersion_step.filter(|_| hold_band_table) {
+    let held = held_step.or(dispersion_step.filter(|_| hold_band_table));
+    let band_table = match held {
         Some(step) => {
             preset_name += &format!(
                 " (holding the band table of a {} px step at band {})",
@@ -1164,7 +1150,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
             );
             Some(
                 BandOffsets::from_table(&step_table(step, STANDARD_WAVELENGTHS_NM.len()), 2.0)
-                    .context("--hold-band-table")?,
+                    .context("the held band table")?,
             )
         }
         None => None,
@@ -1213,6 +1199,25 @@ fn parse_args(argv: &[String]) -> Result<Args> {
         joint,
         joint_model,
     })
+}
+
+/// `K:PX` of `flag`: a step of PX px from band K on, checked as the
+/// simulator checks it.
+fn parse_step(flag: &str, v: &str) -> Result<DispersionStep> {
+    let (k, px) = v
+        .split_once(':')
+        .with_context(|| format!("{flag} {v}: K:PX"))?;
+    let step = DispersionStep {
+        from_band: k.parse().with_context(|| format!("{flag} {v}: K"))?,
+        px: px.parse().with_context(|| format!("{flag} {v}: PX"))?,
+    };
+    PhysicalSpec {
+        dispersion_step: Some(step),
+        ..PhysicalSpec::default()
+    }
+    .validate()
+    .with_context(|| format!("{flag} {v}"))?;
+    Ok(step)
 }
 
 /// A step's band positions: `step.px` from band `step.from_band` on.
