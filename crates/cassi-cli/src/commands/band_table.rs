@@ -53,8 +53,15 @@ pub fn load_band_offsets(
         (values, format!("variable {:?}", a.name))
     };
     if values.len() != bands {
+        // a table with a band-index column reads as twice the bands
+        let columns = if text && values.len() == 2 * bands {
+            "; a text table is the positions alone, no band-index column"
+        } else {
+            ""
+        };
         bail!(
-            "{}: {what} holds {} values, expected {bands} (one position per band of the cube)",
+            "{}: {what} holds {} values, expected {bands} (one position per band of the \
+             cube{columns})",
             path.display(),
             values.len()
         );
@@ -126,6 +133,12 @@ mod tests {
         let bad = write(dir.as_path(), "b.csv", "0, 2, x\n");
         let e = format!("{:#}", refused(&bad, 3));
         assert!(e.contains("b.csv: line 1") && e.contains("\"x\""), "{e}");
+        let indexed = write(dir.as_path(), "i.csv", "0, 0\n1, 2\n2, 4.3\n3, 6\n");
+        let e = format!("{:#}", refused(&indexed, 4));
+        assert!(
+            e.contains("8 values, expected 4") && e.contains("band-index column"),
+            "{e}"
+        );
         let nm = write(dir.as_path(), "nm.txt", "450 457 464 471\n");
         let e = format!("{:#}", refused(&nm, 4));
         assert!(e.contains("nm.txt") && e.contains("wavelengths"), "{e}");
