@@ -43,7 +43,8 @@ use errors::{Failure, compute, value_error};
 ///     stride: nominal dispersion, detector pixels per band (2).
 ///     mismatch: None (nominal), "paper", a dict of parameters (keys of
 ///         `cassi.PARAMETERS`: dx, dy px; theta_deg °; a1 px/band;
-///         alpha_deg °; blur_sigma_px px) or a Calibration.
+///         alpha_deg °; blur_sigma_px px) or a Calibration (its band
+///         offsets held, where it held a table).
 ///     model: "rounded" (integer band offsets), "subpixel",
 ///         "dispersed-mask" (subpixel, the mask sampled where each band
 ///         lands) or "crisp-cells" (dispersed-mask, each side of a pixel's
@@ -77,10 +78,19 @@ impl PyOperator {
     ) -> PyResult<Self> {
         let dispersion = params::model_for(py, model, mismatch)?;
         let psi = params::mismatch(py, stride, mismatch, params)?;
+        // a calibration's held band offsets are part of its instrument
+        let offsets = mismatch
+            .and_then(|m| m.cast::<PyCalibration>().ok())
+            .and_then(|c| c.get().inner.band_offsets.clone());
         let mask = arrays::frame(mask, "mask")?;
         let op = compute(py, || {
             validate_mismatch_for_mask(&psi, mask.rows(), mask.cols())?;
-            Ok(Model::new(&mask, bands, stride, psi, dispersion)?.operator()?)
+            let model = Model::new(&mask, bands, stride, psi, dispersion)?;
+            let model = match &offsets {
+                Some(o) => model.with_band_offsets(o)?,
+                None => model,
+            };
+            Ok(model.operator()?)
         })?;
         Ok(Self {
             op,

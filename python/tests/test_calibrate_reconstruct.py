@@ -256,6 +256,11 @@ def test_a_band_table_is_held_and_travels_to_the_reconstruction(case):
     without = cassi.reconstruct(y, mask, bands=8, mismatch=cal.reconstruction_parameters,
                                 model=cal.model, iterations=3)
     assert not np.array_equal(with_table, without)
+    # so does an Operator of the calibration
+    x = scene.astype(np.float32)
+    held_op = cassi.Operator(mask, bands=8, mismatch=cal)
+    plain_op = cassi.Operator(mask, bands=8, mismatch=cal.reconstruction_parameters, model=cal.model)
+    assert not np.array_equal(held_op.forward(x), plain_op.forward(x))
     with pytest.raises(ValueError, match="band_offsets: 3 values, expected 8"):
         cassi.calibrate(y, mask, bands=8, band_offsets=[0.0, 2.0, 4.0])
     with pytest.raises(ValueError, match="band_offsets.*paper preset"):
