@@ -1133,9 +1133,11 @@ fn parse_args(argv: &[String]) -> Result<Args> {
         "--limits-gap-tv: the limits are off (--no-limits)"
     );
     ensure!(
-        dispersion_step.is_none() || !(recon || limits || inverse_crime || snapshots_n.is_some()),
-        "--dispersion-step: a calibration study (--no-recon --no-limits --no-inverse-crime, no \
-         --snapshots): the oracle, the limits and the discrete operator know no step"
+        (dispersion_step.is_none() && held_step.is_none())
+            || !(recon || limits || inverse_crime || snapshots_n.is_some()),
+        "--dispersion-step, --hold-step: a calibration study (--no-recon --no-limits \
+         --no-inverse-crime, no --snapshots): the reconstructions, the limits and the discrete \
+         operator know no step or table"
     );
     ensure!(
         !hold_band_table || (dispersion_step.is_some() && held_step.is_none()),
