@@ -88,7 +88,7 @@ pub struct PhysicalArgs {
     /// further along it (no calibration model has this; a study of what
     /// the band-shift fit can see).
     #[arg(long, value_name = "K:PX", requires = "oversample", allow_hyphen_values = true,
-          value_parser = parse_dispersion_step)]
+          value_parser = str::parse::<DispersionStep>)]
     pub dispersion_step: Option<DispersionStep>,
 }
 
@@ -195,28 +195,6 @@ fn parse_dispersion_a2(text: &str) -> Result<f64, String> {
             "'{text}': expected the dispersion's curvature in px per band², −{max} … {max}"
         )),
     }
-}
-
-/// `--dispersion-step K:PX`: a band index ≥ 1 and a step in pixels
-/// within ± the simulator's limit (the band count is checked when the
-/// scene is read).
-fn parse_dispersion_step(text: &str) -> Result<DispersionStep, String> {
-    let max = cassi_core::optics::physical::MAX_DISPERSION_STEP_PX;
-    let bad =
-        || format!("'{text}': expected K:PX, a band K ≥ 1 and a step PX in px, −{max} … {max}");
-    let (k, px) = text.split_once(':').ok_or_else(bad)?;
-    let step = DispersionStep {
-        from_band: k.trim().parse().map_err(|_| bad())?,
-        px: px.trim().parse().map_err(|_| bad())?,
-    };
-    let spec = PhysicalSpec {
-        dispersion_step: Some(step),
-        ..PhysicalSpec::default()
-    };
-    if step.from_band == 0 || spec.validate().is_err() {
-        return Err(bad());
-    }
-    Ok(step)
 }
 
 /// `--adc-bits`: 1 … 24.

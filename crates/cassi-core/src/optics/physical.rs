@@ -98,6 +98,32 @@ pub struct DispersionStep {
 /// Largest |step| accepted, pixels (a band's whole spacing).
 pub const MAX_DISPERSION_STEP_PX: f64 = 2.0;
 
+/// `K:PX` (a flag's text, e.g. `cassi simulate --dispersion-step`): a band
+/// index ≥ 1 (from band 0 a step is the mask's move) and a step in pixels
+/// within ± [`MAX_DISPERSION_STEP_PX`]; the band count is checked where
+/// the scene is known.
+impl std::str::FromStr for DispersionStep {
+    type Err = String;
+    fn from_str(text: &str) -> std::result::Result<Self, String> {
+        let max = MAX_DISPERSION_STEP_PX;
+        let bad =
+            || format!("'{text}': expected K:PX, a band K ≥ 1 and a step PX in px, −{max} … {max}");
+        let (k, px) = text.split_once(':').ok_or_else(bad)?;
+        let step = DispersionStep {
+            from_band: k.trim().parse().map_err(|_| bad())?,
+            px: px.trim().parse().map_err(|_| bad())?,
+        };
+        let spec = PhysicalSpec {
+            dispersion_step: Some(step),
+            ..PhysicalSpec::default()
+        };
+        if step.from_band == 0 || spec.validate().is_err() {
+            return Err(bad());
+        }
+        Ok(step)
+    }
+}
+
 fn is_zero(v: &f64) -> bool {
     *v == 0.0
 }

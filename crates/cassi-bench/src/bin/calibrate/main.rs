@@ -1203,23 +1203,9 @@ fn parse_args(argv: &[String]) -> Result<Args> {
     })
 }
 
-/// `K:PX` of `flag`: a step of PX px from band K on, checked as the
-/// simulator checks it.
+/// `K:PX` of `flag` ([`DispersionStep`]'s parser, the CLI's).
 fn parse_step(flag: &str, v: &str) -> Result<DispersionStep> {
-    let (k, px) = v
-        .split_once(':')
-        .with_context(|| format!("{flag} {v}: K:PX"))?;
-    let step = DispersionStep {
-        from_band: k.parse().with_context(|| format!("{flag} {v}: K"))?,
-        px: px.parse().with_context(|| format!("{flag} {v}: PX"))?,
-    };
-    PhysicalSpec {
-        dispersion_step: Some(step),
-        ..PhysicalSpec::default()
-    }
-    .validate()
-    .with_context(|| format!("{flag} {v}"))?;
-    Ok(step)
+    v.parse().map_err(|e: String| anyhow::anyhow!("{flag} {e}"))
 }
 
 /// A step's band positions: `step.px` from band `step.from_band` on.
