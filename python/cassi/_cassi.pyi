@@ -171,6 +171,7 @@ def simulate_physical(
     halo: Optional[Tuple[float, float]] = None,
     dispersion_a2: float = 0.0,
     dispersion_step: Optional[Tuple[int, float]] = None,
+    band_spread: str = "point",
     wavelengths_nm: Optional[Sequence[float]] = None,
     noise: bool = True,
     photon_peak: Optional[float] = 1e5,
@@ -181,7 +182,10 @@ def simulate_physical(
     """A snapshot through the physical (oversampled, blurred) instrument;
     `halo` = (share, sigma_px): that share of the light in a wider skirt;
     `dispersion_a2`: band k lands a1·k + a2·k² px along the dispersion;
-    `dispersion_step` = (k, px): bands k onward land px further along it."""
+    `dispersion_step` = (k, px): bands k onward land px further along it;
+    `band_spread`: "point" (each band at its position), "uniform" or
+    "linear" (its light spread between its neighbours' positions, as a
+    real camera's continuous spectrum is)."""
 
 def calibrate(
     y: ArrayLike,

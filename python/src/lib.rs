@@ -22,7 +22,7 @@ use pyo3::types::{PyDict, PyList};
 use cassi_core::limits::check_elements;
 use cassi_core::linop::LinearOperator;
 use cassi_core::optics::{
-    DispersionStep, Halo, ModelOperator, NoiseModel, PhysicalSpec, SimulationSpec,
+    BandSpread, DispersionStep, Halo, ModelOperator, NoiseModel, PhysicalSpec, SimulationSpec,
     validate_mismatch_for_mask,
 };
 use cassi_core::recon::registry::METHODS;
@@ -292,13 +292,15 @@ fn simulate<'py>(
 /// puts that share of the light in a wider Gaussian skirt under the blur;
 /// `dispersion_a2` curves the dispersion (band k at a1·k + a2·k² px);
 /// `dispersion_step` = (k, px) moves band k and every later band px
-/// further along it. No operator of the library reproduces it exactly (no
-/// inverse crime).
+/// further along it; `band_spread` ("point", "uniform" or "linear") spreads
+/// each band's light along the dispersion between its neighbours, as a real
+/// camera's continuous spectrum is. No operator of the library reproduces it
+/// exactly (no inverse crime).
 ///
 /// `blur_sigma_px` defaults to the mismatch's blur; `wavelengths_nm` to the
 /// standard instrument's band centres for the scene's band count.
 #[pyfunction]
-#[pyo3(signature = (scene, mask, mismatch=None, *, stride=2.0, oversample=4, blur_sigma_px=None, blur_slope_px_per_nm=0.0, detector=None, adc_bits=None, halo=None, dispersion_a2=0.0, dispersion_step=None, wavelengths_nm=None, noise=true, photon_peak=Some(1e5), read_noise=0.01, seed=0, **params))]
+#[pyo3(signature = (scene, mask, mismatch=None, *, stride=2.0, oversample=4, blur_sigma_px=None, blur_slope_px_per_nm=0.0, detector=None, adc_bits=None, halo=None, dispersion_a2=0.0, dispersion_step=None, band_spread="point", wavelengths_nm=None, noise=true, photon_peak=Some(1e5), read_noise=0.01, seed=0, **params))]
 #[allow(clippy::too_many_arguments)]
 fn simulate_physical<'py>(
     py: Python<'py>,
@@ -314,6 +316,7 @@ fn simulate_physical<'py>(
     halo: Option<(f64, f64)>,
     dispersion_a2: f64,
     dispersion_step: Option<(usize, f64)>,
+    band_spread: &str,
     wavelengths_nm: Option<Vec<f64>>,
     noise: bool,
     photon_peak: Option<f64>,
@@ -334,6 +337,9 @@ fn simulate_physical<'py>(
         halo: halo.map(|(share, sigma_px)| Halo { share, sigma_px }),
         dispersion_a2,
         dispersion_step: dispersion_step.map(|(from_band, px)| DispersionStep { from_band, px }),
+        band_spread: band_spread
+            .parse::<BandSpread>()
+            .map_err(|e| value_error(py, format!("band_spread: {e}")))?,
     };
     let noise = noise_model(py, noise, photon_peak, read_noise, seed)?;
     let scene = arrays::cube(scene, "scene")?;

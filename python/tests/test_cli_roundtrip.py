@@ -87,6 +87,17 @@ def test_physical_simulation_matches_the_cli(cli, tmp_path, inputs):
                                          dispersion_step=(3, 0.5), noise=False))
     with pytest.raises(ValueError, match="dispersion_step"):
         cassi.simulate_physical(scene, mask, "paper", oversample=2, dispersion_step=(3, 2.5))
+    # each band's light spread between its neighbours likewise
+    run(cli, "simulate", "--scene", "scene.npy", "--mask", "mask.npy", "--paper-mismatch",
+        "--oversample", 2, "--blur", 0.5, "--band-spread", "linear", "--no-noise", "-o",
+        "spread.npy", "-q", cwd=tmp_path)
+    spread = cassi.load(tmp_path / "spread.npy", kind="frame")
+    assert not np.array_equal(spread, plain)
+    np.testing.assert_array_equal(
+        spread, cassi.simulate_physical(scene, mask, "paper", oversample=2, blur_sigma_px=0.5,
+                                        band_spread="linear", noise=False))
+    with pytest.raises(ValueError, match="band_spread.*'box'"):
+        cassi.simulate_physical(scene, mask, "paper", oversample=2, band_spread="box")
     # and it is not the discrete operator's measurement
     discrete = cassi.simulate(scene, mask, "paper", model="subpixel", noise=False)
     assert discrete.shape == ours.shape and not np.allclose(discrete, ours, atol=1e-3)

@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use cassi_core::optics::{Halo, NoiseModel, PhysicalSpec, simulate_physical};
+use cassi_core::optics::{BandSpread, Halo, NoiseModel, PhysicalSpec, simulate_physical};
 use cassi_core::synth::{SceneSpec, random_binary_mask, synthetic_scene};
 use cassi_core::{Instrument, Mismatch};
 use common::{assert_fails, cassi, ok, s};
@@ -78,6 +78,7 @@ fn oversampled_simulation_has_the_fixed_detector_and_a_full_sidecar() {
             halo: None,
             dispersion_a2: 0.0,
             dispersion_step: None,
+            band_spread: BandSpread::Point,
         }
     );
     assert_eq!(sidecar["measurement"]["shape"], serde_json::json!([32, 40]));
@@ -227,6 +228,8 @@ fn physical_flags_are_checked_and_name_themselves() {
             vec!["--oversample", "2", "--dispersion-step", "0:0.5"],
             "K:PX",
         ),
+        (vec!["--oversample", "2", "--band-spread", "box"], "'box'"),
+        (vec!["--band-spread", "linear"], "--oversample"),
         (vec!["--blur", "0.5"], "--oversample"),
         (vec!["--oversample", "4", "--model", "rounded"], "--model"),
     ] {
@@ -317,5 +320,20 @@ fn a_halo_is_simulated_and_recorded() {
         serde_json::json!({"from_band": 2, "px": 0.5})
     );
     let y = cassi_io::load_frame(&stepped, None).unwrap();
+    assert!(y.as_slice() != plain.as_slice());
+
+    // and each band's light spread between its neighbours; the default
+    // (point) is not written, so older sidecars read and write as before
+    let spread = dir.join("spread.npy");
+    let mut a = args(&common);
+    a.extend(["--band-spread", "uniform", "-o", s(&spread)]);
+    ok(&cassi(&a));
+    let sidecar: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("spread.json")).unwrap()).unwrap();
+    assert_eq!(sidecar["physical"]["band_spread"], "uniform");
+    let plain_sidecar: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("plain.json")).unwrap()).unwrap();
+    assert!(plain_sidecar["physical"].get("band_spread").is_none());
+    let y = cassi_io::load_frame(&spread, None).unwrap();
     assert!(y.as_slice() != plain.as_slice());
 }

@@ -6,8 +6,8 @@ use anyhow::{Context, bail};
 use cassi_core::Instrument;
 use cassi_core::limits::check_elements;
 use cassi_core::optics::{
-    DispersionModel, DispersionStep, Halo, MaskCode, PhysicalSpec, SimulationSpec, mask_code,
-    physical_detector_shape, validate_mismatch_for_mask,
+    BandSpread, DispersionModel, DispersionStep, Halo, MaskCode, PhysicalSpec, SimulationSpec,
+    mask_code, physical_detector_shape, validate_mismatch_for_mask,
 };
 use cassi_eval::jobs::simulation::{SimulationInputs, declare_outputs, simulate_and_record};
 use cassi_eval::records::sidecar_path;
@@ -90,6 +90,15 @@ pub struct PhysicalArgs {
     #[arg(long, value_name = "K:PX", requires = "oversample", allow_hyphen_values = true,
           value_parser = str::parse::<DispersionStep>)]
     pub dispersion_step: Option<DispersionStep>,
+    /// Where each band's light lies along the dispersion: `point` (at the
+    /// band's position, the default and every calibration model's
+    /// assumption), `uniform` (evenly between the midpoints to its
+    /// neighbours: a spectrum constant within each band) or `linear` (a hat
+    /// between the neighbours' positions: a spectrum linear between band
+    /// centres) — a real camera's light is continuous in wavelength.
+    #[arg(long, value_name = "SPREAD", requires = "oversample",
+          value_parser = str::parse::<BandSpread>)]
+    pub band_spread: Option<BandSpread>,
 }
 
 impl PhysicalArgs {
@@ -107,6 +116,7 @@ impl PhysicalArgs {
             halo: self.halo,
             dispersion_a2: self.dispersion_a2.unwrap_or(0.0),
             dispersion_step: self.dispersion_step,
+            band_spread: self.band_spread.unwrap_or_default(),
         };
         spec.validate().context("physical instrument")?;
         Ok(Some(spec))

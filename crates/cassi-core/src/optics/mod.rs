@@ -2,6 +2,7 @@
 //! operator and its adjoint, detector noise, simulation.
 
 pub mod band_offsets;
+pub mod band_spread;
 pub mod blur;
 pub mod crisp_cells;
 pub mod dispersion;
@@ -14,6 +15,7 @@ pub mod simulate;
 pub mod warp;
 
 pub use band_offsets::BandOffsets;
+pub use band_spread::BandSpread;
 pub use blur::{Blurred, GaussianBlur, pixel_kernel, pixel_strip_kernel};
 pub use crisp_cells::CrispCellOperator;
 pub use dispersion::{Dispersion, DispersionModel, Tap};

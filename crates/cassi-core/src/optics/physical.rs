@@ -43,6 +43,7 @@
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
+use super::band_spread::BandSpread;
 use super::dispersion::{Dispersion, DispersionModel};
 use super::noise::NoiseModel;
 use super::operator::validate_mask;
@@ -86,6 +87,15 @@ pub struct PhysicalSpec {
     /// size; `None`: none, not written then).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub dispersion_step: Option<DispersionStep>,
+    /// How each band's light lies along the dispersion ([`BandSpread`]):
+    /// at its centre (the default, not written then), or spread between
+    /// its neighbours as a real camera's continuous spectrum is.
+    #[serde(default, skip_serializing_if = "is_point")]
+    pub band_spread: BandSpread,
+}
+
+fn is_point(s: &BandSpread) -> bool {
+    *s == BandSpread::Point
 }
 
 /// A step of `px` pixels along the dispersion from band `from_band` on.
@@ -150,6 +160,7 @@ impl Default for PhysicalSpec {
             halo: None,
             dispersion_a2: 0.0,
             dispersion_step: None,
+            band_spread: BandSpread::Point,
         }
     }
 }
@@ -458,16 +469,17 @@ pub fn simulate_physical_clean(
         frame_rows,
         frame_cols,
     };
+    let offsets: Vec<(f64, f64)> = (0..bands).map(|k| dispersion.offset(k)).collect();
     let per_band: Vec<Frame> = (0..bands)
         .into_par_iter()
         .map_init(Buffers::default, |buf, k| {
-            let (dc, dr) = dispersion.offset(k);
+            let taps = landing_taps(spec.band_spread, &offsets, k, s);
             geometry.dispersed_frame(
                 scene.band(k),
                 &fine_mask,
                 &row_interp,
                 &col_interp,
-                (dc * s as f64, dr * s as f64),
+                &taps,
                 buf,
             );
             let mut core = geometry.blurred_bin(&kernels[k], buf);
@@ -490,6 +502,56 @@ pub fn simulate_physical_clean(
         }
     }
     Ok(y)
+}
+
+/// Band `k`'s light on the fine grid: (row, col, weight) offsets in fine
+/// pixels, each landing position of its [`BandSpread`] split bilinearly
+/// between the neighbouring fine pixels (as the subpixel model's taps), the
+/// positions' taps merged.
+fn landing_taps(
+    spread: BandSpread,
+    offsets: &[(f64, f64)],
+    k: usize,
+    s: usize,
+) -> Vec<(i64, i64, f32)> {
+    let bilinear = |(oc, or): (f64, f64)| {
+        let (c0, r0) = (oc.floor(), or.floor());
+        let (wc, wr) = (oc - c0, or - r0);
+        let (c0, r0) = (c0 as i64, r0 as i64);
+        [
+            (r0, c0, (1.0 - wr) * (1.0 - wc)),
+            (r0, c0 + 1, (1.0 - wr) * wc),
+            (r0 + 1, c0, wr * (1.0 - wc)),
+            (r0 + 1, c0 + 1, wr * wc),
+        ]
+    };
+    if spread == BandSpread::Point {
+        let (dc, dr) = offsets[k];
+        return bilinear((dc * s as f64, dr * s as f64))
+            .into_iter()
+            .filter(|&(_, _, w)| w > 0.0)
+            .map(|(r, c, w)| (r, c, w as f32))
+            .collect();
+    }
+    // positions a quarter of a fine pixel apart or closer along the widest
+    // half of the spread
+    let widest = offsets
+        .windows(2)
+        .map(|p| (p[1].0 - p[0].0).hypot(p[1].1 - p[0].1))
+        .fold(0.0f64, f64::max);
+    let per_half = ((4.0 * widest * s as f64).ceil() as usize).clamp(8, 4096);
+    let mut merged: std::collections::BTreeMap<(i64, i64), f64> = Default::default();
+    for ((dc, dr), share) in spread.positions(offsets, k, per_half) {
+        for (r, c, w) in bilinear((dc * s as f64, dr * s as f64)) {
+            if w > 0.0 {
+                *merged.entry((r, c)).or_default() += share * w;
+            }
+        }
+    }
+    merged
+        .into_iter()
+        .map(|((r, c), w)| (r, c, w as f32))
+        .collect()
 }
 
 /// The moved crisp-square mask sampled at the fine centres (HS × WS).
@@ -623,7 +685,7 @@ impl Geometry {
         fine_mask: &Frame,
         row_interp: &Interp,
         col_interp: &Interp,
-        offset_fine: (f64, f64),
+        taps: &[(i64, i64, f32)],
         buf: &mut Buffers,
     ) {
         let s = self.s;
@@ -633,21 +695,6 @@ impl Geometry {
         buf.frame.resize(self.frame_rows * self.frame_cols, 0.0);
         buf.row.resize(fcols, 0.0);
         buf.scene_row.resize(self.cols, 0.0);
-        // the band's bilinear taps on the fine grid, as the subpixel model's
-        let (oc, or) = offset_fine;
-        let (c0, r0) = (oc.floor(), or.floor());
-        let (wc, wr) = (oc - c0, or - r0);
-        let (c0, r0) = (c0 as i64, r0 as i64);
-        let taps: Vec<(i64, i64, f32)> = [
-            (r0, c0, (1.0 - wr) * (1.0 - wc)),
-            (r0, c0 + 1, (1.0 - wr) * wc),
-            (r0 + 1, c0, wr * (1.0 - wc)),
-            (r0 + 1, c0 + 1, wr * wc),
-        ]
-        .into_iter()
-        .filter(|&(_, _, w)| w > 0.0)
-        .map(|(r, c, w)| (r, c, w as f32))
-        .collect();
         for fr in 0..frows {
             let mrow = fine_mask.row(fr);
             if mrow.iter().all(|&v| v == 0.0) {
@@ -667,7 +714,7 @@ impl Geometry {
                 let x = if w == 0.0 { x0 } else { x0 + w * (x1 - x0) };
                 *o = mv * x;
             }
-            for &(tr, tc, w) in &taps {
+            for &(tr, tc, w) in taps {
                 let yr = fr as i64 + tr + m;
                 if yr < 0 || yr >= self.frame_rows as i64 {
                     continue;
@@ -1149,6 +1196,69 @@ mod tests {
         assert_eq!(in_psi.as_slice(), run(0.0, -0.02).as_slice());
         assert_eq!(in_psi.as_slice(), run(-0.01, -0.01).as_slice());
         assert_ne!(in_psi.as_slice(), run(0.0, 0.0).as_slice());
+    }
+
+    /// A point source in band k, all mask pixels open, bands 2 px apart: a
+    /// spread band keeps the light and its centroid and widens the image
+    /// along the dispersion alone, by the spread's variance — 2²/12 (a box
+    /// of one spacing) or 2²/6 (a hat of two) — the first and last bands
+    /// too (their outer halves mirrored) — within the variance a bilinear
+    /// split between fine pixels adds to a position (at most 1/(4S²) px²).
+    #[test]
+    fn a_spread_band_widens_its_image_along_the_dispersion_only() {
+        let (bands, rows, cols) = (4, 25, 31);
+        let mask = Frame::from_vec(rows, cols, vec![1.0; rows * cols]).unwrap();
+        // second moments along and across the dispersion about the centroid
+        let moments = |f: &Frame, a: f64| {
+            let (r0, c0) = centroid(f);
+            let (mut along, mut across, mut t) = (0.0, 0.0, 0.0);
+            for row in 0..f.rows() {
+                for col in 0..f.cols() {
+                    let v = f.get(row, col) as f64;
+                    let (dr, dc) = (row as f64 - r0, col as f64 - c0);
+                    along += v * (dc * a.cos() + dr * a.sin()).powi(2);
+                    across += v * (-dc * a.sin() + dr * a.cos()).powi(2);
+                    t += v;
+                }
+            }
+            (along / t, across / t)
+        };
+        for (alpha, k) in [(0.0, 0usize), (0.0, 2), (20.0, 3)] {
+            let mut scene = Cube::zeros(bands, rows, cols);
+            scene.set(k, 12, 9, 1.0);
+            let m = mismatch(0.0, 0.0, 0.0, 2.0, alpha);
+            let run = |spread: BandSpread| {
+                let s = PhysicalSpec {
+                    band_spread: spread,
+                    ..spec(4, 0.3)
+                };
+                simulate_physical(&scene, &mask, &wavelengths(bands), &m, &s, None).unwrap()
+            };
+            let a = f64::to_radians(alpha);
+            let point = run(BandSpread::Point);
+            let (p_along, p_across) = moments(&point, a);
+            for (spread, variance) in [
+                (BandSpread::Uniform, 4.0 / 12.0),
+                (BandSpread::Linear, 4.0 / 6.0),
+            ] {
+                let y = run(spread);
+                assert!((total(&y) - 1.0).abs() < 1e-5, "{spread:?}: light lost");
+                let ((r, c), (pr, pc)) = (centroid(&y), centroid(&point));
+                assert!(
+                    (r - pr).abs() < 1e-4 && (c - pc).abs() < 1e-4,
+                    "{spread:?} band {k}"
+                );
+                let (along, across) = moments(&y, a);
+                assert!(
+                    (along - p_along - variance).abs() < 1.0 / 64.0,
+                    "{spread:?} band {k} α {alpha}: along {along} vs {p_along} + {variance}"
+                );
+                assert!(
+                    (across - p_across).abs() < 0.01,
+                    "{spread:?}: across {across} vs {p_across}"
+                );
+            }
+        }
     }
 
     #[test]

@@ -98,7 +98,10 @@
 //! landing PX px further (errors against a1 plus the step's line through
 //! band 0), `--hold-band-table`: the calibration holding that step as a
 //! band table (`cassi calibrate --band-offsets`), `--hold-step K:PX` another
-//! step's (a wrong table); `--model-a2 A2`: the calibration holding the curvature A2
+//! step's (a wrong table); `--band-spread uniform|linear`: each band's
+//! light spread along the dispersion between its neighbours as a real
+//! camera's continuous spectrum is (`optics::BandSpread`; σ's truth stays
+//! the optics' blur); `--model-a2 A2`: the calibration holding the curvature A2
 //! (`DefaultPreset::dispersion_a2`; with `--dispersion-a2` the same value,
 //! the model that knows the curvature); `--mask-capture SIGMA_PX`: the
 //! instrument's mask a binary code (the file thresholded), rendered crisp,
@@ -142,8 +145,8 @@ use cassi_core::calib::{
 use cassi_core::metrics::psnr;
 use cassi_core::optics::blur::GaussianBlur;
 use cassi_core::optics::{
-    BandOffsets, DispersionModel, DispersionStep, Halo, NoiseModel, PhysicalSpec, SimulationSpec,
-    simulate, simulate_physical,
+    BandOffsets, BandSpread, DispersionModel, DispersionStep, Halo, NoiseModel, PhysicalSpec,
+    SimulationSpec, simulate, simulate_physical,
 };
 use cassi_core::recon::{Method, Model};
 use cassi_core::solvers::Silent;
@@ -255,6 +258,10 @@ struct Args {
     /// `--dispersion-step K:PX`: the simulated prism's bands K onward land
     /// PX px further along the dispersion.
     dispersion_step: Option<DispersionStep>,
+    /// `--band-spread SPREAD`: where each band's light lies along the
+    /// dispersion in the simulated instrument (a model study: every model
+    /// fitted puts it at the band's position).
+    band_spread: BandSpread,
     /// `--hold-band-table`: the calibration holds that step as a band
     /// table (`cassi calibrate --band-offsets`): the model that knows it.
     band_table: Option<BandOffsets>,
@@ -525,6 +532,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
     let mut halo = None;
     let mut dispersion_a2 = 0.0;
     let mut dispersion_step: Option<DispersionStep> = None;
+    let mut band_spread = BandSpread::Point;
     let mut hold_band_table = false;
     let mut held_step: Option<DispersionStep> = None;
     let mut mask_capture_px = None;
@@ -743,6 +751,12 @@ fn parse_args(argv: &[String]) -> Result<Args> {
             }
             "--dispersion-step" => {
                 dispersion_step = Some(parse_step("--dispersion-step", &value()?)?)
+            }
+            "--band-spread" => {
+                let v = value()?;
+                band_spread = v
+                    .parse()
+                    .map_err(|e: String| anyhow!("--band-spread: {e}"))?;
             }
             "--hold-band-table" => hold_band_table = true,
             "--hold-step" => held_step = Some(parse_step("--hold-step", &value()?)?),
@@ -1194,6 +1208,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
         halo,
         dispersion_a2,
         dispersion_step,
+        band_spread,
         band_table,
         mask_capture_px,
         mask_sharpen,
@@ -1361,6 +1376,7 @@ fn measure(
                 halo: args.halo,
                 dispersion_a2: args.dispersion_a2,
                 dispersion_step: args.dispersion_step,
+                band_spread: args.band_spread,
                 ..PhysicalSpec::default()
             };
             simulate_physical(
@@ -2107,6 +2123,7 @@ fn main() -> Result<()> {
                         "dispersion_a2": args.dispersion_a2,
                         "dispersion_step": args.dispersion_step.map(|s| json!({ "from_band": s.from_band, "px": s.px,
                             "truth_a1": "the drawn a1 plus the step's least-squares line through band 0 (a held table's a1)" })),
+                        "band_spread": args.band_spread.name(),
                         "band_table_held": args.band_table.as_ref().map(|o| o.as_slice().to_vec()) },
         "kinds": {
             "random": "dx, dy U(±2.5) px, θ U(±0.8)°, a1 U(1.93, 2.07), α U(±1)°, σ U(0, 0.8) px",
