@@ -134,6 +134,10 @@ class Calibration:
         """The bands' departures from the straight dispersion the calibration held
         (calibrate(..., band_offsets=…)), px, one per band; else None."""
     @property
+    def band_spread(self) -> str:
+        """Where each band's light lies along the dispersion in the fitted model:
+        "point", "uniform" or "linear" (calibrate(..., band_spread=…))."""
+    @property
     def snapshots(self) -> Optional[Dict[str, Any]]:
         """Where this combines several snapshots (`combine_calibrations`): each
         snapshot's parameters and, per parameter, whether they agree; else None."""
@@ -201,6 +205,7 @@ def calibrate(
     ridge_probes: bool = False,
     fit_curvature: bool = False,
     band_offsets: Optional[Sequence[float]] = None,
+    band_spread: str = "point",
     progress: Optional[Callable[[Dict[str, Any]], object]] = None,
 ) -> Calibration:
     """Self-calibration from the measurement and the nominal mask alone;
@@ -216,7 +221,10 @@ def calibrate(
     paper preset. `band_offsets`: each band's position along the dispersion (px, one per
     band; a monochromator scan), its own line through band 0 removed and the rest held in
     every candidate (Calibration.band_offsets; reconstruct(calibration=…) holds it too);
-    an error with the paper preset."""
+    an error with the paper preset. `band_spread`: "point", "uniform" or "linear" — each
+    band's light spread along the dispersion in the fitted model, as a camera's continuous
+    spectrum spreads it (Calibration.band_spread; reconstructions hold it too); an error
+    with the paper preset."""
 
 def combine_calibrations(
     calibrations: List[Calibration],

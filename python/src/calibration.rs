@@ -171,6 +171,14 @@ impl PyCalibration {
         self.inner.band_offsets.as_ref().map(|o| o.offsets.clone())
     }
 
+    /// Where each band's light lies along the dispersion in the fitted
+    /// model ("point", "uniform" or "linear"; `band_spread=`), which a
+    /// reconstruction with this calibration spreads too.
+    #[getter]
+    fn band_spread(&self) -> &'static str {
+        self.inner.band_spread.name()
+    }
+
     /// Proxy score of the estimate (the final proxy).
     #[getter]
     fn score(&self) -> f64 {
@@ -384,10 +392,7 @@ pub fn combine_calibrations(
             .enumerate()
             .map(|(i, y)| {
                 CalibrationProblem::nominal(y, &mask, bands, stride, combined.model)
-                    .and_then(|p| match &combined.band_offsets {
-                        Some(o) => p.with_band_offsets(o),
-                        None => Ok(p),
-                    })
+                    .and_then(|p| p.holding(combined.band_offsets.as_ref(), combined.band_spread))
                     .and_then(|p| p.validate().map(|()| p))
                     .map_err(|e| {
                         Failure::Study(anyhow::Error::new(e).context(format!("measurements[{i}]")))
@@ -463,6 +468,12 @@ enum Message {
 ///         every candidate and kept in the result
 ///         (`Calibration.band_offsets`), which `reconstruct(calibration=…)`
 ///         holds too. Default preset only.
+///     band_spread: where each band's light lies along the dispersion in
+///         the fitted model (the CLI's --band-spread): "point" (the
+///         default), "uniform" (evenly over the bands' spacing: a spectrum
+///         constant within each band) or "linear" (a hat between the
+///         neighbours); kept in the result (`Calibration.band_spread`).
+///         Default preset only.
 ///     progress: called with a dict {name, evaluations, seconds,
 ///         parameters, score} as each stage finishes.
 ///
@@ -479,7 +490,7 @@ enum Message {
 ///
 /// The GIL is released while the calibration runs.
 #[pyfunction]
-#[pyo3(signature = (y, mask, *, bands=28, stride=2.0, model=None, preset="default", dispersion_a2=0.0, blur_pass=None, search_rows=None, ridge_probes=false, fit_curvature=false, band_offsets=None, progress=None))]
+#[pyo3(signature = (y, mask, *, bands=28, stride=2.0, model=None, preset="default", dispersion_a2=0.0, blur_pass=None, search_rows=None, ridge_probes=false, fit_curvature=false, band_offsets=None, band_spread="point", progress=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn calibrate(
     py: Python<'_>,
@@ -495,6 +506,7 @@ pub fn calibrate(
     ridge_probes: bool,
     fit_curvature: bool,
     band_offsets: Option<Vec<f64>>,
+    band_spread: &str,
     progress: Option<Bound<'_, PyAny>>,
 ) -> PyResult<PyCalibration> {
     let mut preset = Preset::by_name(preset, stride)
@@ -553,6 +565,12 @@ pub fn calibrate(
             )
         }
     };
+    let spread: cassi_core::optics::BandSpread = band_spread
+        .parse()
+        .map_err(|e| value_error(py, format!("band_spread: {e}")))?;
+    preset
+        .check_band_spread(spread)
+        .map_err(|e| value_error(py, format!("band_spread: {e}")))?;
     let measurement = arrays::frame(y, "measurement y")?;
     let mask = arrays::frame(mask, "mask")?;
     // the CLI's checks, before any work
@@ -583,9 +601,7 @@ pub fn calibrate(
                 let mut problem =
                     CalibrationProblem::nominal(&measurement, &mask, bands, stride, model)?
                         .with_cancel(&cancel_worker);
-                if let Some(o) = &offsets {
-                    problem = problem.with_band_offsets(o)?;
-                }
+                problem = problem.holding(offsets.as_ref(), spread)?;
                 let mut on_stage = |s: &StageReport| {
                     let _ = stages.send(Message::Stage(s.clone()));
                 };

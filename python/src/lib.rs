@@ -78,18 +78,19 @@ impl PyOperator {
     ) -> PyResult<Self> {
         let dispersion = params::model_for(py, model, mismatch)?;
         let psi = params::mismatch(py, stride, mismatch, params)?;
-        // a calibration's held band offsets are part of its instrument
-        let offsets = mismatch
+        // a calibration's held band offsets and spread are its instrument's
+        let (offsets, spread) = mismatch
             .and_then(|m| m.cast::<PyCalibration>().ok())
-            .and_then(|c| c.get().inner.band_offsets.clone());
+            .map(|c| {
+                let cal = &c.get().inner;
+                (cal.band_offsets.clone(), cal.band_spread)
+            })
+            .unwrap_or_default();
         let mask = arrays::frame(mask, "mask")?;
         let op = compute(py, || {
             validate_mismatch_for_mask(&psi, mask.rows(), mask.cols())?;
-            let model = Model::new(&mask, bands, stride, psi, dispersion)?;
-            let model = match &offsets {
-                Some(o) => model.with_band_offsets(o)?,
-                None => model,
-            };
+            let model = Model::new(&mask, bands, stride, psi, dispersion)?
+                .holding(offsets.as_ref(), spread)?;
             Ok(model.operator()?)
         })?;
         Ok(Self {
@@ -388,7 +389,7 @@ fn assumed(
 ) -> PyResult<(
     Mismatch,
     cassi_core::optics::DispersionModel,
-    Option<cassi_core::optics::BandOffsets>,
+    (Option<cassi_core::optics::BandOffsets>, BandSpread),
 )> {
     match calibration {
         Some(cal) => {
@@ -414,13 +415,13 @@ fn assumed(
             Ok((
                 cal.reconstruction_parameters(),
                 cal.model,
-                cal.band_offsets.clone(),
+                (cal.band_offsets.clone(), cal.band_spread),
             ))
         }
         None => Ok((
             params::mismatch(py, stride, mismatch, params)?,
             params::model(py, model.unwrap_or("rounded"))?,
-            None,
+            (None, BandSpread::Point),
         )),
     }
 }
@@ -472,7 +473,8 @@ fn reconstruct<'py>(
     return_info: bool,
     params: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let (psi, dispersion, offsets) = assumed(py, stride, calibration, mismatch, model, params)?;
+    let (psi, dispersion, (offsets, spread)) =
+        assumed(py, stride, calibration, mismatch, model, params)?;
     let id = MethodId::parse(method).map_err(|e| value_error(py, e.to_string()))?;
     // an iterative recipe, or a learned method's checked weights
     let (recipe, learned_weights) = match Method::defaults(id) {
@@ -494,12 +496,9 @@ fn reconstruct<'py>(
     let started = Instant::now();
     let result = compute(py, || {
         cassi_core::optics::validate_measurement(&measurement, "measurement y")?;
-        let model = Model::new(&mask, bands, stride, psi, dispersion)?;
-        // a calibration's held band offsets are part of its instrument
-        let model = match &offsets {
-            Some(o) => model.with_band_offsets(o)?,
-            None => model,
-        };
+        // a calibration's held band offsets and spread are its instrument's
+        let model =
+            Model::new(&mask, bands, stride, psi, dispersion)?.holding(offsets.as_ref(), spread)?;
         // the library's observer: Ctrl-C and the progress callback, with
         // the GIL taken for a moment each iteration
         let mut observer = |info: &IterationInfo| -> Control {

@@ -269,6 +269,31 @@ def test_a_band_table_is_held_and_travels_to_the_reconstruction(case):
         cassi.calibrate(y, mask, bands=8, band_offsets=[450.0 + 7.0 * k for k in range(8)])
 
 
+def test_a_band_spread_is_kept_and_travels_to_the_reconstruction(case):
+    scene, mask, _ = case
+    y = cassi.simulate_physical(scene, mask, TRUTH, oversample=2, band_spread="uniform",
+                                noise=False)
+    cal = cassi.calibrate(y, mask, bands=8, blur_pass=False, band_spread="uniform")
+    assert cal.band_spread == "uniform"
+    assert json.loads(cal.to_json())["band_spread"] == "uniform"
+    plain = cassi.calibrate(y, mask, bands=8, blur_pass=False)
+    assert plain.band_spread == "point" and "band_spread" not in json.loads(plain.to_json())
+    # the reconstruction and an Operator of the calibration spread the bands too
+    spread = cassi.reconstruct(y, mask, bands=8, calibration=cal, iterations=3)
+    without = cassi.reconstruct(y, mask, bands=8, mismatch=cal.reconstruction_parameters,
+                                model=cal.model, iterations=3)
+    assert not np.array_equal(spread, without)
+    x = scene.astype(np.float32)
+    spread_op = cassi.Operator(mask, bands=8, mismatch=cal)
+    point_op = cassi.Operator(mask, bands=8, mismatch=cal.reconstruction_parameters,
+                              model=cal.model)
+    assert not np.array_equal(spread_op.forward(x), point_op.forward(x))
+    with pytest.raises(ValueError, match="band_spread.*'box'"):
+        cassi.calibrate(y, mask, bands=8, band_spread="box")
+    with pytest.raises(ValueError, match="band_spread.*paper preset"):
+        cassi.calibrate(y, mask, bands=8, preset="paper", band_spread="linear")
+
+
 def test_calibrated_reconstruction_beats_the_nominal_model(case):
     scene, mask, y = case
     cal = cassi.calibrate(y, mask, bands=8, model="rounded")

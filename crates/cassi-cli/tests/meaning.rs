@@ -659,6 +659,55 @@ fn a_band_table_travels_from_the_calibration_to_the_model() {
     }
 }
 
+/// `--band-spread`: written into the calibration, named in the
+/// reconstruction's report (the model it used), left out when a point;
+/// refused by name with the paper preset or an unknown spread, nothing
+/// written.
+#[test]
+fn a_band_spread_travels_from_the_calibration_to_the_model() {
+    let d = dir("band_spread");
+    let (meas, mask) = simulated(&d);
+    let record = calibrated(&d, &meas, &mask, &["--band-spread", "linear"], "cal.json");
+    assert_eq!(record["band_spread"], "linear", "{record}");
+    let report = reconstruction_report(&meas, &mask, &d.join("cal.json"), &d.join("r.npy"));
+    assert_eq!(report["band_spread"], "linear", "{report}");
+    let plain = calibrated(&d, &meas, &mask, &["--band-spread", "point"], "plain.json");
+    assert!(plain.get("band_spread").is_none(), "{plain}");
+    let report = reconstruction_report(&meas, &mask, &d.join("plain.json"), &d.join("p.npy"));
+    assert!(report.get("band_spread").is_none(), "{report}");
+    let cal = d.join("refused.json");
+    let args = |spread: &'static str, paper: bool| {
+        let mut a = vec![
+            "calibrate",
+            s(&meas),
+            "--mask",
+            s(&mask),
+            "-o",
+            s(&cal),
+            "-q",
+        ];
+        if paper {
+            a.extend(["--preset", "paper"]);
+        }
+        a.extend(["--band-spread", spread]);
+        a
+    };
+    assert_fails(
+        &args("uniform", true),
+        &["--band-spread", "paper preset"],
+        &cal,
+    );
+    // an unknown name: a parse error (exit code 2) naming it and the names
+    let run = cassi(&args("box", false));
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("'box'") && stderr.contains("uniform"),
+        "{stderr}"
+    );
+    assert!(!cal.exists());
+}
+
 /// `cassi calibrate MEAS --mask MASK -o D/NAME -q EXTRA…`, which must
 /// succeed; the record it wrote.
 fn calibrated(d: &Path, meas: &Path, mask: &Path, extra: &[&str], name: &str) -> serde_json::Value {

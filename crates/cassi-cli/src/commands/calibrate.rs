@@ -8,7 +8,7 @@ use cassi_core::calib::{
     A1_SHORT_TILT_DEG, BandEnd, Calibration, CalibrationProblem, Fit, Preset, SHARP_BLUR_PX,
     StageReport, calibrate,
 };
-use cassi_core::optics::{BandOffsets, DispersionModel, warp_mask};
+use cassi_core::optics::{BandOffsets, BandSpread, DispersionModel, warp_mask};
 use clap::Args;
 
 use cassi_io::OutputSet;
@@ -91,6 +91,16 @@ pub struct CalibrateArgs {
     /// Variable name inside the --band-offsets file.
     #[arg(long, requires = "band_offsets")]
     pub band_offsets_var: Option<String>,
+    /// Where each band's light lies along the dispersion in the fitted
+    /// model: `point` (at the band's position; the default), `uniform`
+    /// (evenly over the band's width, a1 px: a spectrum constant within
+    /// each band) or `linear` (a hat between its neighbours: a spectrum
+    /// linear between band centres). A camera's light is continuous in
+    /// wavelength, so each band's light spreads; σ is then the optics'
+    /// blur alone. Written into the calibration, which `cassi reconstruct
+    /// --calibration` then uses. Default preset only.
+    #[arg(long, value_name = "SPREAD", value_parser = str::parse::<BandSpread>)]
+    pub band_spread: Option<BandSpread>,
     /// Output calibration JSON (for `cassi reconstruct --calibration`).
     #[arg(long, short)]
     pub output: PathBuf,
@@ -142,6 +152,8 @@ pub fn run(args: &CalibrateArgs, reporter: &Reporter) -> anyhow::Result<()> {
     if args.band_offsets.is_some() {
         preset.check_band_offsets().context("--band-offsets")?;
     }
+    let spread = args.band_spread.unwrap_or_default();
+    preset.check_band_spread(spread).context("--band-spread")?;
     let model = args.model.unwrap_or(preset.default_model());
     let (measurement, mask, bands) = args.input.load(reporter, UncodedMask::Refuse)?;
     let offsets = args
@@ -161,6 +173,13 @@ pub fn run(args: &CalibrateArgs, reporter: &Reporter) -> anyhow::Result<()> {
     if let Some(o) = &offsets {
         problem = problem.with_band_offsets(o)?;
         reporter.say(&band_offsets_line(o));
+    }
+    if !spread.is_point() {
+        problem = problem.with_band_spread(spread);
+        reporter.say(&format!(
+            "each band's light spread along the dispersion: {} over the bands' spacing (a1)",
+            spread.name()
+        ));
     }
     let mut on_stage = |s: &StageReport| {
         // between stages nothing is half-written: a signal ends the run here
@@ -437,6 +456,7 @@ pub(crate) mod tests {
             model_blur_sigma_px: None,
             snapshots: None,
             band_offsets: None,
+            band_spread: BandSpread::Point,
             stages: Vec::new(),
             seconds: 0.0,
             evaluations: 0,

@@ -201,11 +201,8 @@ fn refit(
     let problems = loaded
         .iter()
         .map(|(y, mask, _)| {
-            let p = CalibrationProblem::nominal(y, mask, bands, first.stride, combined.model)?;
-            match &combined.band_offsets {
-                Some(o) => p.with_band_offsets(o),
-                None => Ok(p),
-            }
+            CalibrationProblem::nominal(y, mask, bands, first.stride, combined.model)?
+                .holding(combined.band_offsets.as_ref(), combined.band_spread)
         })
         .collect::<cassi_core::Result<Vec<_>>>()?;
     let refit = reporter.stage("refitting the snapshots jointly", || {

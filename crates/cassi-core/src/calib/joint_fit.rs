@@ -248,13 +248,13 @@ pub fn refit_jointly(
             p.model()
         )));
     }
-    if problems
-        .iter()
-        .any(|p| p.band_offsets() != combined.band_offsets.as_ref())
-    {
+    if problems.iter().any(|p| {
+        p.band_offsets() != combined.band_offsets.as_ref()
+            || p.band_spread() != combined.band_spread
+    }) {
         return Err(refuse(
-            "the measurements' problems must hold the band offsets the snapshots were \
-             calibrated with (the combination's)"
+            "the measurements' problems must hold the band offsets and band spread the \
+             snapshots were calibrated with (the combination's)"
                 .into(),
         ));
     }

@@ -75,7 +75,7 @@ pub use smooth::{gaussian_taps, smooth_bands};
 pub use snapshots::{Centre, CombineParams, Consistency, SnapshotSpread, combine_snapshots};
 pub use texture::{SCENE_SMOOTH_PX, SceneEstimate};
 
-use crate::optics::{BandOffsets, DispersionModel};
+use crate::optics::{BandOffsets, BandSpread, DispersionModel};
 use crate::params::Mismatch;
 
 /// `dst` ← `src` (rows of `src_cols`) on rows of `dst_cols`: each row's
@@ -188,6 +188,12 @@ pub struct Calibration {
     /// too. `None`: the dispersion a1·k + a2·k² alone.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub band_offsets: Option<BandOffsets>,
+    /// Where each band's light lies along the dispersion in the model the
+    /// calibration fitted ([`CalibrationProblem::with_band_spread`]): part
+    /// of the instrument, so a reconstruction with these parameters spreads
+    /// it too. Not written for a point (every model's before it).
+    #[serde(default, skip_serializing_if = "BandSpread::is_point")]
+    pub band_spread: BandSpread,
     pub stages: Vec<StageReport>,
     pub seconds: f64,
     pub evaluations: usize,
@@ -463,6 +469,24 @@ impl Preset {
         }
     }
 
+    /// An error unless this preset can spread the bands' light
+    /// ([`CalibrationProblem::with_band_spread`]): the paper preset's
+    /// unrolled gradients know a sharp point per band alone. Checked as
+    /// [`Self::check_band_offsets`] is.
+    pub fn check_band_spread(&self, spread: BandSpread) -> crate::error::Result<()> {
+        match self {
+            Self::Paper(_) if spread != BandSpread::Point => {
+                Err(crate::error::CassiError::Meaningless {
+                    what: format!("a {} band spread with the paper preset", spread.name()),
+                    reason: "its gradient stages differentiate a sharp point per band; spread \
+                             the bands with the default preset"
+                        .into(),
+                })
+            }
+            _ => Ok(()),
+        }
+    }
+
     /// How many of the preset's first recorded stages are its search, before
     /// any refinement (the ablation's search-only variant stops there).
     pub fn search_stages(&self) -> usize {
@@ -490,6 +514,7 @@ pub fn calibrate(
     if problem.band_offsets().is_some() {
         preset.check_band_offsets()?;
     }
+    preset.check_band_spread(problem.band_spread())?;
     match preset {
         Preset::Default(p) => calibrate_default(problem, p, on_stage),
         Preset::Paper(p) => calibrate_paper(problem, p, on_stage),

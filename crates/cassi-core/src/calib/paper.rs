@@ -26,6 +26,7 @@ use super::stages::{Scored, StageRunner, lowest};
 use super::uncertainty::curvature_uncertainty;
 use super::{Calibration, CalibrationProblem, ProxyParams, StageReport, Uncertainty};
 use crate::error::Result;
+use crate::optics::BandSpread;
 use crate::params::Mismatch;
 use crate::params::Parameter::{A1, AlphaDeg, Dx, Dy, ThetaDeg};
 
@@ -139,6 +140,7 @@ pub fn calibrate_paper(
     if problem.band_offsets().is_some() {
         super::Preset::Paper(preset.clone()).check_band_offsets()?;
     }
+    super::Preset::Paper(preset.clone()).check_band_spread(problem.band_spread())?;
     if problem.model().samples_mask_per_band() {
         // its gradient stages differentiate a mask shared by every band
         return Err(crate::error::CassiError::Meaningless {
@@ -184,6 +186,7 @@ pub fn calibrate_paper(
         model_blur_sigma_px: None,
         snapshots: None,
         band_offsets: None,
+        band_spread: BandSpread::Point,
         stages: run.into_reports(),
         seconds,
         evaluations,

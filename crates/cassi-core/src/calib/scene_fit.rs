@@ -1071,6 +1071,21 @@ pub(crate) mod tests {
         scene_seed: u64,
         step: Option<crate::optics::DispersionStep>,
     ) -> (crate::Measurement, crate::Mask) {
+        let spec = PhysicalSpec {
+            dispersion_step: step,
+            ..PhysicalSpec::default()
+        };
+        measured_physical(truth, noise, scene_seed, spec)
+    }
+
+    /// [`measured_scene`] of the physical instrument `spec` (its blur σ₀
+    /// the truth's, its oversampling 4×).
+    pub(crate) fn measured_physical(
+        truth: &Mismatch,
+        noise: bool,
+        scene_seed: u64,
+        spec: PhysicalSpec,
+    ) -> (crate::Measurement, crate::Mask) {
         let (rows, cols, bands) = (SIZE, SIZE, BANDS);
         let wl: Vec<f64> = (0..bands)
             .map(|k| 450.0 + 200.0 / bands as f64 * k as f64)
@@ -1086,8 +1101,7 @@ pub(crate) mod tests {
         let spec = PhysicalSpec {
             oversample: 4,
             blur_sigma_px: truth.blur_sigma_px,
-            dispersion_step: step,
-            ..PhysicalSpec::default()
+            ..spec
         };
         let noise = noise.then_some(NoiseModel {
             photon_peak: Some(2e4),

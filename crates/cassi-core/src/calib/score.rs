@@ -21,7 +21,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use crate::error::{CassiError, Result, shape_error};
 use crate::linop::LinearOperator;
-use crate::optics::{BandOffsets, CassiOperator, DispersionModel, ModelOperator};
+use crate::optics::{BandOffsets, BandSpread, CassiOperator, DispersionModel, ModelOperator};
 use crate::params::Mismatch;
 use crate::recon::{Method, MethodId, Model};
 use crate::solvers::Silent;
@@ -112,6 +112,29 @@ impl<'a> CalibrationProblem<'a> {
             nominal: self.nominal.with_band_offsets(offsets)?,
             ..*self
         })
+    }
+
+    /// The same problem with each band's light spread along the dispersion
+    /// as `spread` says in every candidate ([`BandSpread`]).
+    pub fn with_band_spread(&self, spread: BandSpread) -> Self {
+        Self {
+            nominal: self.nominal.with_band_spread(spread),
+            ..*self
+        }
+    }
+
+    /// The same problem holding what a calibration held beside ψ
+    /// ([`Model::holding`]): a combination's snapshots refitted, say.
+    pub fn holding(&self, offsets: Option<&'a BandOffsets>, spread: BandSpread) -> Result<Self> {
+        Ok(Self {
+            nominal: self.nominal.holding(offsets, spread)?,
+            ..*self
+        })
+    }
+
+    /// Where each band's light lies along the dispersion in the candidates.
+    pub fn band_spread(&self) -> BandSpread {
+        self.nominal.band_spread()
     }
 
     /// The bands' held departures from the straight dispersion, if any.

@@ -174,6 +174,17 @@ pub fn combine_snapshots(
                     .into(),
             });
         }
+        if c.band_spread != first.band_spread {
+            return Err(CassiError::Meaningless {
+                what: format!("snapshot {i}'s calibration"),
+                reason: format!(
+                    "its band spread ({}) differs from snapshot 0's ({}): one instrument, one \
+                     model — calibrate every snapshot with the same --band-spread",
+                    c.band_spread.name(),
+                    first.band_spread.name()
+                ),
+            });
+        }
         if !fitted_curvature && c.parameters.a2 != first.parameters.a2 {
             return Err(CassiError::Meaningless {
                 what: format!("snapshot {i}'s calibration"),
@@ -247,6 +258,7 @@ pub fn combine_snapshots(
         ridge_probes: None,
         model_blur_sigma_px,
         band_offsets: first.band_offsets.clone(),
+        band_spread: first.band_spread,
         stages,
         seconds: calibrations.iter().map(|c| c.seconds).sum(),
         evaluations: calibrations.iter().map(|c| c.evaluations).sum(),
@@ -424,6 +436,7 @@ mod tests {
             ridge_probes: None,
             model_blur_sigma_px: None,
             band_offsets: None,
+            band_spread: crate::optics::BandSpread::Point,
             snapshots: None,
             stages: Vec::new(),
             seconds: 1.0,

@@ -32,6 +32,11 @@ impl BandSpread {
         (Self::Linear, "linear"),
     ];
 
+    /// Every model's assumption (records leave it unwritten).
+    pub fn is_point(&self) -> bool {
+        *self == Self::Point
+    }
+
     pub fn name(self) -> &'static str {
         Self::ALL
             .iter()

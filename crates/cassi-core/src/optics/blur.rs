@@ -17,11 +17,20 @@
 //! matrix of a symmetric kernel with zero boundary is symmetric, so the
 //! adjoint is the blur itself. [`Blurred`] composes the blur after any
 //! [`LinearOperator`] whose range is a frame: y = B(σ) A x.
+//!
+//! A band's light spread along the dispersion ([`BandSpread`]: a real
+//! camera's continuous spectrum) is, on a straight dispersion, one kernel for
+//! every band, so it commutes with the band sum and joins the blur: along
+//! the rows the taps are then the pixel kernel convolved with the spread's
+//! shape (`GaussianBlur::with_band_spread`), down the columns the Gaussian's
+//! alone. The dispersion's tilt α (≤ 1°: 0.035 px across a 2-px spread) and
+//! the spacing's change along a curved or stepped dispersion are not in it.
 
 use std::cell::RefCell;
 
 use rayon::prelude::*;
 
+use super::band_spread::BandSpread;
 use crate::error::{CassiError, Result};
 use crate::linop::{AatNormaliser, LinearOperator, NonNegativeOperator, row_sum_majoriser};
 
@@ -35,11 +44,21 @@ pub struct GaussianBlur {
     sigma: f64,
     rows: usize,
     cols: usize,
-    /// g_{−r..=r}.
+    /// g_{−r..=r}: down the columns, and along the rows without a spread.
     taps: Vec<f32>,
     /// ∂g/∂σ, same length.
     dtaps: Vec<f32>,
+    /// Along the rows: g convolved with the band spread's shape (g itself
+    /// for [`BandSpread::Point`]), and its σ-derivative.
+    row_taps: Vec<f32>,
+    row_dtaps: Vec<f32>,
+    spread: BandSpread,
+    /// The bands' spacing the spread spans, px (0 for a point).
+    spacing_px: f64,
 }
+
+/// The widest band spacing a spread accepts, px.
+pub const MAX_SPREAD_SPACING_PX: f64 = 8.0;
 
 impl GaussianBlur {
     /// The blur of width `sigma_px` (0 = none) on `rows × cols` frames.
@@ -56,46 +75,98 @@ impl GaussianBlur {
             sigma: sigma_px,
             rows,
             cols,
+            row_taps: taps.clone(),
+            row_dtaps: dtaps.clone(),
             taps,
             dtaps,
+            spread: BandSpread::Point,
+            spacing_px: 0.0,
         })
+    }
+
+    /// The blur of width `sigma_px` with each band's light spread along the
+    /// rows as `spread` says, bands `spacing_px` apart (a point: [`Self::new`]).
+    pub fn with_band_spread(
+        sigma_px: f64,
+        spread: BandSpread,
+        spacing_px: f64,
+        rows: usize,
+        cols: usize,
+    ) -> Result<Self> {
+        let plain = Self::new(sigma_px, rows, cols)?;
+        if spread == BandSpread::Point {
+            return Ok(plain);
+        }
+        if !(spacing_px.is_finite() && spacing_px > 0.0 && spacing_px <= MAX_SPREAD_SPACING_PX) {
+            return Err(CassiError::InvalidParameter {
+                name: "band spacing",
+                value: spacing_px,
+                reason: format!(
+                    "a band spread spans the bands' spacing: (0, {MAX_SPREAD_SPACING_PX}] px"
+                ),
+            });
+        }
+        let (row_taps, row_dtaps) = spread_kernel(sigma_px, spread, spacing_px);
+        Ok(Self {
+            row_taps,
+            row_dtaps,
+            spread,
+            spacing_px,
+            ..plain
+        })
+    }
+
+    /// This blur (its σ and frame) with the bands' light spread as
+    /// `spread` says, `spacing_px` apart.
+    pub fn with_spread(&self, spread: BandSpread, spacing_px: f64) -> Result<Self> {
+        Self::with_band_spread(self.sigma, spread, spacing_px, self.rows, self.cols)
     }
 
     pub fn sigma(&self) -> f64 {
         self.sigma
     }
 
-    /// The kernel's radius r (taps −r ..= r).
+    /// Where each band's light lies along the rows, and the spacing it spans.
+    pub fn band_spread(&self) -> (BandSpread, f64) {
+        (self.spread, self.spacing_px)
+    }
+
+    /// The kernel's radius r down the columns (taps −r ..= r).
     pub fn radius(&self) -> usize {
         self.taps.len() / 2
     }
 
-    /// The normalised taps g_{−r..=r}.
+    /// The normalised taps g_{−r..=r} down the columns.
     pub fn taps(&self) -> &[f32] {
         &self.taps
+    }
+
+    /// The normalised taps along the rows (the band spread's included).
+    pub fn row_taps(&self) -> &[f32] {
+        &self.row_taps
     }
 
     /// out ← B y for a `rows × cols` frame `y`; `tmp` is scratch of the same
     /// length.
     pub fn apply(&self, y: &[f32], out: &mut [f32], tmp: &mut [f32]) {
-        self.separable(y, out, tmp, &self.taps, &self.taps);
+        self.separable(y, out, tmp, &self.row_taps, &self.taps);
     }
 
-    /// out ← y convolved along each row only (the taps across the
-    /// columns; the crisp-cell model blurs down the columns itself).
+    /// out ← y convolved along each row only (the row taps; the crisp-cell
+    /// model blurs down the columns itself).
     pub(crate) fn apply_along_rows(&self, y: &[f32], out: &mut [f32]) {
         debug_assert_eq!(y.len(), self.rows * self.cols);
-        let r = self.radius();
+        let r = self.row_taps.len() / 2;
         out.par_chunks_mut(self.cols)
             .zip(y.par_chunks(self.cols))
-            .for_each(|(o, src)| convolve_line(src, o, &self.taps, r));
+            .for_each(|(o, src)| convolve_line(src, o, &self.row_taps, r));
     }
 
     /// out ← (∂B/∂σ) y = (G′ ⊗ G + G ⊗ G′) y; `tmp` and `tmp2` are scratch.
     pub fn apply_derivative(&self, y: &[f32], out: &mut [f32], tmp: &mut [f32], tmp2: &mut [f32]) {
         // rows by G′, cols by G; then rows by G, cols by G′; summed
-        self.separable(y, out, tmp, &self.taps, &self.dtaps);
-        self.separable(y, tmp2, tmp, &self.dtaps, &self.taps);
+        self.separable(y, out, tmp, &self.row_taps, &self.dtaps);
+        self.separable(y, tmp2, tmp, &self.row_dtaps, &self.taps);
         out.iter_mut().zip(tmp2.iter()).for_each(|(o, &t)| *o += t);
     }
 
@@ -110,7 +181,11 @@ impl GaussianBlur {
     ) {
         let (rows, cols) = (self.rows, self.cols);
         debug_assert_eq!(y.len(), rows * cols);
-        if self.sigma == 0.0 && horizontal[0] == 1.0 && vertical[0] == 1.0 {
+        if horizontal.len() == 1
+            && vertical.len() == 1
+            && horizontal[0] == 1.0
+            && vertical[0] == 1.0
+        {
             out.copy_from_slice(y);
             return;
         }
@@ -251,6 +326,53 @@ fn kernel(sigma: f64) -> (Vec<f32>, Vec<f32>) {
     (taps, dtaps)
 }
 
+/// The row taps of the pixel kernel (σ) convolved with a band spread of
+/// `spacing` px, normalised, and their σ-derivative: the pixel kernel
+/// ([`pixel_kernel`]) averaged over the spread's positions
+/// ([`BandSpread::positions`], 64 a side).
+fn spread_kernel(sigma: f64, spread: BandSpread, spacing: f64) -> (Vec<f32>, Vec<f32>) {
+    let positions = spread.positions(&[(-spacing, 0.0), (0.0, 0.0), (spacing, 0.0)], 1, 64);
+    let reach = positions.iter().map(|p| p.0.0.abs()).fold(0.0, f64::max);
+    let r = (4.0 * sigma + reach).ceil() as i64 + 1;
+    let d_pixel = |t: f64| {
+        if sigma <= 0.0 {
+            return 0.0;
+        }
+        let (_, df) = second_antiderivative(sigma);
+        df(t + 1.0) - 2.0 * df(t) + df(t - 1.0)
+    };
+    // even (the spread is symmetric): each tap from −|d|, each term of it
+    // from −|d − t| (the kernel's tails held, not cancelled), and a tap
+    // below f32's resolution beside the centre dropped, as in `kernel`
+    let tap = |i: i64| {
+        let d = -(i.abs() as f64);
+        positions.iter().fold((0.0, 0.0), |(e, de), &((t, _), w)| {
+            let x = -(d - t).abs();
+            (e + w * pixel_kernel(sigma, x).max(0.0), de + w * d_pixel(x))
+        })
+    };
+    let centre = tap(0).0;
+    let (e, de): (Vec<f64>, Vec<f64>) = (-r..=r)
+        .map(|i| {
+            let (e, de) = tap(i);
+            if e < centre * f64::from(f32::EPSILON) {
+                (0.0, 0.0)
+            } else {
+                (e, de)
+            }
+        })
+        .unzip();
+    let s: f64 = e.iter().sum();
+    let ds: f64 = de.iter().sum();
+    let taps = e.iter().map(|&ei| (ei / s) as f32).collect();
+    let dtaps = e
+        .iter()
+        .zip(&de)
+        .map(|(&ei, &dei)| ((dei * s - ei * ds) / (s * s)) as f32)
+        .collect();
+    (taps, dtaps)
+}
+
 /// y = B(σ) A x: a non-negative operator whose range is a `rows × cols`
 /// frame, followed by the optical blur. B and A are both non-negative, so
 /// the solvers' normaliser is the row-sum majoriser B A Aᵀ B 𝟙.
@@ -289,6 +411,22 @@ impl<A: NonNegativeOperator> Blurred<A> {
             inner,
             blur: GaussianBlur::new(sigma_px, rows, cols)?,
         })
+    }
+
+    /// `inner` followed by `blur` (its frame must be `inner`'s range).
+    pub fn with_blur(inner: A, blur: GaussianBlur) -> Result<Self> {
+        if blur.rows * blur.cols != inner.range_len() {
+            return Err(CassiError::Shape {
+                what: "the blurred operator's detector".into(),
+                got: format!("{}×{}", blur.rows, blur.cols),
+                expected: format!("{} pixels (the operator's range)", inner.range_len()),
+            });
+        }
+        Ok(Self { inner, blur })
+    }
+
+    pub fn into_inner(self) -> A {
+        self.inner
     }
 
     pub fn inner(&self) -> &A {
@@ -369,6 +507,102 @@ mod tests {
         let (mut out, mut tmp) = (vec![0.0; y.len()], vec![0.0; y.len()]);
         b.apply(y, &mut out, &mut tmp);
         out
+    }
+
+    /// A band spread's row taps: without blur a box of one spacing (2 px)
+    /// through the pixels' triangle is ¼ ½ ¼, a hat of two 1/24 ¼ 5/12 ¼
+    /// 1/24 (worked by hand); with blur their variance is the three parts'
+    /// sum, σ² + 1/6 + the spread's (w²/12 or w²/6); down the columns the
+    /// Gaussian's alone; a point is the plain blur.
+    #[test]
+    fn a_band_spread_adds_its_shape_along_the_rows_only() {
+        let taps = |spread, spacing| {
+            let b = GaussianBlur::with_band_spread(0.0, spread, spacing, 4, 9).unwrap();
+            assert_eq!(b.taps(), &[1.0]);
+            b.row_taps().to_vec()
+        };
+        // the taps without the zeros at their ends (the spread sampled at 64
+        // positions a side: within 1e-4 of the integrals)
+        let close = |got: &[f32], want: &[f64]| {
+            let lo = got.iter().position(|v| v.abs() > 1e-7).unwrap();
+            let hi = got.iter().rposition(|v| v.abs() > 1e-7).unwrap();
+            let got = &got[lo..=hi];
+            got.len() == want.len()
+                && got
+                    .iter()
+                    .zip(want)
+                    .all(|(&g, &w)| (g as f64 - w).abs() < 1e-4)
+        };
+        let uniform = taps(BandSpread::Uniform, 2.0);
+        assert!(close(&uniform, &[0.25, 0.5, 0.25]), "{uniform:?}");
+        let linear = taps(BandSpread::Linear, 2.0);
+        let want = [1.0 / 24.0, 0.25, 5.0 / 12.0, 0.25, 1.0 / 24.0];
+        assert!(close(&linear, &want), "{linear:?}");
+        // (sampling at whole pixels keeps the variance where the kernel is
+        // smooth: with blur)
+        for sigma in [0.3, 0.7] {
+            for (spread, share) in [(BandSpread::Uniform, 12.0), (BandSpread::Linear, 6.0)] {
+                for w in [1.9, 2.1] {
+                    let b = GaussianBlur::with_band_spread(sigma, spread, w, 4, 9).unwrap();
+                    let r = b.row_taps().len() as f64 / 2.0 - 0.5;
+                    let (sum, var) =
+                        b.row_taps()
+                            .iter()
+                            .enumerate()
+                            .fold((0.0, 0.0), |(s, v), (i, &t)| {
+                                let d = i as f64 - r;
+                                (s + t as f64, v + t as f64 * d * d)
+                            });
+                    let want = sigma * sigma + 1.0 / 6.0 + w * w / share;
+                    assert!((sum - 1.0).abs() < 1e-6, "{spread:?} σ {sigma}: sum {sum}");
+                    assert!(
+                        (var - want).abs() < 2e-3,
+                        "{spread:?} σ {sigma} w {w}: {var} vs {want}"
+                    );
+                    assert_eq!(b.taps(), GaussianBlur::new(sigma, 4, 9).unwrap().taps());
+                }
+            }
+        }
+        let point = GaussianBlur::with_band_spread(0.5, BandSpread::Point, 2.0, 4, 9).unwrap();
+        assert_eq!(point.row_taps(), point.taps());
+        for bad in [0.0, -1.0, f64::NAN, 9.0] {
+            let e = GaussianBlur::with_band_spread(0.5, BandSpread::Uniform, bad, 4, 9)
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains("band spacing"), "{e}");
+        }
+    }
+
+    /// With a spread, ∂B/∂σ still matches central differences.
+    #[test]
+    fn the_sigma_derivative_with_a_band_spread_matches_finite_differences() {
+        let (rows, cols) = (13, 21);
+        let y: Vec<f32> = (0..rows * cols)
+            .map(|i| ((i * 7919) % 101) as f32 / 101.0)
+            .collect();
+        let blur = |sigma: f64| {
+            GaussianBlur::with_band_spread(sigma, BandSpread::Linear, 2.05, rows, cols).unwrap()
+        };
+        for sigma in [0.3, 0.6] {
+            let n = y.len();
+            let (mut d, mut t1, mut t2) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+            blur(sigma).apply_derivative(&y, &mut d, &mut t1, &mut t2);
+            let at = |s: f64| {
+                let (mut out, mut tmp) = (vec![0.0; n], vec![0.0; n]);
+                blur(s).apply(&y, &mut out, &mut tmp);
+                out
+            };
+            let h = 1e-3;
+            let (hi, lo) = (at(sigma + h), at(sigma - h));
+            let (mut err, mut norm) = (0.0f64, 0.0f64);
+            for i in 0..n {
+                let fd = (hi[i] as f64 - lo[i] as f64) / (2.0 * h);
+                err += (fd - d[i] as f64).powi(2);
+                norm += fd * fd;
+            }
+            let rel = (err / norm).sqrt();
+            assert!(rel < 2e-3, "σ {sigma}: relative error {rel}");
+        }
     }
 
     #[test]

@@ -38,6 +38,7 @@ use std::cell::RefCell;
 
 use rayon::prelude::*;
 
+use super::band_spread::BandSpread;
 use super::blur::{GaussianBlur, pixel_strip_kernel};
 use super::dispersion::{Dispersion, DispersionModel};
 use super::operator::{CubeRows, validate_mask};
@@ -135,6 +136,16 @@ impl CrispCellOperator {
             blur,
             slot_taps,
             reach,
+        })
+    }
+
+    /// This operator with each band's light spread along the rows as
+    /// `spread` says, `spacing_px` apart (the rows' kernel; the columns'
+    /// crisp edges are the spread's too: it moves whole bands).
+    pub fn with_band_spread(self, spread: BandSpread, spacing_px: f64) -> Result<Self> {
+        Ok(Self {
+            blur: self.blur.with_spread(spread, spacing_px)?,
+            ..self
         })
     }
 

@@ -4,7 +4,8 @@
 //! (from a calibration file or a simulation's sidecar) can never be dropped
 //! on the way to a solver.
 
-use super::blur::Blurred;
+use super::band_spread::BandSpread;
+use super::blur::{Blurred, GaussianBlur};
 use super::crisp_cells::CrispCellOperator;
 use super::dispersion::{Dispersion, DispersionModel};
 use super::operator::{CassiOperator, CubeRows, checked_forward};
@@ -94,6 +95,28 @@ impl ModelOperator {
         }
         let (rows, cols) = sharp.measurement_shape();
         Ok(Self::Blurred(Blurred::new(sharp, sigma_px, rows, cols)?))
+    }
+
+    /// This operator with each band's light spread along the dispersion
+    /// as `spread` says, bands `spacing_px` apart: a row kernel in the blur
+    /// (a sharp instrument gets a blur of σ 0 for it; a point changes
+    /// nothing).
+    pub fn with_band_spread(self, spread: BandSpread, spacing_px: f64) -> Result<Self> {
+        if spread == BandSpread::Point {
+            return Ok(self);
+        }
+        Ok(match self {
+            Self::Sharp(a) => {
+                let (rows, cols) = a.measurement_shape();
+                let blur = GaussianBlur::with_band_spread(0.0, spread, spacing_px, rows, cols)?;
+                Self::Blurred(Blurred::with_blur(a, blur)?)
+            }
+            Self::Blurred(b) => {
+                let blur = b.blur().with_spread(spread, spacing_px)?;
+                Self::Blurred(Blurred::with_blur(b.into_inner(), blur)?)
+            }
+            Self::Cells(c) => Self::Cells(c.with_band_spread(spread, spacing_px)?),
+        })
     }
 
     /// The tapped CASSI operator before any blur (`None` for the

@@ -90,12 +90,8 @@ pub struct PhysicalSpec {
     /// How each band's light lies along the dispersion ([`BandSpread`]):
     /// at its centre (the default, not written then), or spread between
     /// its neighbours as a real camera's continuous spectrum is.
-    #[serde(default, skip_serializing_if = "is_point")]
+    #[serde(default, skip_serializing_if = "BandSpread::is_point")]
     pub band_spread: BandSpread,
-}
-
-fn is_point(s: &BandSpread) -> bool {
-    *s == BandSpread::Point
 }
 
 /// A step of `px` pixels along the dispersion from band `from_band` on.

@@ -1,13 +1,14 @@
 //! The assumed instrument a reconstruction inverts: the nominal mask, the
 //! cube's bands, the nominal stride, the mismatch ψ it is moved, dispersed
 //! and blurred by (nominal, calibrated or true), the dispersion model and,
-//! where known, each band's fixed departure from the straight dispersion.
+//! where known, each band's fixed departure from the straight dispersion
+//! and how each band's light spreads along it.
 //! One value, checked once, so every reconstruction entry point takes the
 //! same thing and none can drop a part of it (the blur, say) on the way.
 
 use crate::cube::Mask;
 use crate::error::{CassiError, Result};
-use crate::optics::{BandOffsets, DispersionModel, ModelOperator, validate_mask};
+use crate::optics::{BandOffsets, BandSpread, DispersionModel, ModelOperator, validate_mask};
 use crate::params::Mismatch;
 
 /// The instrument a reconstruction assumes. Build it with [`Model::new`],
@@ -20,6 +21,7 @@ pub struct Model<'m> {
     mismatch: Mismatch,
     dispersion: DispersionModel,
     band_offsets: Option<&'m BandOffsets>,
+    band_spread: BandSpread,
 }
 
 impl<'m> Model<'m> {
@@ -56,6 +58,7 @@ impl<'m> Model<'m> {
             mismatch,
             dispersion,
             band_offsets: None,
+            band_spread: BandSpread::Point,
         })
     }
 
@@ -97,6 +100,7 @@ impl<'m> Model<'m> {
         )?;
         Ok(Model {
             band_offsets: self.band_offsets,
+            band_spread: self.band_spread,
             ..model
         })
     }
@@ -109,6 +113,25 @@ impl<'m> Model<'m> {
             band_offsets: Some(offsets),
             ..*self
         })
+    }
+
+    /// This instrument with each band's light spread along the dispersion
+    /// as `spread` says ([`BandSpread`]; over ψ's a1, the bands' spacing).
+    pub fn with_band_spread(&self, spread: BandSpread) -> Self {
+        Self {
+            band_spread: spread,
+            ..*self
+        }
+    }
+
+    /// This instrument holding what a calibration held beside ψ: its band
+    /// offsets (if any) and its band spread.
+    pub fn holding(&self, offsets: Option<&'m BandOffsets>, spread: BandSpread) -> Result<Self> {
+        let held = match offsets {
+            Some(o) => self.with_band_offsets(o)?,
+            None => *self,
+        };
+        Ok(held.with_band_spread(spread))
     }
 
     /// This instrument fitted with another dispersion family (nothing the
@@ -142,6 +165,11 @@ impl<'m> Model<'m> {
         self.dispersion
     }
 
+    /// Where each band's light lies along the dispersion.
+    pub fn band_spread(&self) -> BandSpread {
+        self.band_spread
+    }
+
     /// The bands' fixed departures from the straight dispersion, if held.
     pub fn band_offsets(&self) -> Option<&'m BandOffsets> {
         self.band_offsets
@@ -155,7 +183,7 @@ impl<'m> Model<'m> {
     /// The forward operator of this instrument moved, dispersed and blurred
     /// as `psi` says (a calibration's candidate), its band offsets held.
     pub fn operator_at(&self, psi: &Mismatch) -> Result<ModelOperator> {
-        match self.band_offsets {
+        let op = match self.band_offsets {
             None => ModelOperator::new(self.nominal_mask, self.bands, psi, self.dispersion),
             Some(o) => ModelOperator::with_band_shifts(
                 self.nominal_mask,
@@ -164,7 +192,8 @@ impl<'m> Model<'m> {
                 self.dispersion,
                 o.as_slice(),
             ),
-        }
+        }?;
+        op.with_band_spread(self.band_spread, psi.a1)
     }
 }
 

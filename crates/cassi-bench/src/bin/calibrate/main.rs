@@ -101,7 +101,8 @@
 //! step's (a wrong table); `--band-spread uniform|linear`: each band's
 //! light spread along the dispersion between its neighbours as a real
 //! camera's continuous spectrum is (`optics::BandSpread`; σ's truth stays
-//! the optics' blur); `--model-a2 A2`: the calibration holding the curvature A2
+//! the optics' blur), `--model-band-spread SPREAD`: the calibration's model
+//! spreading them so (`cassi calibrate --band-spread`); `--model-a2 A2`: the calibration holding the curvature A2
 //! (`DefaultPreset::dispersion_a2`; with `--dispersion-a2` the same value,
 //! the model that knows the curvature); `--mask-capture SIGMA_PX`: the
 //! instrument's mask a binary code (the file thresholded), rendered crisp,
@@ -262,6 +263,9 @@ struct Args {
     /// dispersion in the simulated instrument (a model study: every model
     /// fitted puts it at the band's position).
     band_spread: BandSpread,
+    /// `--model-band-spread SPREAD`: the calibration's model spreads each
+    /// band's light so (`CalibrationProblem::with_band_spread`).
+    model_band_spread: BandSpread,
     /// `--hold-band-table`: the calibration holds that step as a band
     /// table (`cassi calibrate --band-offsets`): the model that knows it.
     band_table: Option<BandOffsets>,
@@ -533,6 +537,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
     let mut dispersion_a2 = 0.0;
     let mut dispersion_step: Option<DispersionStep> = None;
     let mut band_spread = BandSpread::Point;
+    let mut model_band_spread = BandSpread::Point;
     let mut hold_band_table = false;
     let mut held_step: Option<DispersionStep> = None;
     let mut mask_capture_px = None;
@@ -757,6 +762,12 @@ fn parse_args(argv: &[String]) -> Result<Args> {
                 band_spread = v
                     .parse()
                     .map_err(|e: String| anyhow!("--band-spread: {e}"))?;
+            }
+            "--model-band-spread" => {
+                let v = value()?;
+                model_band_spread = v
+                    .parse()
+                    .map_err(|e: String| anyhow!("--model-band-spread: {e}"))?;
             }
             "--hold-band-table" => hold_band_table = true,
             "--hold-step" => held_step = Some(parse_step("--hold-step", &value()?)?),
@@ -1154,6 +1165,16 @@ fn parse_args(argv: &[String]) -> Result<Args> {
          operator know no step or table"
     );
     ensure!(
+        model_band_spread.is_point()
+            || !(recon || limits || inverse_crime || snapshots_n.is_some()),
+        "--model-band-spread: a calibration study (--no-recon --no-limits --no-inverse-crime, no \
+         --snapshots): the reconstructions, the limits and the discrete operator spread no band"
+    );
+    if !model_band_spread.is_point() {
+        preset.check_band_spread(model_band_spread)?;
+        preset_name += &format!(" (model: {} band spread)", model_band_spread.name());
+    }
+    ensure!(
         !hold_band_table || (dispersion_step.is_some() && held_step.is_none()),
         "--hold-band-table holds the simulated --dispersion-step (give one), --hold-step another"
     );
@@ -1209,6 +1230,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
         dispersion_a2,
         dispersion_step,
         band_spread,
+        model_band_spread,
         band_table,
         mask_capture_px,
         mask_sharpen,
@@ -1485,9 +1507,7 @@ fn run_case(
     let y = measure(case, scene, masks, Some(&noise(case.seed)), args)?;
     let mask = &masks.nominal;
     let mut problem = CalibrationProblem::nominal(&y, mask, scene.bands(), 2.0, args.model)?;
-    if let Some(table) = &args.band_table {
-        problem = problem.with_band_offsets(table)?;
-    }
+    problem = problem.holding(args.band_table.as_ref(), args.model_band_spread)?;
     let verbose = args.verbose;
     let cal = calibrate(&problem, &args.preset, &mut |st| {
         if verbose {
@@ -2124,6 +2144,7 @@ fn main() -> Result<()> {
                         "dispersion_step": args.dispersion_step.map(|s| json!({ "from_band": s.from_band, "px": s.px,
                             "truth_a1": "the drawn a1 plus the step's least-squares line through band 0 (a held table's a1)" })),
                         "band_spread": args.band_spread.name(),
+                        "model_band_spread": args.model_band_spread.name(),
                         "band_table_held": args.band_table.as_ref().map(|o| o.as_slice().to_vec()) },
         "kinds": {
             "random": "dx, dy U(±2.5) px, θ U(±0.8)°, a1 U(1.93, 2.07), α U(±1)°, σ U(0, 0.8) px",

@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
 use cassi_core::calib::Calibration;
-use cassi_core::optics::{BandOffsets, DispersionModel, validate_mismatch_for_mask};
+use cassi_core::optics::{BandOffsets, BandSpread, DispersionModel, validate_mismatch_for_mask};
 use cassi_core::recon::MethodId;
 use cassi_core::recon::registry::all_names;
 use cassi_core::{Mismatch, Parameter};
@@ -70,6 +70,9 @@ pub struct ModelFile {
     pub parameters: Mismatch,
     pub model: Option<DispersionModel>,
     pub band_offsets: Option<BandOffsets>,
+    /// Where each band's light lies along the dispersion (a calibration's;
+    /// a point otherwise).
+    pub band_spread: BandSpread,
 }
 
 /// The model parameters and dispersion model `--calibration` names. Three
@@ -92,6 +95,7 @@ pub fn read_model_file(path: &Path) -> anyhow::Result<ModelFile> {
     let named_at = |params: &serde_json::Value, field: &str| {
         named_mismatch(params).with_context(|| format!("{}: {field}", path.display()))
     };
+    let mut band_spread = BandSpread::Point;
     let (m, model, field, band_offsets) = match file.format()? {
         Some(Calibration::FORMAT) => {
             let field = "\"parameters\"";
@@ -102,6 +106,7 @@ pub fn read_model_file(path: &Path) -> anyhow::Result<ModelFile> {
                 blur_sigma_px: cal.reconstruction_parameters().blur_sigma_px,
                 ..m
             };
+            band_spread = cal.band_spread;
             (m, Some(cal.model), field, cal.band_offsets)
         }
         Some(SimulationRecord::FORMAT) => {
@@ -141,6 +146,7 @@ pub fn read_model_file(path: &Path) -> anyhow::Result<ModelFile> {
         parameters: m,
         model,
         band_offsets,
+        band_spread,
     })
 }
 
@@ -223,6 +229,7 @@ impl ReconstructArgs {
                 parameters: Mismatch::nominal(self.input.stride),
                 model: None,
                 band_offsets: None,
+                band_spread: BandSpread::Point,
             }),
         }
     }
@@ -239,12 +246,13 @@ impl ReconstructArgs {
     ) -> anyhow::Result<cassi_core::recon::Model<'m>> {
         let assumed =
             cassi_core::recon::Model::new(mask, bands, self.input.stride, file.parameters, model)?;
-        match (&file.band_offsets, &self.calibration) {
-            (Some(o), Some(path)) => assumed
-                .with_band_offsets(o)
-                .with_context(|| format!("{}: \"band_offsets\"", path.display())),
-            _ => Ok(assumed),
-        }
+        let named = || match &self.calibration {
+            Some(path) => format!("{}: \"band_offsets\"", path.display()),
+            None => "the band offsets".into(),
+        };
+        assumed
+            .holding(file.band_offsets.as_ref(), file.band_spread)
+            .with_context(named)
     }
 
     /// The `--truth` cube, if given.

@@ -102,6 +102,9 @@ fn run_learned(
             /// The calibration's held band offsets, which the model used.
             #[serde(skip_serializing_if = "Option::is_none")]
             band_offsets: Option<cassi_core::optics::BandOffsets>,
+            /// The calibration's band spread, which the model used.
+            #[serde(skip_serializing_if = "cassi_core::optics::BandSpread::is_point")]
+            band_spread: cassi_core::optics::BandSpread,
             params: PnpHsicnnParams,
             network_iterations: usize,
             tv_iterations: usize,
@@ -178,6 +181,7 @@ fn run_learned(
             model_parameters: params,
             dispersion_model: model,
             band_offsets: file.band_offsets.clone(),
+            band_spread: file.band_spread,
             params: settings,
             network_iterations: count(Stage::Dnn),
             tv_iterations: count(Stage::Tv),
@@ -191,13 +195,15 @@ fn run_learned(
         let unused_dispersion = (args.calibration.is_some()
             && (params.a1 != NETWORK_STEP as f64
                 || params.alpha_deg != 0.0
-                || file.band_offsets.is_some()))
+                || file.band_offsets.is_some()
+                || !file.band_spread.is_point()))
         .then(|| params.dispersion());
         if unused_dispersion.is_some() {
-            let offsets = if file.band_offsets.is_some() {
-                ", nor the band offsets it held"
-            } else {
-                ""
+            let offsets = match (file.band_offsets.is_some(), !file.band_spread.is_point()) {
+                (true, true) => ", nor the band offsets and band spread it held",
+                (true, false) => ", nor the band offsets it held",
+                (false, true) => ", nor the band spread it held",
+                (false, false) => "",
             };
             reporter.say(&format!(
                 "note: {} keeps its trained dispersion (step {NETWORK_STEP}, α 0°); the \

@@ -6,7 +6,7 @@ use std::time::Instant;
 
 use anyhow::bail;
 use cassi_core::metrics::Metrics;
-use cassi_core::optics::{BandOffsets, DispersionModel};
+use cassi_core::optics::{BandOffsets, BandSpread, DispersionModel};
 use cassi_core::recon::Method;
 use cassi_core::recon::registry::learned_names;
 use cassi_core::solvers::IterationInfo;
@@ -30,6 +30,9 @@ struct ReconstructionReport {
     /// The calibration's held band offsets, which the model used.
     #[serde(skip_serializing_if = "Option::is_none")]
     band_offsets: Option<BandOffsets>,
+    /// The calibration's band spread, which the model used.
+    #[serde(skip_serializing_if = "BandSpread::is_point")]
+    band_spread: BandSpread,
     method: Method,
     bands: usize,
     iterations: usize,
@@ -88,6 +91,7 @@ pub fn run(
         model_parameters: params,
         dispersion_model: model,
         band_offsets: file.band_offsets.clone(),
+        band_spread: file.band_spread,
         method,
         bands,
         iterations: recon.solution_iterations,
