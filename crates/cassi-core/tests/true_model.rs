@@ -167,6 +167,33 @@ fn admm_tv(op: &dyn LinearOperator, y: &[f32], shape: (usize, usize, usize)) -> 
         .cube
 }
 
+/// zᵀ Φ z ≥ ‖Aᵀ z‖² for `draws` random z (Φ ⪰ A Aᵀ; equality when exact).
+fn assert_majorises(
+    op: &dyn LinearOperator,
+    phi: &[f32],
+    rng: &mut cassi_core::Rng,
+    draws: usize,
+    what: &str,
+) {
+    let mut at = vec![0.0f32; op.domain_len()];
+    for _ in 0..draws {
+        let z: Vec<f32> = (0..op.range_len())
+            .map(|_| rng.uniform() as f32 - 0.5)
+            .collect();
+        op.adjoint(&z, &mut at);
+        let lhs: f64 = z
+            .iter()
+            .zip(phi)
+            .map(|(&a, &p)| a as f64 * a as f64 * p as f64)
+            .sum();
+        let rhs: f64 = at.iter().map(|&a| a as f64 * a as f64).sum();
+        assert!(
+            lhs >= rhs * (1.0 - 1e-5),
+            "{what}: zᵀΦz {lhs} < ‖Aᵀz‖² {rhs}"
+        );
+    }
+}
+
 #[test]
 fn the_true_operators_are_adjoint_and_their_normaliser_majorises_aat() {
     let (_, mask) = scene_and_mask(24, 8, 3);
@@ -182,24 +209,7 @@ fn the_true_operators_are_adjoint_and_their_normaliser_majorises_aat() {
             if exact {
                 assert_eq!(Some(n.phi.clone()), op.diag_aat());
             }
-            // zᵀ Φ z ≥ ‖Aᵀ z‖² for random z (Φ ⪰ A Aᵀ; equality when exact)
-            let mut at = vec![0.0f32; op.domain_len()];
-            for _ in 0..5 {
-                let z: Vec<f32> = (0..op.range_len())
-                    .map(|_| rng.uniform() as f32 - 0.5)
-                    .collect();
-                op.adjoint(&z, &mut at);
-                let lhs: f64 = z
-                    .iter()
-                    .zip(&n.phi)
-                    .map(|(&a, &p)| a as f64 * a as f64 * p as f64)
-                    .sum();
-                let rhs: f64 = at.iter().map(|&a| a as f64 * a as f64).sum();
-                assert!(
-                    lhs >= rhs * (1.0 - 1e-5),
-                    "{name} {model:?}: zᵀΦz {lhs} < ‖Aᵀz‖² {rhs}"
-                );
-            }
+            assert_majorises(&op, &n.phi, &mut rng, 5, &format!("{name} {model:?}"));
         }
     }
 }
@@ -379,23 +389,7 @@ fn every_band_spread_keeps_the_adjoint_the_normaliser_and_convergence() {
                 let e = adjoint_mismatch(&op, 9);
                 assert!(e < 1e-5, "{what}: adjoint mismatch {e}");
                 let n = op.aat_normaliser().unwrap();
-                let mut at = vec![0.0f32; op.domain_len()];
-                for _ in 0..3 {
-                    let z: Vec<f32> = (0..op.range_len())
-                        .map(|_| rng.uniform() as f32 - 0.5)
-                        .collect();
-                    op.adjoint(&z, &mut at);
-                    let lhs: f64 = z
-                        .iter()
-                        .zip(&n.phi)
-                        .map(|(&a, &p)| a as f64 * a as f64 * p as f64)
-                        .sum();
-                    let rhs: f64 = at.iter().map(|&a| a as f64 * a as f64).sum();
-                    assert!(
-                        lhs >= rhs * (1.0 - 1e-5),
-                        "{what}: zᵀΦz {lhs} < ‖Aᵀz‖² {rhs}"
-                    );
-                }
+                assert_majorises(&op, &n.phi, &mut rng, 3, &what);
                 let y = op.forward(&scene).unwrap().into_vec();
                 let sol = Gap::new(GapParams {
                     iterations: 60,

@@ -305,52 +305,15 @@ fn kernel(sigma: f64) -> (Vec<f32>, Vec<f32>) {
     // dropped: kept, one came out 7e-39 (subnormal) on one side only at
     // σ 0.077, and GAP's normaliser of a pixel reached through it alone
     // turned the reconstruction into NaN.
-    let centre = second(&f, 0);
-    let tap = |i: i64| {
-        let e = second(&f, -i.abs()).max(0.0);
-        if e < centre * f64::from(f32::EPSILON) {
-            (0.0, 0.0)
-        } else {
-            (e, second(&df, -i.abs()))
-        }
-    };
-    let (e, de): (Vec<f64>, Vec<f64>) = (-r..=r).map(tap).unzip();
-    let s: f64 = e.iter().sum();
-    let ds: f64 = de.iter().sum();
-    let taps = e.iter().map(|&ei| (ei / s) as f32).collect();
-    let dtaps = e
-        .iter()
-        .zip(&de)
-        .map(|(&ei, &dei)| ((dei * s - ei * ds) / (s * s)) as f32)
-        .collect();
-    (taps, dtaps)
+    even_taps(r, |i| {
+        (second(&f, -i.abs()).max(0.0), second(&df, -i.abs()))
+    })
 }
 
-/// The row taps of the pixel kernel (σ) convolved with a band spread of
-/// `spacing` px, normalised, and their σ-derivative: the pixel kernel
-/// ([`pixel_kernel`]) averaged over the spread's positions
-/// ([`BandSpread::positions`], 64 a side).
-fn spread_kernel(sigma: f64, spread: BandSpread, spacing: f64) -> (Vec<f32>, Vec<f32>) {
-    let positions = spread.positions(&[(-spacing, 0.0), (0.0, 0.0), (spacing, 0.0)], 1, 64);
-    let reach = positions.iter().map(|p| p.0.0.abs()).fold(0.0, f64::max);
-    let r = (4.0 * sigma + reach).ceil() as i64 + 1;
-    let d_pixel = |t: f64| {
-        if sigma <= 0.0 {
-            return 0.0;
-        }
-        let (_, df) = second_antiderivative(sigma);
-        df(t + 1.0) - 2.0 * df(t) + df(t - 1.0)
-    };
-    // even (the spread is symmetric): each tap from −|d|, each term of it
-    // from −|d − t| (the kernel's tails held, not cancelled), and a tap
-    // below f32's resolution beside the centre dropped, as in `kernel`
-    let tap = |i: i64| {
-        let d = -(i.abs() as f64);
-        positions.iter().fold((0.0, 0.0), |(e, de), &((t, _), w)| {
-            let x = -(d - t).abs();
-            (e + w * pixel_kernel(sigma, x).max(0.0), de + w * d_pixel(x))
-        })
-    };
+/// The taps −r ..= r from `tap(i)` = (raw weight, its σ-derivative),
+/// normalised to sum 1, with their exact σ-derivative; a tap below f32's
+/// resolution beside the centre is dropped (see [`kernel`]).
+fn even_taps(r: i64, tap: impl Fn(i64) -> (f64, f64)) -> (Vec<f32>, Vec<f32>) {
     let centre = tap(0).0;
     let (e, de): (Vec<f64>, Vec<f64>) = (-r..=r)
         .map(|i| {
@@ -371,6 +334,33 @@ fn spread_kernel(sigma: f64, spread: BandSpread, spacing: f64) -> (Vec<f32>, Vec
         .map(|(&ei, &dei)| ((dei * s - ei * ds) / (s * s)) as f32)
         .collect();
     (taps, dtaps)
+}
+
+/// The row taps of the pixel kernel (σ) convolved with a band spread of
+/// `spacing` px, normalised, and their σ-derivative: the pixel kernel
+/// ([`pixel_kernel`]) averaged over the spread's positions
+/// ([`BandSpread::positions`], 64 a side).
+fn spread_kernel(sigma: f64, spread: BandSpread, spacing: f64) -> (Vec<f32>, Vec<f32>) {
+    let positions = spread.positions(&[(-spacing, 0.0), (0.0, 0.0), (spacing, 0.0)], 1, 64);
+    let reach = positions.iter().map(|p| p.0.0.abs()).fold(0.0, f64::max);
+    let r = (4.0 * sigma + reach).ceil() as i64 + 1;
+    let (_, df) = second_antiderivative(sigma.max(f64::MIN_POSITIVE));
+    let d_pixel = |x: f64| {
+        if sigma <= 0.0 {
+            0.0
+        } else {
+            df(x + 1.0) - 2.0 * df(x) + df(x - 1.0)
+        }
+    };
+    // even (the spread is symmetric): each tap from −|d|, each term of it
+    // from −|d − t| (the kernel's tails held, not cancelled)
+    even_taps(r, |i| {
+        let d = -(i.abs() as f64);
+        positions.iter().fold((0.0, 0.0), |(e, de), &((t, _), w)| {
+            let x = -(d - t).abs();
+            (e + w * pixel_kernel(sigma, x).max(0.0), de + w * d_pixel(x))
+        })
+    })
 }
 
 /// y = B(σ) A x: a non-negative operator whose range is a `rows × cols`
