@@ -699,6 +699,8 @@ impl<'a> SceneFit<'a> {
                     p.model(),
                     &total,
                 )?
+                // and the problem's band spread, as `p.operator` holds it
+                .with_band_spread(p.band_spread(), psi.a1)?
             }
         };
         Ok(SceneOperator { fit: self, op })
@@ -1156,6 +1158,40 @@ pub(crate) mod tests {
             let e = adjoint_mismatch(&k, 3);
             assert!(e < 1e-5, "weighted, a1 {a1}: {e}");
         }
+    }
+
+    /// The band-shift solves' operators hold the problem's band spread:
+    /// with no shift they are the problem's own operator, spread or not.
+    #[test]
+    fn band_shifted_scene_operators_hold_the_band_spread() {
+        use crate::optics::BandSpread;
+        let (y, mask) = measured(&truth(), false);
+        let plain =
+            CalibrationProblem::nominal(&y, &mask, BANDS, 2.0, DispersionModel::DispersedMask)
+                .unwrap();
+        let none = vec![0.0; BANDS];
+        let x = crate::synth::synthetic_scene(&crate::synth::SceneSpec {
+            rows: mask.rows(),
+            cols: mask.cols(),
+            wavelengths_nm: (0..BANDS).map(|k| 450.0 + 12.0 * k as f64).collect(),
+            seed: 3,
+        })
+        .unwrap();
+        let mut outputs = Vec::new();
+        for spread in [BandSpread::Point, BandSpread::Uniform] {
+            let problem = plain.with_band_spread(spread);
+            let fit = SceneFit::new(&problem, SceneFitSettings::default()).unwrap();
+            let shifted = fit
+                .operator(&truth(), Some(&none))
+                .unwrap()
+                .op
+                .forward(&x)
+                .unwrap();
+            let own = problem.operator(&truth()).unwrap().forward(&x).unwrap();
+            assert_eq!(shifted.as_slice(), own.as_slice(), "{spread:?}");
+            outputs.push(own);
+        }
+        assert_ne!(outputs[0].as_slice(), outputs[1].as_slice());
     }
 
     /// Settings written before the fine pass read back without one; with
