@@ -683,25 +683,7 @@ impl<'a> SceneFit<'a> {
         let op = match along {
             None => p.operator(psi)?,
             // the shifts measured on top of any offsets held
-            Some(along) => {
-                let total: Vec<f64> = match p.band_offsets() {
-                    Some(held) => along
-                        .iter()
-                        .zip(held.as_slice())
-                        .map(|(a, h)| a + h)
-                        .collect(),
-                    None => along.to_vec(),
-                };
-                ModelOperator::with_band_shifts(
-                    p.nominal_mask(),
-                    p.bands(),
-                    psi,
-                    p.model(),
-                    &total,
-                )?
-                // and the problem's band spread, as `p.operator` holds it
-                .with_band_spread(p.band_spread(), psi.a1)?
-            }
+            Some(along) => p.operator_shifted(psi, along)?,
         };
         Ok(SceneOperator { fit: self, op })
     }

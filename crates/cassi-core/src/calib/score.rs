@@ -148,6 +148,12 @@ impl<'a> CalibrationProblem<'a> {
         self.nominal.operator_at(psi)
     }
 
+    /// The candidate ψ's operator with band k moved a further `along[k]` px
+    /// ([`Model::operator_shifted`]: offsets and spread held).
+    pub fn operator_shifted(&self, psi: &Mismatch, along: &[f64]) -> Result<ModelOperator> {
+        self.nominal.operator_shifted(psi, along)
+    }
+
     /// The same problem fitted with another dispersion family.
     pub fn with_model(&self, dispersion: DispersionModel) -> Self {
         Self {

@@ -195,6 +195,28 @@ impl<'m> Model<'m> {
         }?;
         op.with_band_spread(self.band_spread, psi.a1)
     }
+
+    /// [`Self::operator_at`] with band k moved a further `along[k]` px
+    /// along the dispersion, on top of any offsets held (a band-shift
+    /// fit's candidate); the band spread held too.
+    pub fn operator_shifted(&self, psi: &Mismatch, along: &[f64]) -> Result<ModelOperator> {
+        let total: Vec<f64> = match self.band_offsets {
+            Some(held) => along
+                .iter()
+                .zip(held.as_slice())
+                .map(|(a, h)| a + h)
+                .collect(),
+            None => along.to_vec(),
+        };
+        ModelOperator::with_band_shifts(
+            self.nominal_mask,
+            self.bands,
+            psi,
+            self.dispersion,
+            &total,
+        )?
+        .with_band_spread(self.band_spread, psi.a1)
+    }
 }
 
 #[cfg(test)]
