@@ -150,10 +150,22 @@ pub fn predict_on_detector(
     scene: &cassi_core::Cube,
     psi: &cassi_core::Mismatch,
     model: cassi_core::optics::DispersionModel,
+    shape: (usize, usize),
+) -> Option<Vec<f64>> {
+    let instrument = cassi_core::recon::Model::nominal(mask, scene.bands(), 2.0, model).ok()?;
+    predict_with(&instrument, scene, psi, shape)
+}
+
+/// [`predict_on_detector`] through `instrument`'s operator at ψ: what it
+/// holds beside ψ (band offsets, band spread) held too.
+pub fn predict_with(
+    instrument: &cassi_core::recon::Model,
+    scene: &cassi_core::Cube,
+    psi: &cassi_core::Mismatch,
     (rows, cols): (usize, usize),
 ) -> Option<Vec<f64>> {
     use cassi_core::linop::LinearOperator;
-    let op = cassi_core::optics::ModelOperator::new(mask, scene.bands(), psi, model).ok()?;
+    let op = instrument.operator_at(psi).ok()?;
     let (mr, mc) = op.measurement_shape();
     let mut full = vec![0.0f32; mr * mc];
     op.apply(scene.as_slice(), &mut full);

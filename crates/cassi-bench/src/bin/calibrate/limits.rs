@@ -30,7 +30,7 @@
 
 use std::time::Instant;
 
-use cassi_bench::{predict_on_detector, psi_of};
+use cassi_bench::{predict_with, psi_of};
 use cassi_core::calib::{
     CalibrationProblem, DefaultPreset, SCENE_SMOOTH_PX, SceneEstimate, SceneFitSettings,
     gap_tv_reconstruction, gaussian_taps, nelder_mead, scene_fit_score, smooth_bands, texture_fit,
@@ -38,7 +38,8 @@ use cassi_core::calib::{
 use cassi_core::denoise::{TvChambolleParams, TvScratch2d, tv_chambolle_2d};
 use cassi_core::linop::LinearOperator;
 use cassi_core::optics::{DispersionModel, GaussianBlur, ModelOperator};
-use cassi_core::{Cube, Mask, Measurement, Mismatch, Parameter};
+use cassi_core::recon::Model;
+use cassi_core::{Cube, Measurement, Mismatch, Parameter};
 use serde_json::{Value, json};
 
 use super::{per_parameter, tolerance};
@@ -61,26 +62,21 @@ pub struct DetectorNoise {
     pub read_noise_e: f64,
 }
 
-/// The scene-known forward model ψ ↦ A_ψ x on the detector's grid.
+/// The scene-known forward model ψ ↦ A_ψ x on the detector's grid, in
+/// the calibrated model (its family and what it holds beside ψ: band
+/// offsets, band spread).
 struct SceneKnown<'a> {
-    mask: &'a Mask,
+    instrument: Model<'a>,
     scene: &'a Cube,
     rows: usize,
     cols: usize,
-    model: DispersionModel,
 }
 
 impl SceneKnown<'_> {
     /// A_ψ x cropped / zero-padded to rows × cols, or `None` for a ψ the
     /// operator rejects.
     fn model(&self, psi: &Mismatch) -> Option<Vec<f64>> {
-        predict_on_detector(
-            self.mask,
-            self.scene,
-            psi,
-            self.model,
-            (self.rows, self.cols),
-        )
+        predict_with(&self.instrument, self.scene, psi, (self.rows, self.cols))
     }
 }
 
@@ -250,25 +246,23 @@ fn crb(model: &SceneKnown, clean: &[f64], truth: &Mismatch, noise: DetectorNoise
 }
 
 /// Both limit measurements of one case: `y` its (noisy) measurement,
-/// `clean` the same without noise, `blind` the blind calibration's ψ.
-#[allow(clippy::too_many_arguments)]
+/// `clean` the same without noise, `blind` the blind calibration's ψ,
+/// `instrument` the calibrated model (the problem's).
 pub fn measure(
     y: &Measurement,
     clean: &Measurement,
     scene: &Cube,
-    mask: &Mask,
+    instrument: Model,
     blind: &Mismatch,
     truth: &Mismatch,
     noise: DetectorNoise,
-    family: DispersionModel,
 ) -> Value {
     let (rows, cols) = y.shape();
     let model = SceneKnown {
-        mask,
+        instrument,
         scene,
         rows,
         cols,
-        model: family,
     };
     let oracle = oracle_fit(&model, &as_f64(y), blind, truth);
     let t = Instant::now();
@@ -284,7 +278,6 @@ pub fn measure(
 /// blind pipeline could run). `gap_iterations` GAP-TV iterations.
 pub fn gap_tv_scene_fits(
     problem: &CalibrationProblem<'_>,
-    mask: &Mask,
     blind: &Mismatch,
     truth: &Mismatch,
     family: DispersionModel,
@@ -306,11 +299,10 @@ pub fn gap_tv_scene_fits(
         }
         let gap_seconds = t.elapsed().as_secs_f64();
         let known = SceneKnown {
-            mask,
+            instrument: problem.nominal.with_dispersion(family),
             scene: &scene,
             rows,
             cols,
-            model: family,
         };
         let mut fit = oracle_fit(&known, &as_f64(y), blind, truth);
         fit["gap_tv_seconds"] = json!(gap_seconds);
@@ -359,8 +351,8 @@ impl KnownScene {
 }
 
 /// `--limits-smoothed-scene PX` / `--limits-tv-scene WEIGHT`: the
-/// scene-known fit (as [`measure`]'s, in `family`, from the blind
-/// estimate) with the true scene and with the scene as `known` tells it:
+/// scene-known fit (as [`measure`]'s, in the calibrated model, from the
+/// blind estimate) with the true scene and with the scene as `known` tells it:
 /// every band smoothed by a Gaussian of σ PX (edge-replicating, so the
 /// frame's borders keep their light) — how far a fit would get that knew
 /// the scene down to that scale and nothing finer — or TV-denoised, which
@@ -373,10 +365,9 @@ impl KnownScene {
 pub fn told_scene_fits(
     y: &Measurement,
     scene: &Cube,
-    mask: &Mask,
+    instrument: Model,
     blind: &Mismatch,
     truth: &Mismatch,
-    family: DispersionModel,
     known: KnownScene,
 ) -> Value {
     let (rows, cols) = y.shape();
@@ -398,16 +389,15 @@ pub fn told_scene_fits(
     let mut out = serde_json::Map::new();
     for (key, known) in [("true_scene", scene), ("smoothed_scene", &told)] {
         let model = SceneKnown {
-            mask,
+            instrument,
             scene: known,
             rows,
             cols,
-            model: family,
         };
         out.insert(key.into(), oracle_fit(&model, &y, blind, truth));
     }
     let mut record = json!({
-        "family": family,
+        "family": instrument.dispersion(),
         "scene_rms": level,
         "told_scene_rms_change": change,
         "fits": out,
@@ -829,9 +819,9 @@ mod tests {
             blur_sigma_px: 0.4,
             ..Mismatch::nominal(2.0)
         };
-        let family = DispersionModel::DispersedMask;
+        let instrument = Model::nominal(&mask, bands, 2.0, DispersionModel::DispersedMask).unwrap();
         let (my, mx) = (rows, cols + 2 * (bands - 1));
-        let clean = predict_on_detector(&mask, &scene, &truth, family, (my, mx)).unwrap();
+        let clean = predict_with(&instrument, &scene, &truth, (my, mx)).unwrap();
         let y = Measurement::from_vec(my, mx, clean.iter().map(|&v| v as f32).collect()).unwrap();
         let start = Mismatch {
             dx: 0.35,
@@ -842,7 +832,7 @@ mod tests {
             KnownScene::Smoothed { px: 1.0 },
             KnownScene::TvDenoised { weight: 0.1 },
         ] {
-            let record = told_scene_fits(&y, &scene, &mask, &start, &truth, family, known);
+            let record = told_scene_fits(&y, &scene, instrument, &start, &truth, known);
             match known {
                 KnownScene::Smoothed { px } => assert_eq!(record["smooth_px"], px),
                 KnownScene::TvDenoised { weight } => assert_eq!(record["tv_weight"], weight),
@@ -863,6 +853,72 @@ mod tests {
                 objective("smoothed_scene"),
                 objective("true_scene")
             );
+        }
+    }
+
+    /// The limits measure in the calibrated model, what it holds beside ψ
+    /// included: on data whose bands spread, the scene-known fit in the
+    /// spread model returns ψ and explains the data; in the point model it
+    /// cannot (its σ takes part of the spread); the bound is finite and
+    /// small at the noise level.
+    #[test]
+    fn the_limits_hold_the_models_band_spread() {
+        let (rows, cols, bands) = (40, 40, 4);
+        let mask = random_binary_mask(rows, cols, 0.5, 7).unwrap();
+        let texture = random_binary_mask(rows, cols, 0.5, 8).unwrap();
+        let scene: Vec<f32> = (0..bands * rows * cols)
+            .map(|i| {
+                let (k, p) = (i / (rows * cols), i % (rows * cols));
+                (1.0 + 0.2 * k as f32) * (0.6 + 0.4 * texture.as_slice()[p])
+            })
+            .collect();
+        let scene = Cube::from_vec(bands, rows, cols, scene).unwrap();
+        let truth = Mismatch {
+            dx: 0.3,
+            dy: -0.2,
+            blur_sigma_px: 0.4,
+            ..Mismatch::nominal(2.0)
+        };
+        let point = Model::nominal(&mask, bands, 2.0, DispersionModel::DispersedMask).unwrap();
+        let spread = point.with_band_spread(cassi_core::optics::BandSpread::Uniform);
+        let (my, mx) = (rows, cols + 2 * (bands - 1));
+        let clean = predict_with(&spread, &scene, &truth, (my, mx)).unwrap();
+        let y = Measurement::from_vec(my, mx, clean.iter().map(|&v| v as f32).collect()).unwrap();
+        let start = Mismatch {
+            dx: 0.35,
+            dy: -0.15,
+            blur_sigma_px: 0.45,
+            ..truth
+        };
+        let noise = DetectorNoise {
+            photon_peak: 2.0e4,
+            read_noise_e: 3.0,
+        };
+        let held = measure(&y, &y, &scene, spread, &start, &truth, noise);
+        let dropped = measure(&y, &y, &scene, point, &start, &truth, noise);
+        let error = |r: &Value, p: &str| r["oracle_scene"]["error"][p].as_f64().unwrap();
+        for p in ["dx", "dy", "blur_sigma_px"] {
+            assert!(
+                error(&held, p).abs() < 0.01,
+                "spread model: {p} off by {}",
+                error(&held, p)
+            );
+        }
+        let objective = |r: &Value| r["oracle_scene"]["objective"].as_f64().unwrap();
+        assert!(
+            objective(&dropped) > 100.0 * objective(&held).max(1e-12),
+            "point model {} against spread model {}",
+            objective(&dropped),
+            objective(&held)
+        );
+        assert!(
+            error(&dropped, "blur_sigma_px") > 0.1,
+            "the point model's σ should take the spread: off by {}",
+            error(&dropped, "blur_sigma_px")
+        );
+        for p in ["dx", "dy", "blur_sigma_px"] {
+            let bound = held["crb"][p].as_f64().unwrap();
+            assert!(bound > 0.0 && bound < 0.01, "CRB {p} {bound}");
         }
     }
 }

@@ -102,7 +102,9 @@
 //! light spread along the dispersion between its neighbours as a real
 //! camera's continuous spectrum is (`optics::BandSpread`; σ's truth stays
 //! the optics' blur), `--model-band-spread SPREAD`: the calibration's model
-//! spreading them so (`cassi calibrate --band-spread`); `--model-a2 A2`: the calibration holding the curvature A2
+//! spreading them so (`cassi calibrate --band-spread`; ρ's reconstructions
+//! and the limits in that model too); `--model-a2 A2`: the calibration
+//! holding the curvature A2
 //! (`DefaultPreset::dispersion_a2`; with `--dispersion-a2` the same value,
 //! the model that knows the curvature); `--mask-capture SIGMA_PX`: the
 //! instrument's mask a binary code (the file thresholded), rendered crisp,
@@ -1165,10 +1167,9 @@ fn parse_args(argv: &[String]) -> Result<Args> {
          operator know no step or table"
     );
     ensure!(
-        model_band_spread.is_point()
-            || !(recon || limits || inverse_crime || snapshots_n.is_some()),
-        "--model-band-spread: a calibration study (--no-recon --no-limits --no-inverse-crime, no \
-         --snapshots): the reconstructions, the limits and the discrete operator spread no band"
+        model_band_spread.is_point() || !(inverse_crime || snapshots_n.is_some()),
+        "--model-band-spread: no inverse-crime row (--no-inverse-crime: the discrete operator \
+         spreads no band) and no --snapshots"
     );
     if !model_band_spread.is_point() {
         preset.check_band_spread(model_band_spread)?;
@@ -1471,15 +1472,9 @@ fn per_parameter(f: impl Fn(Parameter) -> Value) -> Value {
 }
 
 /// GAP-TV PSNR (dB) of `scene` from `y` with the model ψ = `params`.
-fn recon_psnr(
-    y: &Measurement,
-    mask: &Mask,
-    scene: &Cube,
-    params: &Mismatch,
-    model: DispersionModel,
-) -> Result<f64> {
+fn recon_psnr(y: &Measurement, instrument: &Model, scene: &Cube, params: &Mismatch) -> Result<f64> {
     let method = Method::by_name("gap-tv")?;
-    let model = Model::new(mask, scene.bands(), STRIDE, *params, model)?;
+    let model = instrument.with_mismatch(*params)?;
     let rec = method.solve(y, &model, &mut Silent)?;
     Ok(psnr(scene, &rec.cube.clipped_to_unit())?)
 }
@@ -1662,16 +1657,15 @@ fn run_case(
     if args.recon {
         let t = Instant::now();
         // II, III and IV in the calibrated model's family
-        let ii = recon_psnr(&y, mask, scene, &Mismatch::nominal(STRIDE), args.model)?;
+        let ii = recon_psnr(&y, &problem.nominal, scene, &Mismatch::nominal(STRIDE))?;
         // the calibrated model's operator: σ its own fit where it has one
         let iii = recon_psnr(
             &y,
-            mask,
+            &problem.nominal,
             scene,
             &cal.reconstruction_parameters(),
-            args.model,
         )?;
-        let iv = recon_psnr(&y, mask, scene, &instrument, args.model)?;
+        let iv = recon_psnr(&y, &problem.nominal, scene, &instrument)?;
         let rho = rho(ii, iii, iv);
         eprintln!(
             "  GAP-TV PSNR: II nominal {ii:.2}  III calibrated {iii:.2}  IV true {iv:.2} dB  ρ {}  ({:.1} s)",
@@ -1683,20 +1677,20 @@ fn run_case(
         // the reported σ where the operator's differs (the blur pass's, read
         // on the crisp-cell model): what reconstructing with it would give
         if cal.model_blur_sigma_px.is_some() {
-            let db = recon_psnr(&y, mask, scene, &est, args.model)?;
+            let db = recon_psnr(&y, &problem.nominal, scene, &est)?;
             eprintln!("  GAP-TV PSNR with the blur pass's σ {db:.2} dB");
             record["psnr_db"]["III_blur_pass_sigma"] = json!(db);
         }
         // with a captured mask IV holds σ's reference: the instrument's own σ
         // beside it
         if sigma_reference.is_some() {
-            let db = recon_psnr(&y, mask, scene, &physical, args.model)?;
+            let db = recon_psnr(&y, &problem.nominal, scene, &physical)?;
             eprintln!("  GAP-TV PSNR with the instrument's σ {db:.2} dB");
             record["psnr_db"]["IV_instrument_sigma"] = json!(db);
         }
     }
     if let Some(known) = args.limits_told_scene {
-        let fits = limits::told_scene_fits(&y, scene, mask, &est, &instrument, args.model, known);
+        let fits = limits::told_scene_fits(&y, scene, problem.nominal, &est, &instrument, known);
         for (key, fit) in fits["fits"].as_object().into_iter().flatten() {
             eprintln!(
                 "  scene known ({key}): {}",
@@ -1714,11 +1708,10 @@ fn run_case(
             &y,
             clean,
             scene,
-            mask,
+            problem.nominal,
             &est,
             &instrument,
             detector,
-            args.model,
         );
         // the budget runs the default preset's texture stage
         if let Some(preset) = texture_preset(args) {
@@ -1736,7 +1729,7 @@ fn run_case(
         }
         if let Some(family) = args.limits_gap_tv {
             lim["gap_tv_scene"] =
-                limits::gap_tv_scene_fits(&problem, mask, &est, &instrument, family, 100)?;
+                limits::gap_tv_scene_fits(&problem, &est, &instrument, family, 100)?;
             for (key, fit) in lim["gap_tv_scene"]["fits"]
                 .as_object()
                 .into_iter()
@@ -1753,7 +1746,7 @@ fn run_case(
         if let (true, Some(known)) = (args.recon, scene_known_psi(&lim, &est)) {
             let ii = record["psnr_db"]["II_nominal"].as_f64().unwrap_or(f64::NAN);
             let iv = record["psnr_db"]["IV_true"].as_f64().unwrap_or(f64::NAN);
-            let iii = recon_psnr(&y, mask, scene, &known, args.model)?;
+            let iii = recon_psnr(&y, &problem.nominal, scene, &known)?;
             let rho = rho(ii, iii, iv);
             eprintln!(
                 "  GAP-TV PSNR with the scene-known fit's ψ {iii:.2} dB  ρ {}",
