@@ -35,7 +35,7 @@ use super::uncertainty::{
 use super::{Calibration, CalibrationProblem, PassedOver, ProxyParams, StageReport, Uncertainty};
 use super::{grid, init, nelder_mead};
 use crate::error::Result;
-use crate::optics::DispersionModel;
+use crate::optics::{BandSpread, DispersionModel};
 use crate::params::Parameter::{A1, A2, AlphaDeg, BlurSigmaPx, Dx, Dy, ThetaDeg};
 use crate::params::{Mismatch, Parameter};
 
@@ -386,8 +386,8 @@ fn search_band(
 /// The scores the stages minimise, and the preset's settings.
 struct Scores<'a> {
     problem: &'a CalibrationProblem<'a>,
-    /// The problem with the rounded model, on the search band when there
-    /// is one (see [`Scores::search`]).
+    /// The problem with the rounded model and point bands, on the search
+    /// band when there is one (see [`Scores::search`]).
     front: CalibrationProblem<'a>,
     /// That band (`None`: the whole frame).
     band: Option<&'a RowBand>,
@@ -408,7 +408,13 @@ impl<'a> Scores<'a> {
         };
         Ok(Self {
             problem,
-            front: front.with_model(DispersionModel::Rounded),
+            // the search stages' candidates put each band at one position:
+            // a spread would turn their sharp σ-0 operators into blurred
+            // ones (about 3× the search's time), and their answers are
+            // starts the texture and scene fits refine with the spread
+            front: front
+                .with_model(DispersionModel::Rounded)
+                .with_band_spread(BandSpread::Point),
             band,
             preset,
             search_proxy: ProxyParams {
@@ -1296,7 +1302,7 @@ mod tests {
     /// does not lose to the nominal one.
     #[test]
     fn a_band_spread_model_calibrates_an_instrument_whose_bands_spread() {
-        use crate::optics::{BandSpread, PhysicalSpec};
+        use crate::optics::PhysicalSpec;
         let instrument = Mismatch {
             blur_sigma_px: 0.3,
             ..truth()
