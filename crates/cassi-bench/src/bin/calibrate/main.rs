@@ -2151,7 +2151,7 @@ fn main() -> Result<()> {
         },
         "tolerances": per_parameter(|p| json!(tolerance(p))),
         "limits": args.limits.then(|| json!({
-            "oracle_scene": "ψ minimising min_s ‖y − s·A_ψ x_true‖²/N (the calibrated model's ModelOperator with ψ's blur, \
+            "oracle_scene": "ψ minimising min_s ‖y − s·A_ψ x_true‖²/N (the calibrated model's operator with ψ's blur and its band spread, \
                              cropped/zero-padded to the detector), Nelder–Mead over all six (σ as |σ|) from the \
                              blind estimate, steps (0.1 px, 0.1 px, 0.05°, 0.005, 0.1°, 0.1 px), ≤ 400 evaluations \
                              per leg, restarted at the best point (≤ 2 restarts) while a restart lowers f by ≥ 1e-6 (relative)",
