@@ -1294,6 +1294,39 @@ mod tests {
         }
     }
 
+    /// The search stages score point bands whatever the model spreads (the
+    /// rounded model's sharp candidates find the basin; a spread smears
+    /// their rounding patterns); the final score — and every stage after
+    /// the search — keeps the spread.
+    #[test]
+    fn the_search_scores_point_bands_and_the_final_score_the_spread() {
+        use crate::optics::PhysicalSpec;
+        let spec = PhysicalSpec {
+            band_spread: BandSpread::Uniform,
+            ..PhysicalSpec::default()
+        };
+        let (y, mask) = measured_physical(&truth(), false, 3, spec);
+        let point =
+            CalibrationProblem::nominal(&y, &mask, BANDS, 2.0, DispersionModel::DispersedMask)
+                .unwrap();
+        let spread = point.with_band_spread(BandSpread::Uniform);
+        let preset = DefaultPreset::default();
+        let scores_of = |problem| {
+            let band = search_band(problem, &preset).unwrap();
+            let candidate = Mismatch { dx: 0.3, ..truth() };
+            let scores = Scores::new(problem, &preset, band.as_ref()).unwrap();
+            (scores.search(&candidate), scores.score(&candidate))
+        };
+        let (search_point, score_point) = scores_of(&point);
+        let (search_spread, score_spread) = scores_of(&spread);
+        assert_eq!(search_spread, search_point, "the search holds no spread");
+        assert!(search_spread.is_finite());
+        assert!(
+            (score_spread - score_point).abs() > 1e-3 * score_point.abs(),
+            "the final score holds the spread: {score_spread} against {score_point}"
+        );
+    }
+
     /// An instrument whose bands' light spreads along the dispersion (a
     /// continuous spectrum, constant within each band: `BandSpread::Uniform`
     /// in the 4× simulator): the model that spreads it too (`cassi
