@@ -736,6 +736,7 @@ pub fn print(limits: &Value) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use cassi_core::Mask;
     use cassi_core::synth::random_binary_mask;
 
     /// A scene that is a smooth field times the code each band sees loses
@@ -796,16 +797,12 @@ mod tests {
         assert!(moved < 0.02, "{moved}");
     }
 
-    /// Noiseless data of a textured scene at ψ*: the fit that knows the
-    /// whole scene returns ψ* and explains the data; the fit that knows it
-    /// smoothed by 1 px, or TV-denoised, cannot explain the texture, so it
-    /// leaves a larger objective — the record holds both fits, what the
-    /// fit was told, how far that is from the scene, and the family.
-    #[test]
-    fn the_smoothed_scene_fit_knows_less_than_the_true_scene_fit() {
+    /// A 40×40 mask, a 4-band scene (a binary texture times a ramp over
+    /// the bands) and the ψ* the tests' data are made at.
+    fn textured_case(mask_seed: u64, texture_seed: u64) -> (Mask, Cube, Mismatch) {
         let (rows, cols, bands) = (40, 40, 4);
-        let mask = random_binary_mask(rows, cols, 0.5, 5).unwrap();
-        let texture = random_binary_mask(rows, cols, 0.5, 6).unwrap();
+        let mask = random_binary_mask(rows, cols, 0.5, mask_seed).unwrap();
+        let texture = random_binary_mask(rows, cols, 0.5, texture_seed).unwrap();
         let scene: Vec<f32> = (0..bands * rows * cols)
             .map(|i| {
                 let (k, p) = (i / (rows * cols), i % (rows * cols));
@@ -819,10 +816,28 @@ mod tests {
             blur_sigma_px: 0.4,
             ..Mismatch::nominal(2.0)
         };
-        let instrument = Model::nominal(&mask, bands, 2.0, DispersionModel::DispersedMask).unwrap();
+        (mask, scene, truth)
+    }
+
+    /// `instrument`'s noiseless measurement of `scene` at `psi` on its
+    /// own detector.
+    fn noiseless(instrument: &Model, scene: &Cube, psi: &Mismatch) -> Measurement {
+        let (bands, rows, cols) = scene.shape();
         let (my, mx) = (rows, cols + 2 * (bands - 1));
-        let clean = predict_with(&instrument, &scene, &truth, (my, mx)).unwrap();
-        let y = Measurement::from_vec(my, mx, clean.iter().map(|&v| v as f32).collect()).unwrap();
+        let clean = predict_with(instrument, scene, psi, (my, mx)).unwrap();
+        Measurement::from_vec(my, mx, clean.iter().map(|&v| v as f32).collect()).unwrap()
+    }
+
+    /// Noiseless data of a textured scene at ψ*: the fit that knows the
+    /// whole scene returns ψ* and explains the data; the fit that knows it
+    /// smoothed by 1 px, or TV-denoised, cannot explain the texture, so it
+    /// leaves a larger objective — the record holds both fits, what the
+    /// fit was told, how far that is from the scene, and the family.
+    #[test]
+    fn the_smoothed_scene_fit_knows_less_than_the_true_scene_fit() {
+        let (mask, scene, truth) = textured_case(5, 6);
+        let instrument = Model::nominal(&mask, 4, 2.0, DispersionModel::DispersedMask).unwrap();
+        let y = noiseless(&instrument, &scene, &truth);
         let start = Mismatch {
             dx: 0.35,
             dy: -0.15,
@@ -863,27 +878,10 @@ mod tests {
     /// small at the noise level.
     #[test]
     fn the_limits_hold_the_models_band_spread() {
-        let (rows, cols, bands) = (40, 40, 4);
-        let mask = random_binary_mask(rows, cols, 0.5, 7).unwrap();
-        let texture = random_binary_mask(rows, cols, 0.5, 8).unwrap();
-        let scene: Vec<f32> = (0..bands * rows * cols)
-            .map(|i| {
-                let (k, p) = (i / (rows * cols), i % (rows * cols));
-                (1.0 + 0.2 * k as f32) * (0.6 + 0.4 * texture.as_slice()[p])
-            })
-            .collect();
-        let scene = Cube::from_vec(bands, rows, cols, scene).unwrap();
-        let truth = Mismatch {
-            dx: 0.3,
-            dy: -0.2,
-            blur_sigma_px: 0.4,
-            ..Mismatch::nominal(2.0)
-        };
-        let point = Model::nominal(&mask, bands, 2.0, DispersionModel::DispersedMask).unwrap();
+        let (mask, scene, truth) = textured_case(7, 8);
+        let point = Model::nominal(&mask, 4, 2.0, DispersionModel::DispersedMask).unwrap();
         let spread = point.with_band_spread(cassi_core::optics::BandSpread::Uniform);
-        let (my, mx) = (rows, cols + 2 * (bands - 1));
-        let clean = predict_with(&spread, &scene, &truth, (my, mx)).unwrap();
-        let y = Measurement::from_vec(my, mx, clean.iter().map(|&v| v as f32).collect()).unwrap();
+        let y = noiseless(&spread, &scene, &truth);
         let start = Mismatch {
             dx: 0.35,
             dy: -0.15,
