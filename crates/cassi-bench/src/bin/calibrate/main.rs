@@ -137,8 +137,8 @@ use std::time::Instant;
 
 use anyhow::{Context, Result, anyhow, bail, ensure};
 use cassi_bench::{
-    golden_section, median, physical_random_mismatch, predict_on_detector, psi_of,
-    relative_residual2, scene_name, shared_data,
+    golden_section, median, physical_random_mismatch, predict_with, psi_of, relative_residual2,
+    scene_name, shared_data,
 };
 use cassi_core::calib::{
     BlurBootstrap, BlurPass, Calibration, CalibrationProblem, CombineParams, DefaultPreset,
@@ -1428,8 +1428,9 @@ fn measure(
 const SIGMA_REFERENCE_MAX_PX: f64 = 2.0;
 const SIGMA_REFERENCE_TOL_PX: f64 = 1e-3;
 
-/// The blur σ that `model`, handed `mask`, fits to the clean measurement
-/// `clean` with the true scene and every other parameter at `truth`.
+/// The blur σ that `instrument` (a model family handed a mask, and what it
+/// holds beside ψ: a band spread) fits to the clean measurement `clean`
+/// with the true scene and every other parameter at `truth`.
 /// With a captured mask the model's σ is not the instrument's: the model
 /// blurs after a mask that already holds the capture's blur, where the
 /// instrument blurs a crisp code. In the crisp-cell model (each handed
@@ -1440,13 +1441,7 @@ const SIGMA_REFERENCE_TOL_PX: f64 = 1e-3;
 /// pixel). In the dispersed-mask model it also absorbs the bilinear
 /// sampling's own blur at a pose off the pixel grid (README, "Where the
 /// limit is"), recorded beside it.
-fn sigma_reference(
-    clean: &Measurement,
-    mask: &Mask,
-    scene: &Cube,
-    truth: &Mismatch,
-    model: DispersionModel,
-) -> f64 {
+fn sigma_reference(clean: &Measurement, instrument: &Model, scene: &Cube, truth: &Mismatch) -> f64 {
     let y: Vec<f64> = clean.as_slice().iter().map(|&v| v as f64).collect();
     let shape = clean.shape();
     let score = |sigma: f64| {
@@ -1454,7 +1449,7 @@ fn sigma_reference(
             blur_sigma_px: sigma,
             ..*truth
         };
-        predict_on_detector(mask, scene, &psi, model, shape)
+        predict_with(instrument, scene, &psi, shape)
             .map_or(f64::INFINITY, |m| relative_residual2(&y, &m))
     };
     golden_section(score, (0.0, SIGMA_REFERENCE_MAX_PX), SIGMA_REFERENCE_TOL_PX)
@@ -1537,7 +1532,10 @@ fn run_case(
     };
     let references = match (&clean, args.mask_capture_px) {
         (Some(clean), Some(_)) if physical_kind => {
-            let fit = |model| sigma_reference(clean, mask, scene, &physical, model);
+            let fit = |model| {
+                let instrument = problem.nominal.with_dispersion(model);
+                sigma_reference(clean, &instrument, scene, &physical)
+            };
             Some((
                 fit(DispersionModel::CrispCells),
                 fit(DispersionModel::DispersedMask),
@@ -2303,7 +2301,8 @@ mod tests {
                 None,
             )
             .unwrap();
-            sigma_reference(&clean, &masks.nominal, &scene, &truth, model)
+            let instrument = Model::nominal(&masks.nominal, scene.bands(), 2.0, model).unwrap();
+            sigma_reference(&clean, &instrument, &scene, &truth)
         };
         let (crisp, dispersed) = (DispersionModel::CrispCells, DispersionModel::DispersedMask);
         for dy in [0.0, 0.5] {
