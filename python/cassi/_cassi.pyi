@@ -205,7 +205,7 @@ def calibrate(
     ridge_probes: bool = False,
     fit_curvature: bool = False,
     band_offsets: Optional[Sequence[float]] = None,
-    band_spread: str = "point",
+    band_spread: Optional[str] = None,
     progress: Optional[Callable[[Dict[str, Any]], object]] = None,
 ) -> Calibration:
     """Self-calibration from the measurement and the nominal mask alone;
@@ -221,10 +221,11 @@ def calibrate(
     paper preset. `band_offsets`: each band's position along the dispersion (px, one per
     band; a monochromator scan), its own line through band 0 removed and the rest held in
     every candidate (Calibration.band_offsets; reconstruct(calibration=…) holds it too);
-    an error with the paper preset. `band_spread`: "point", "uniform" or "linear" — each
+    an error with the paper preset. `band_spread`: "uniform", "point" or "linear" — each
     band's light spread along the dispersion in the fitted model, as a camera's continuous
-    spectrum spreads it (Calibration.band_spread; reconstructions hold it too); an error
-    with the paper preset."""
+    spectrum spreads it (Calibration.band_spread; reconstructions hold it too); None: the
+    CLI's default, "uniform" for the default preset's dispersed-mask and crisp-cell
+    models, "point" otherwise; a spread is an error with the paper preset."""
 
 def combine_calibrations(
     calibrations: List[Calibration],

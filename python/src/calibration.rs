@@ -469,11 +469,12 @@ enum Message {
 ///         (`Calibration.band_offsets`), which `reconstruct(calibration=…)`
 ///         holds too. Default preset only.
 ///     band_spread: where each band's light lies along the dispersion in
-///         the fitted model (the CLI's --band-spread): "point" (the
-///         default), "uniform" (evenly over the bands' spacing: a spectrum
-///         constant within each band) or "linear" (a hat between the
-///         neighbours); kept in the result (`Calibration.band_spread`).
-///         Default preset only.
+///         the fitted model (the CLI's --band-spread): "uniform" (evenly
+///         over the bands' spacing: a spectrum constant within each band),
+///         "point" or "linear" (a hat between the neighbours); None: the
+///         CLI's default ("uniform" for the default preset's dispersed-mask
+///         and crisp-cell models, "point" otherwise); kept in the result
+///         (`Calibration.band_spread`). Spread bands: default preset only.
 ///     progress: called with a dict {name, evaluations, seconds,
 ///         parameters, score} as each stage finishes.
 ///
@@ -490,7 +491,7 @@ enum Message {
 ///
 /// The GIL is released while the calibration runs.
 #[pyfunction]
-#[pyo3(signature = (y, mask, *, bands=28, stride=2.0, model=None, preset="default", dispersion_a2=0.0, blur_pass=None, search_rows=None, ridge_probes=false, fit_curvature=false, band_offsets=None, band_spread="point", progress=None))]
+#[pyo3(signature = (y, mask, *, bands=28, stride=2.0, model=None, preset="default", dispersion_a2=0.0, blur_pass=None, search_rows=None, ridge_probes=false, fit_curvature=false, band_offsets=None, band_spread=None, progress=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn calibrate(
     py: Python<'_>,
@@ -506,7 +507,7 @@ pub fn calibrate(
     ridge_probes: bool,
     fit_curvature: bool,
     band_offsets: Option<Vec<f64>>,
-    band_spread: &str,
+    band_spread: Option<&str>,
     progress: Option<Bound<'_, PyAny>>,
 ) -> PyResult<PyCalibration> {
     let mut preset = Preset::by_name(preset, stride)
@@ -565,9 +566,12 @@ pub fn calibrate(
             )
         }
     };
-    let spread: cassi_core::optics::BandSpread = band_spread
-        .parse()
-        .map_err(|e| value_error(py, format!("band_spread: {e}")))?;
+    let spread: cassi_core::optics::BandSpread = match band_spread {
+        Some(name) => name
+            .parse()
+            .map_err(|e| value_error(py, format!("band_spread: {e}")))?,
+        None => preset.default_band_spread(model),
+    };
     preset
         .check_band_spread(spread)
         .map_err(|e| value_error(py, format!("band_spread: {e}")))?;

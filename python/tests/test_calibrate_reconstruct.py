@@ -10,6 +10,11 @@ import pytest
 
 import cassi
 
+# cassi.simulate's discrete operators put each band's light at one position;
+# calibrate's default spreads it (a camera's continuous spectrum), so the
+# calibrations of their data say so
+POINT = "point"
+
 TRUTH = {"dx": 1.3, "dy": -0.8, "theta_deg": 0.35, "a1": 2.0, "alpha_deg": 0.0, "blur_sigma_px": 0.0}
 
 
@@ -55,7 +60,7 @@ def test_default_calibration_reports_trade_offs_and_blur(case):
     scene, mask, _ = case
     truth = dict(TRUTH, a1=2.05, alpha_deg=1.5)
     y = cassi.simulate(scene, mask, truth, model="dispersed-mask", noise=False)
-    cal = cassi.calibrate(y, mask, bands=8)  # dispersed-mask is the default
+    cal = cassi.calibrate(y, mask, bands=8, band_spread=POINT)  # dispersed-mask is the default
     e = cal.parameters
     assert cal.model == "dispersed-mask"
     assert abs(e["a1"] - 2.05) < 0.02 and abs(e["alpha_deg"] - 1.5) < 0.5, e
@@ -70,7 +75,7 @@ def test_default_calibration_reports_trade_offs_and_blur(case):
     assert "95 %" in repr(cal)
     assert cassi.Calibration.from_json(cal.to_json()).intervals_95 == wide
     # a curvature given is held and comes back in the parameters
-    bent = cassi.calibrate(y, mask, bands=8, dispersion_a2=-0.004)
+    bent = cassi.calibrate(y, mask, bands=8, band_spread=POINT, dispersion_a2=-0.004)
     assert bent.parameters["a2"] == -0.004
     # it also ran the fits from the nominal a1 and names the answer it passed over
     restart = cassi.CHOOSING_STAGES["nominal_a1_restart"]
@@ -85,7 +90,7 @@ def test_default_calibration_reports_trade_offs_and_blur(case):
         other = s["passed_over"]
         assert other is None or (s["name"].endswith(choosing) and other["score"] >= s["score"]), s
     with pytest.raises(ValueError, match="a2"):
-        cassi.calibrate(y, mask, bands=8, dispersion_a2=0.9)
+        cassi.calibrate(y, mask, bands=8, band_spread=POINT, dispersion_a2=0.9)
     for a, b, corr in cal.trade_offs:
         assert a in cassi.PARAMETERS and b in cassi.PARAMETERS and abs(corr) >= 0.8
 
@@ -136,7 +141,7 @@ def test_snapshots_refit_jointly_on_their_measurements(case):
     truth = dict(TRUTH, dx=0.6, dy=-0.3, theta_deg=0.0, a1=2.02, blur_sigma_px=0.4)
     scenes = [scene, cassi.synthetic_scene(96, 96, 8, seed=9)]
     ys = [cassi.simulate(s, mask, truth, model="crisp-cells", noise=False) for s in scenes]
-    cals = [cassi.calibrate(y, mask, bands=8) for y in ys]
+    cals = [cassi.calibrate(y, mask, bands=8, band_spread=POINT) for y in ys]
     plain = cassi.combine_calibrations(cals)
     joint = cassi.combine_calibrations(cals, measurements=ys, mask=mask, bands=8)
     assert joint.snapshots["joint_fit_from"] == plain.parameters
@@ -164,10 +169,10 @@ def test_the_blur_pass_refits_the_blur_alone_last(case):
     truth = dict(TRUTH, blur_sigma_px=0.6)
     y = cassi.simulate(scene, mask, truth, model="crisp-cells", noise=False)
     # the default preset's own last stage (since stop 41); False leaves it out
-    cal = cassi.calibrate(y, mask, bands=8)
+    cal = cassi.calibrate(y, mask, bands=8, band_spread=POINT)
     *_, before, last = cal.stages
     assert last["name"].startswith("blur pass"), last
-    without = cassi.calibrate(y, mask, bands=8, blur_pass=False)
+    without = cassi.calibrate(y, mask, bands=8, band_spread=POINT, blur_pass=False)
     assert without.stages[-1]["name"] == before["name"], without.stages[-1]
     assert without.parameters == before["parameters"]
     assert cal.parameters == last["parameters"]
@@ -186,17 +191,17 @@ def test_the_blur_pass_refits_the_blur_alone_last(case):
 
 def test_search_rows_puts_the_search_stages_on_a_band(case):
     scene, mask, y = case
-    every = cassi.calibrate(y, mask, bands=8, blur_pass=False, search_rows="all")
-    default = cassi.calibrate(y, mask, bands=8, blur_pass=False)
+    every = cassi.calibrate(y, mask, bands=8, band_spread=POINT, blur_pass=False, search_rows="all")
+    default = cassi.calibrate(y, mask, bands=8, band_spread=POINT, blur_pass=False)
     # a frame no taller than 256 rows searches on every row by default
     assert every.parameters == default.parameters
-    band = cassi.calibrate(y, mask, bands=8, blur_pass=False, search_rows=16)
+    band = cassi.calibrate(y, mask, bands=8, band_spread=POINT, blur_pass=False, search_rows=16)
     # the search stages score the band: another score at stage 1
     assert band.stages[1]["name"] == every.stages[1]["name"]
     assert abs(band.stages[1]["score"] / every.stages[1]["score"] - 1) > 1e-3
     for bad in (0, -3, "some", 2.5):
         with pytest.raises(ValueError, match="search_rows"):
-            cassi.calibrate(y, mask, bands=8, search_rows=bad)
+            cassi.calibrate(y, mask, bands=8, band_spread=POINT, search_rows=bad)
     with pytest.raises(ValueError, match="search_rows"):
         cassi.calibrate(y, mask, bands=8, preset="paper", search_rows=64)
 
@@ -204,9 +209,9 @@ def test_search_rows_puts_the_search_stages_on_a_band(case):
 def test_ridge_probes_report_their_profiles_and_keep_the_answer(case):
     scene, mask, _ = case
     y = cassi.simulate(scene, mask, dict(TRUTH, a1=2.03), model="dispersed-mask", noise=False)
-    plain = cassi.calibrate(y, mask, bands=8, blur_pass=False)
+    plain = cassi.calibrate(y, mask, bands=8, band_spread=POINT, blur_pass=False)
     assert plain.ridge_probes is None
-    probed = cassi.calibrate(y, mask, bands=8, blur_pass=False, ridge_probes=True)
+    probed = cassi.calibrate(y, mask, bands=8, band_spread=POINT, blur_pass=False, ridge_probes=True)
     # the probes keep the answer; the errors only widen
     assert probed.parameters == plain.parameters
     for k, s in plain.standard_errors.items():
@@ -230,9 +235,9 @@ def test_ridge_probes_report_their_profiles_and_keep_the_answer(case):
 def test_fit_curvature_reports_a2_with_its_error(case):
     scene, mask, _ = case
     y = cassi.simulate(scene, mask, dict(TRUTH, a1=2.03), model="dispersed-mask", noise=False)
-    held = cassi.calibrate(y, mask, bands=8, blur_pass=False)
+    held = cassi.calibrate(y, mask, bands=8, band_spread=POINT, blur_pass=False)
     assert held.standard_errors["a2"] is None and held.parameters["a2"] == 0.0
-    fitted = cassi.calibrate(y, mask, bands=8, blur_pass=False, fit_curvature=True)
+    fitted = cassi.calibrate(y, mask, bands=8, band_spread=POINT, blur_pass=False, fit_curvature=True)
     # a straight instrument: the curvature stays small, with its own error
     assert abs(fitted.parameters["a2"]) < 0.01
     assert fitted.standard_errors["a2"] > 0
@@ -245,11 +250,11 @@ def test_a_band_table_is_held_and_travels_to_the_reconstruction(case):
     y = cassi.simulate(scene, mask, TRUTH, model="dispersed-mask", noise=False)
     # band 2 lands 0.4 px late: positions 0, 2, 4.4, 6, …
     table = [2.0 * k + (0.4 if k == 2 else 0.0) for k in range(8)]
-    cal = cassi.calibrate(y, mask, bands=8, blur_pass=False, band_offsets=table)
+    cal = cassi.calibrate(y, mask, bands=8, band_spread=POINT, blur_pass=False, band_offsets=table)
     held = cal.band_offsets
     assert len(held) == 8 and held[0] == 0.0 and held[2] > 0.3, held
     assert json.loads(cal.to_json())["band_offsets"]["offsets"] == held
-    assert cassi.calibrate(y, mask, bands=8, blur_pass=False).band_offsets is None
+    assert cassi.calibrate(y, mask, bands=8, band_spread=POINT, blur_pass=False).band_offsets is None
     # the reconstruction holds the calibration's table: not the same
     # parameters without it
     with_table = cassi.reconstruct(y, mask, bands=8, calibration=cal, iterations=3)
@@ -262,11 +267,11 @@ def test_a_band_table_is_held_and_travels_to_the_reconstruction(case):
     plain_op = cassi.Operator(mask, bands=8, mismatch=cal.reconstruction_parameters, model=cal.model)
     assert not np.array_equal(held_op.forward(x), plain_op.forward(x))
     with pytest.raises(ValueError, match="band_offsets: 3 values, expected 8"):
-        cassi.calibrate(y, mask, bands=8, band_offsets=[0.0, 2.0, 4.0])
+        cassi.calibrate(y, mask, bands=8, band_spread=POINT, band_offsets=[0.0, 2.0, 4.0])
     with pytest.raises(ValueError, match="band_offsets.*paper preset"):
         cassi.calibrate(y, mask, bands=8, preset="paper", band_offsets=table)
     with pytest.raises(ValueError, match="wavelengths"):
-        cassi.calibrate(y, mask, bands=8, band_offsets=[450.0 + 7.0 * k for k in range(8)])
+        cassi.calibrate(y, mask, bands=8, band_spread=POINT, band_offsets=[450.0 + 7.0 * k for k in range(8)])
 
 
 def test_a_band_spread_is_kept_and_travels_to_the_reconstruction(case):
@@ -276,8 +281,12 @@ def test_a_band_spread_is_kept_and_travels_to_the_reconstruction(case):
     cal = cassi.calibrate(y, mask, bands=8, blur_pass=False, band_spread="uniform")
     assert cal.band_spread == "uniform"
     assert json.loads(cal.to_json())["band_spread"] == "uniform"
-    plain = cassi.calibrate(y, mask, bands=8, blur_pass=False)
+    plain = cassi.calibrate(y, mask, bands=8, blur_pass=False, band_spread=POINT)
     assert plain.band_spread == "point" and "band_spread" not in json.loads(plain.to_json())
+    # the default: spread evenly with the dispersed-mask model (a camera's
+    # continuous spectrum), a point with the rounded model
+    assert cassi.calibrate(y, mask, bands=8, blur_pass=False).band_spread == "uniform"
+    assert cassi.calibrate(y, mask, bands=8, model="rounded").band_spread == "point"
     # the reconstruction and an Operator of the calibration spread the bands too
     spread = cassi.reconstruct(y, mask, bands=8, calibration=cal, iterations=3)
     without = cassi.reconstruct(y, mask, bands=8, mismatch=cal.reconstruction_parameters,

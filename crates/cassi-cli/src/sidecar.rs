@@ -3,6 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
+use cassi_core::optics::BandSpread;
 use cassi_eval::records::{JsonFile, Record, SimulationRecord, read_record, sidecar_path};
 
 /// The simulation sidecar beside `measurement`, if there is one: a JSON file
@@ -23,4 +24,13 @@ pub fn existing_sidecar(measurement: &Path) -> Option<PathBuf> {
 pub fn recorded_bands(measurement: &Path) -> Option<usize> {
     let record: SimulationRecord = read_record(sidecar_path(measurement)).ok()?;
     Some(record.instrument.bands).filter(|&b| b > 0)
+}
+
+/// Where each band's light lay in the instrument that made `measurement`,
+/// as its simulation sidecar records it (one this build reads): the
+/// physical simulator's band spread, or a point per band for a discrete
+/// model's operator. An instrument's design, as its band count is.
+pub fn recorded_band_spread(measurement: &Path) -> Option<BandSpread> {
+    let record: SimulationRecord = read_record(sidecar_path(measurement)).ok()?;
+    Some(record.physical.map_or(BandSpread::Point, |p| p.band_spread))
 }

@@ -661,12 +661,49 @@ fn a_band_table_travels_from_the_calibration_to_the_model() {
 
 /// `--band-spread`: written into the calibration, named in the
 /// reconstruction's report (the model it used), left out when a point;
-/// refused by name with the paper preset or an unknown spread, nothing
-/// written.
+/// without it, what the measurement's simulation sidecar records, else
+/// uniform with the default preset's dispersed-mask model and a point with
+/// the paper preset or the rounded model; refused by name with the paper
+/// preset or an unknown spread, nothing written.
 #[test]
 fn a_band_spread_travels_from_the_calibration_to_the_model() {
     let d = dir("band_spread");
     let (meas, mask) = simulated(&d);
+    // the sidecar: the rounded operator made it, a point per band
+    let record = calibrated(&d, &meas, &mask, &[], "sidecar.json");
+    assert!(record.get("band_spread").is_none(), "{record}");
+    // the same measurement without its sidecar, as a camera's
+    let bare = d.join("camera.npy");
+    std::fs::copy(&meas, &bare).unwrap();
+    let record = calibrated(&d, &bare, &mask, &["--bands", "4"], "default.json");
+    assert_eq!(record["band_spread"], "uniform", "{record}");
+    for (extra, name) in [
+        (["--bands", "4", "--preset", "paper"], "paper.json"),
+        (["--bands", "4", "--model", "rounded"], "rounded.json"),
+    ] {
+        let record = calibrated(&d, &bare, &mask, &extra, name);
+        assert!(record.get("band_spread").is_none(), "{extra:?}: {record}");
+    }
+    // a physical simulation's sidecar records its spread, which is fitted
+    let physical = d.join("physical.npy");
+    ok(&cassi(&[
+        "simulate",
+        "--synthetic",
+        "--size",
+        "32",
+        "--bands",
+        "4",
+        "--random-mask",
+        "--oversample",
+        "2",
+        "--band-spread",
+        "linear",
+        "-o",
+        s(&physical),
+        "-q",
+    ]));
+    let record = calibrated(&d, &physical, &mask, &[], "physical_cal.json");
+    assert_eq!(record["band_spread"], "linear", "{record}");
     let record = calibrated(&d, &meas, &mask, &["--band-spread", "linear"], "cal.json");
     assert_eq!(record["band_spread"], "linear", "{record}");
     let report = reconstruction_report(&meas, &mask, &d.join("cal.json"), &d.join("r.npy"));

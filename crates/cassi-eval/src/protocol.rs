@@ -262,7 +262,16 @@ pub fn run_scenario(
         ),
         Scenario::Oracle => (&prepared.measurement, study.mismatch, study.instrument),
     };
+    // the mismatched scenarios reconstruct in the calibrated model's family:
+    // what the calibration held beside ψ (band offsets, band spread) too
+    let calibration = &prepared.calibration;
     let (metrics, seconds, cube) = Model::new(mask, scene.bands(), study.stride, params, model)
+        .and_then(|m| match scenario {
+            Scenario::IdealClean | Scenario::IdealNoisy => Ok(m),
+            Scenario::Assumed | Scenario::Corrected | Scenario::Oracle => {
+                m.holding(calibration.band_offsets.as_ref(), calibration.band_spread)
+            }
+        })
         .map_err(anyhow::Error::from)
         .and_then(|assumed| reconstruct_and_score(scene, y, &assumed, method))
         .with_context(|| format!("{} {}", method.name(), scenario.label()))?;

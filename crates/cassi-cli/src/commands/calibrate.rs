@@ -17,6 +17,8 @@ use super::band_table::load_band_offsets;
 use super::inputs::{MeasurementArgs, UncodedMask};
 use crate::interrupt;
 use crate::report::Reporter;
+use crate::sidecar::recorded_band_spread;
+use cassi_eval::records::sidecar_path;
 
 #[derive(Args)]
 pub struct CalibrateArgs {
@@ -92,13 +94,16 @@ pub struct CalibrateArgs {
     #[arg(long, requires = "band_offsets")]
     pub band_offsets_var: Option<String>,
     /// Where each band's light lies along the dispersion in the fitted
-    /// model: `point` (at the band's position; the default), `uniform`
-    /// (evenly over the band's width, a1 px: a spectrum constant within
-    /// each band) or `linear` (a hat between its neighbours: a spectrum
-    /// linear between band centres). A camera's light is continuous in
-    /// wavelength, so each band's light spreads; σ is then the optics'
-    /// blur alone. Written into the calibration, which `cassi reconstruct
-    /// --calibration` then uses. Default preset only.
+    /// model: `uniform` (evenly over the band's width, a1 px: a spectrum
+    /// constant within each band; the default with the default preset's
+    /// dispersed-mask and crisp-cell models), `point` (at the band's
+    /// position; the default with the paper preset and the rounded and
+    /// subpixel models) or `linear` (a hat between its neighbours: a
+    /// spectrum linear between band centres). A camera's light is
+    /// continuous in wavelength, so each band's light spreads; σ is then
+    /// the optics' blur alone. Written into the calibration, which `cassi
+    /// reconstruct --calibration` then uses. Spread bands: default preset
+    /// only.
     #[arg(long, value_name = "SPREAD", value_parser = str::parse::<BandSpread>)]
     pub band_spread: Option<BandSpread>,
     /// Output calibration JSON (for `cassi reconstruct --calibration`).
@@ -107,6 +112,39 @@ pub struct CalibrateArgs {
     /// Also write the calibrated (warped) mask here (.npy, .npz, .mat).
     #[arg(long)]
     pub write_mask: Option<PathBuf>,
+}
+
+/// The band spread to fit and where it came from: `--band-spread`, else
+/// the spread the measurement's simulation sidecar records (the instrument
+/// that made it, as its band count is taken from there) where the preset
+/// can hold it, else the preset's default for `model`.
+fn band_spread(
+    args: &CalibrateArgs,
+    preset: &Preset,
+    model: DispersionModel,
+) -> (BandSpread, String) {
+    if let Some(spread) = args.band_spread {
+        return (spread, "from --band-spread".into());
+    }
+    let measurement = &args.input.measurement;
+    if let Some(spread) = recorded_band_spread(measurement)
+        && preset.check_band_spread(spread).is_ok()
+    {
+        return (
+            spread,
+            format!(
+                "as the simulation sidecar {} records (--band-spread to choose)",
+                sidecar_path(measurement).display()
+            ),
+        );
+    }
+    let spread = preset.default_band_spread(model);
+    let why = if spread.is_point() {
+        "the default with this preset and model"
+    } else {
+        "the default: a camera's spectrum is continuous (--band-spread point for one position)"
+    };
+    (spread, why.into())
 }
 
 /// `--search-rows`: a count of middle rows, or every row.
@@ -152,9 +190,9 @@ pub fn run(args: &CalibrateArgs, reporter: &Reporter) -> anyhow::Result<()> {
     if args.band_offsets.is_some() {
         preset.check_band_offsets().context("--band-offsets")?;
     }
-    let spread = args.band_spread.unwrap_or_default();
-    preset.check_band_spread(spread).context("--band-spread")?;
     let model = args.model.unwrap_or(preset.default_model());
+    let (spread, spread_from) = band_spread(args, &preset, model);
+    preset.check_band_spread(spread).context("--band-spread")?;
     let (measurement, mask, bands) = args.input.load(reporter, UncodedMask::Refuse)?;
     let offsets = args
         .band_offsets
@@ -177,9 +215,12 @@ pub fn run(args: &CalibrateArgs, reporter: &Reporter) -> anyhow::Result<()> {
     if !spread.is_point() {
         problem = problem.with_band_spread(spread);
         reporter.say(&format!(
-            "each band's light spread along the dispersion: {} over the bands' spacing (a1)",
+            "each band's light spread along the dispersion: {} over the bands' spacing (a1), \
+             {spread_from}",
             spread.name()
         ));
+    } else if args.band_spread.is_none() {
+        reporter.say(&format!("each band's light at one position, {spread_from}"));
     }
     let mut on_stage = |s: &StageReport| {
         // between stages nothing is half-written: a signal ends the run here

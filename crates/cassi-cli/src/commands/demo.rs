@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 
 use cassi_core::calib::Calibration;
-use cassi_core::optics::{DispersionModel, PhysicalSpec};
+use cassi_core::optics::{BandSpread, DispersionModel, PhysicalSpec};
 use cassi_core::recon::Method;
 use cassi_core::{Mismatch, Parameter};
 use cassi_eval::jobs::demo::{
@@ -79,7 +79,11 @@ pub fn run(args: &DemoArgs, reporter: &Reporter) -> anyhow::Result<()> {
         wl[0],
         wl[wl.len() - 1],
         Parameter::format_all(&m),
-        describe_instrument(args.instrument, record.physical.as_ref()),
+        describe_instrument(
+            args.instrument,
+            record.physical.as_ref(),
+            calibration.band_spread
+        ),
         Parameter::format_all(&Mismatch::nominal(stride)),
         rows,
         cols,
@@ -123,23 +127,38 @@ pub fn run(args: &DemoArgs, reporter: &Reporter) -> anyhow::Result<()> {
 }
 
 /// Where the snapshot came from, and whether that is an inverse crime.
-fn describe_instrument(instrument: DemoInstrument, physical: Option<&PhysicalSpec>) -> String {
+fn describe_instrument(
+    instrument: DemoInstrument,
+    physical: Option<&PhysicalSpec>,
+    model_spread: BandSpread,
+) -> String {
     match physical {
         Some(p) => format!(
-            "physical, {}× oversampled: crisp mask squares, continuous dispersion, Gaussian \
-             blur σ {} px, sensor {} (not an inverse crime; calibrated and reconstructed with \
-             the {} model)",
+            "physical, {}× oversampled: crisp mask squares, continuous dispersion, each \
+             band's light {}, Gaussian blur σ {} px, sensor {} (not an inverse crime; \
+             calibrated and reconstructed with the {} model, each band's light {})",
             p.oversample,
+            spread_words(p.band_spread),
             p.blur_sigma_px,
             p.detector
                 .map_or("mask + dispersion".into(), |(r, c)| format!("{r}×{c}")),
-            instrument.model().name()
+            instrument.model().name(),
+            spread_words(model_spread)
         ),
         None => format!(
             "the {} model's own operator (an inverse crime: calibration and GAP-TV fit the \
              operator that made the data)",
             instrument.model().name()
         ),
+    }
+}
+
+/// How a band's light lies along the dispersion, in words.
+fn spread_words(spread: BandSpread) -> &'static str {
+    match spread {
+        BandSpread::Point => "at one position",
+        BandSpread::Uniform => "spread evenly over its width",
+        BandSpread::Linear => "spread as a hat between its neighbours",
     }
 }
 

@@ -12,7 +12,7 @@ use cassi_core::calib::{
     Calibration, CalibrationProblem, DefaultPreset, Preset, calibrate_default,
 };
 use cassi_core::color::pseudo_rgb;
-use cassi_core::optics::{DispersionModel, NoiseModel, PhysicalSpec, SimulationSpec};
+use cassi_core::optics::{BandSpread, DispersionModel, NoiseModel, PhysicalSpec, SimulationSpec};
 use cassi_core::recon::Method;
 use cassi_core::synth::{SceneSpec, random_binary_mask, synthetic_scene};
 use cassi_core::{Instrument, Measurement, Mismatch};
@@ -30,8 +30,9 @@ use crate::sweep_rows::Sweeps;
 /// What makes the demo's snapshot.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum DemoInstrument {
-    /// The physical simulator: 4× oversampled, blur σ 0.5 px, fixed sensor;
-    /// calibrated and reconstructed with the dispersed-mask model.
+    /// The physical simulator: 4× oversampled, blur σ 0.5 px, each band's
+    /// light spread over its width, fixed sensor; calibrated and
+    /// reconstructed with the dispersed-mask model and that spread.
     Physical,
     /// The rounded model's own operator (an inverse crime).
     Rounded,
@@ -117,6 +118,9 @@ impl DemoPlan {
                 SIZE,
                 SIZE + ((instrument.bands - 1) as f64 * instrument.stride).round() as usize,
             )),
+            // a camera's spectrum is continuous: each band's light lands
+            // across its spacing
+            band_spread: BandSpread::Uniform,
             ..PhysicalSpec::default()
         })
     }
@@ -185,20 +189,21 @@ pub fn run_demo(plan: &DemoPlan, observer: &mut dyn JobObserver) -> anyhow::Resu
     })?;
     let snr_db = snr_db(&inputs, &measurement)?;
 
-    // Self-calibration from the measurement and the nominal mask alone.
+    // Self-calibration from the measurement and the nominal mask alone, in
+    // the model `cassi calibrate` fits by default (the band spread too).
+    let preset = DefaultPreset::default();
     let problem = CalibrationProblem::nominal(
         &measurement,
         &inputs.mask,
         inputs.instrument.bands,
         inputs.instrument.stride,
         model,
-    )?;
+    )?
+    .with_band_spread(Preset::Default(preset.clone()).default_band_spread(model));
     let calibration = stage(observer, "self-calibrating (default preset)", |o| {
-        Ok(calibrate_default(
-            &problem,
-            &DefaultPreset::default(),
-            &mut |_| o.stop_point(),
-        )?)
+        Ok(calibrate_default(&problem, &preset, &mut |_| {
+            o.stop_point()
+        })?)
     })?;
     write_record(out.join("calibration.json"), &calibration)?;
 
@@ -209,7 +214,7 @@ pub fn run_demo(plan: &DemoPlan, observer: &mut dyn JobObserver) -> anyhow::Resu
         mismatch: spec.mismatch,
         instrument: model,
         noise: NoiseModel::default(),
-        preset: Preset::Default(DefaultPreset::default()),
+        preset: Preset::Default(preset),
         methods: vec![method.into()],
         stride: inputs.instrument.stride,
     };
