@@ -199,7 +199,7 @@ pub fn run_demo(plan: &DemoPlan, observer: &mut dyn JobObserver) -> anyhow::Resu
         inputs.instrument.stride,
         model,
     )?
-    .with_band_spread(Preset::Default(preset.clone()).default_band_spread(model));
+    .with_band_spread(Preset::Default(preset).default_band_spread(model));
     let calibration = stage(observer, "self-calibrating (default preset)", |o| {
         Ok(calibrate_default(&problem, &preset, &mut |_| {
             o.stop_point()
