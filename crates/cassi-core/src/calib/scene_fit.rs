@@ -141,6 +141,15 @@ pub struct FinePass {
     /// RMSE 0.012 → 0.053 px.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub weighting: Option<ResidualWeighting>,
+    /// Its scene's spectral nodes; `None` (the default, and settings
+    /// written before the field): the first pass's. Why more: the first
+    /// pass's 6 nodes, told the true scene through them, bias dx and a1
+    /// along their ridge on scenes with sharp spectra (stop 58, held-out
+    /// round 32: peppers dx −0.060 px, a1 +0.0057; with 10 nodes −0.012,
+    /// +0.0014), while more nodes in the first pass let the blind fit
+    /// slide; the ridge holds this pass's scene near the first pass's.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub spectral_nodes: Option<usize>,
 }
 
 /// z₀ of the fine pass's ridge λ‖z − z₀‖².
@@ -292,6 +301,7 @@ impl Default for FinePass {
             max_steps: 20,
             carries_detail: false,
             weighting: None,
+            spectral_nodes: None,
         }
     }
 }
@@ -312,6 +322,7 @@ impl FinePass {
     ) -> Result<(SceneFit<'a>, Vec<f32>)> {
         let fine_settings = SceneFitSettings {
             cell_px: self.cell_px,
+            spectral_nodes: self.spectral_nodes.unwrap_or(settings.spectral_nodes),
             cold_solve: self.first_solve,
             max_steps: self.max_steps,
             fine_pass: None,

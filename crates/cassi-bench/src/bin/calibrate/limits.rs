@@ -322,8 +322,19 @@ pub fn gap_tv_scene_fits(
 /// the edges' scale flattened).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum KnownScene {
-    Smoothed { px: f64 },
-    TvDenoised { weight: f64 },
+    Smoothed {
+        px: f64,
+    },
+    TvDenoised {
+        weight: f64,
+    },
+    /// Every pixel's spectrum through `nodes` evenly spaced spectral nodes
+    /// (`--limits-spectral-scene NODES`), piecewise linear between them as
+    /// the scene fit's coarse scene is, at full spatial resolution: what
+    /// the coarse scene's spectral basis leaves out, alone.
+    SpectralNodes {
+        nodes: usize,
+    },
 }
 
 impl KnownScene {
@@ -335,6 +346,10 @@ impl KnownScene {
                 let mut smoothed = scene.clone().into_vec();
                 smooth_bands(&mut smoothed, h, w, &gaussian_taps(px as f32));
                 Cube::from_vec(bands, h, w, smoothed).expect("the scene's own shape")
+            }
+            KnownScene::SpectralNodes { nodes } => {
+                Cube::from_vec(bands, h, w, through_spectral_nodes(scene, nodes))
+                    .expect("the scene's own shape")
             }
             KnownScene::TvDenoised { weight } => {
                 let mut denoised = scene.clone();
@@ -348,6 +363,44 @@ impl KnownScene {
             }
         }
     }
+}
+
+/// `scene` with every pixel's spectrum sampled at `nodes` evenly spaced
+/// spectral positions j·(bands − 1)/(nodes − 1) (linearly between the two
+/// bands around each) and interpolated linearly between them again — the
+/// coarse scene's spectral basis (`calib::coarse_scene`), every pixel kept.
+fn through_spectral_nodes(scene: &Cube, nodes: usize) -> Vec<f32> {
+    let (bands, h, w) = scene.shape();
+    let plane = h * w;
+    let x = scene.as_slice();
+    if nodes >= bands || bands < 2 {
+        return x.to_vec();
+    }
+    let nodes = nodes.max(2);
+    // band position t (in bands) as two bands and the second's weight
+    let between = |t: f64| {
+        let k0 = (t.floor() as usize).min(bands - 1);
+        (k0, (k0 + 1).min(bands - 1), (t - k0 as f64) as f32)
+    };
+    let node_images: Vec<Vec<f32>> = (0..nodes)
+        .map(|j| {
+            let (k0, k1, f) = between(j as f64 * (bands - 1) as f64 / (nodes - 1) as f64);
+            (0..plane)
+                .map(|i| x[k0 * plane + i] + f * (x[k1 * plane + i] - x[k0 * plane + i]))
+                .collect()
+        })
+        .collect();
+    let mut out = vec![0.0f32; x.len()];
+    for (k, band) in out.chunks_mut(plane).enumerate() {
+        let t = k as f64 * (nodes - 1) as f64 / (bands - 1) as f64;
+        let j = (t.floor() as usize).min(nodes - 2);
+        let f = (t - j as f64) as f32;
+        let (a, b) = (&node_images[j], &node_images[j + 1]);
+        for (i, o) in band.iter_mut().enumerate() {
+            *o = a[i] + f * (b[i] - a[i]);
+        }
+    }
+    out
 }
 
 /// `--limits-smoothed-scene PX` / `--limits-tv-scene WEIGHT`: the
@@ -405,6 +458,7 @@ pub fn told_scene_fits(
     match known {
         KnownScene::Smoothed { px } => record["smooth_px"] = json!(px),
         KnownScene::TvDenoised { weight } => record["tv_weight"] = json!(weight),
+        KnownScene::SpectralNodes { nodes } => record["spectral_nodes"] = json!(nodes),
     }
     record
 }
@@ -828,6 +882,50 @@ mod tests {
         Measurement::from_vec(my, mx, clean.iter().map(|&v| v as f32).collect()).unwrap()
     }
 
+    /// The spectral-node scene keeps a spectrum linear in the band index,
+    /// and every band with as many nodes as bands; a peak between nodes it
+    /// flattens, one on a node it keeps with straight flanks.
+    #[test]
+    fn the_spectral_node_scene_keeps_what_its_nodes_hold() {
+        let (bands, rows, cols) = (7, 2, 3);
+        let cube = |f: &dyn Fn(usize, usize) -> f32| {
+            let v = (0..bands)
+                .flat_map(|k| (0..rows * cols).map(move |i| (k, i)))
+                .map(|(k, i)| f(k, i))
+                .collect();
+            Cube::from_vec(bands, rows, cols, v).unwrap()
+        };
+        let linear = cube(&|k, i| 0.1 * k as f32 + 0.01 * i as f32);
+        for nodes in [2, 3, 4] {
+            let through = through_spectral_nodes(&linear, nodes);
+            for (a, b) in through.iter().zip(linear.as_slice()) {
+                assert!((a - b).abs() < 1e-6, "{nodes} nodes: {a} vs {b}");
+            }
+        }
+        // a peak at band 3: with 3 nodes (bands 0, 3, 6) it is a node and
+        // its flanks become the lines to it; with 2 (bands 0 and 6) it is
+        // flattened away
+        let peak = cube(&|k, _| if k == 3 { 1.0 } else { 0.0 });
+        let plane = rows * cols;
+        let three = through_spectral_nodes(&peak, 3);
+        for (k, want) in [
+            (0, 0.0),
+            (1, 1.0 / 3.0),
+            (2, 2.0 / 3.0),
+            (3, 1.0),
+            (5, 1.0 / 3.0),
+        ] {
+            assert!(
+                (three[k * plane] - want).abs() < 1e-6,
+                "band {k}: {}",
+                three[k * plane]
+            );
+        }
+        let two = through_spectral_nodes(&peak, 2);
+        assert!(two.iter().all(|v| v.abs() < 1e-6), "{two:?}");
+        assert_eq!(through_spectral_nodes(&peak, bands), peak.as_slice());
+    }
+
     /// Noiseless data of a textured scene at ψ*: the fit that knows the
     /// whole scene returns ψ* and explains the data; the fit that knows it
     /// smoothed by 1 px, or TV-denoised, cannot explain the texture, so it
@@ -851,6 +949,8 @@ mod tests {
             match known {
                 KnownScene::Smoothed { px } => assert_eq!(record["smooth_px"], px),
                 KnownScene::TvDenoised { weight } => assert_eq!(record["tv_weight"], weight),
+                // this scene's spectra are linear: its nodes keep it
+                KnownScene::SpectralNodes { .. } => unreachable!("not told here"),
             }
             let change = record["told_scene_rms_change"].as_f64().unwrap();
             let level = record["scene_rms"].as_f64().unwrap();

@@ -54,7 +54,10 @@
 //! scene-known fit with the true scene and with it smoothed by PX px: how
 //! far a fit gets that knows the scene only down to that scale;
 //! `--limits-tv-scene WEIGHT` the same with the scene TV-denoised instead
-//! (edges kept, the texture between them flattened).
+//! (edges kept, the texture between them flattened);
+//! `--limits-spectral-scene NODES` with every pixel's spectrum through
+//! NODES spectral nodes (the coarse scene's spectral basis, every pixel
+//! kept).
 //!
 //! Run: `cargo run --release -p cassi-bench --bin calibrate --
 //! [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] [--no-aligned]
@@ -62,7 +65,7 @@
 //! [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene]
 //! [--fine-pass-free pose-and-slope|geometry|all|geometry-and-curvature] [--scene-cell PX] [--scene-nodes N]
 //! [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv ITERATIONS] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N]]
-//! [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX | --limits-tv-scene WEIGHT] [--out PATH] [--scene-transform none|flip-cols|flip-rows|transpose|coarse|real-band-light|smooth-PX] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--model-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--detail-cold-above PX|none] [--blur-bootstrap crisp-cells|dispersed-mask [--blur-bootstrap-noise] [--blur-bootstrap-residual] [--blur-bootstrap-min PX]] [--snapshots N [--joint [--joint-model MODEL]]] [--verbose]`
+//! [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX | --limits-tv-scene WEIGHT | --limits-spectral-scene NODES] [--out PATH] [--scene-transform none|flip-cols|flip-rows|transpose|coarse|real-band-light|smooth-PX] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--model-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--detail-cold-above PX|none] [--blur-bootstrap crisp-cells|dispersed-mask [--blur-bootstrap-noise] [--blur-bootstrap-residual] [--blur-bootstrap-min PX]] [--snapshots N [--joint [--joint-model MODEL]]] [--verbose]`
 //! (`--no-texture`: the default preset without its texture fit, as it was
 //! before issue #14 — the "before" row; `--no-scene-fit`: without its
 //! scene fit, ending in the texture fit as the records `*_texture.json`
@@ -88,6 +91,8 @@
 //! scene times the detail pass's map too (`FinePass::carries_detail`);
 //! `--fine-pass-weighted WINDOW_PX,FLOOR_QUANTILE`: the fine pass's residual
 //! weighted from the detail pass's (`FinePass::weighting`);
+//! `--fine-pass-nodes N`: the fine pass's scene on N spectral nodes
+//! (`FinePass::spectral_nodes`; the first pass's by default);
 //! `--preset-file PATH`: a whole preset as the records' `preset` holds it
 //! (time and tuning studies set any field without a flag of their own; the
 //! flags after it still apply);
@@ -507,7 +512,7 @@ impl SceneTransform {
 
 const USAGE: &str = "calibrate [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] \
                      [--no-aligned] [--no-inverse-crime] [--no-wide-blur] [--model rounded|subpixel|dispersed-mask|crisp-cells] \
-                     [--preset NAME | --preset-file PATH] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all|geometry-and-curvature] [--scene-cell PX] [--scene-nodes N] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv N] [--detail-pre-smooth PX] [--search-rows N] [--fine-pass-detail] [--fine-pass-weighted WINDOW_PX,FLOOR_QUANTILE] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N]] [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX | --limits-tv-scene WEIGHT] [--out PATH] \
+                     [--preset NAME | --preset-file PATH] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all|geometry-and-curvature] [--scene-cell PX] [--scene-nodes N] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv N] [--detail-pre-smooth PX] [--search-rows N] [--fine-pass-detail] [--fine-pass-weighted WINDOW_PX,FLOOR_QUANTILE] [--fine-pass-nodes N] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N]] [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX | --limits-tv-scene WEIGHT | --limits-spectral-scene NODES] [--out PATH] \
                      [--scene-transform none|flip-cols|flip-rows|transpose|coarse|real-band-light|smooth-PX] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--snapshots N [--joint [--joint-model MODEL]]] [--verbose]";
 
 fn parse_args(argv: &[String]) -> Result<Args> {
@@ -550,6 +555,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
     let mut search_rows: Option<usize> = None;
     let mut preset_file: Option<PathBuf> = None;
     let mut fine_pass_detail = false;
+    let mut fine_pass_nodes: Option<usize> = None;
     let mut fine_pass_weighting: Option<ResidualWeighting> = None;
     let mut blur_bootstrap: Option<DispersionModel> = None;
     let mut blur_pass = false;
@@ -683,6 +689,14 @@ fn parse_args(argv: &[String]) -> Result<Args> {
                 search_rows = Some(rows);
             }
             "--fine-pass-detail" => fine_pass_detail = true,
+            "--fine-pass-nodes" => {
+                let v = value()?;
+                let n: usize = v
+                    .parse()
+                    .with_context(|| format!("--fine-pass-nodes {v}"))?;
+                ensure!(n >= 2, "--fine-pass-nodes {v}: at least 2 spectral nodes");
+                fine_pass_nodes = Some(n);
+            }
             "--fine-pass-weighted" => {
                 let v = value()?;
                 let parsed = v.split_once(',').and_then(|(w, q)| {
@@ -856,6 +870,17 @@ fn parse_args(argv: &[String]) -> Result<Args> {
                 } else {
                     limits::KnownScene::Smoothed { px: width }
                 });
+            }
+            "--limits-spectral-scene" => {
+                let v = value()?;
+                let nodes: usize = v.parse().with_context(|| format!("{flag} {v}"))?;
+                ensure!(nodes >= 2, "{flag} {v}: two spectral nodes or more");
+                ensure!(
+                    limits_told_scene.is_none(),
+                    "{flag}: one of --limits-smoothed-scene, --limits-tv-scene and \
+                     --limits-spectral-scene, once"
+                );
+                limits_told_scene = Some(limits::KnownScene::SpectralNodes { nodes });
             }
             "--no-limits" => limits = false,
             "--out" => out = Some(PathBuf::from(value()?)),
@@ -1123,6 +1148,14 @@ fn parse_args(argv: &[String]) -> Result<Args> {
         };
         pass.carries_detail = true;
         preset_name += " (fine pass with the detail map)";
+    }
+    if let Some(n) = fine_pass_nodes {
+        let settings = scene_fit_settings(&mut preset, "--fine-pass-nodes")?;
+        let Some(pass) = settings.fine_pass.as_mut() else {
+            bail!("--fine-pass-nodes: the fine pass is off");
+        };
+        pass.spectral_nodes = Some(n);
+        preset_name += &format!(" (fine pass on {n} spectral nodes)");
     }
     if let Some(weighting) = fine_pass_weighting {
         let settings = scene_fit_settings(&mut preset, "--fine-pass-weighted")?;
