@@ -21,8 +21,19 @@ fn save(path: &Path, rows: usize, cols: usize, f: impl Fn(usize, usize) -> f32) 
 
 /// A 32×32 4-band simulation (with its sidecar) and its random mask.
 fn simulated(d: &Path) -> (PathBuf, PathBuf) {
-    let (meas, mask) = (d.join("m.npy"), d.join("mask.npy"));
-    ok(&cassi(&[
+    let meas = simulated_as(d, "m.npy", &[]);
+    let mask = d.join("mask.npy");
+    // the mask the simulation used, as a file
+    let m = cassi_core::synth::random_binary_mask(32, 32, 0.5, 1).unwrap();
+    cassi_io::save_frame(&mask, &m, "mask").unwrap();
+    (meas, mask)
+}
+
+/// `cassi simulate` of the same scene and mask into `d/name`, with
+/// `extra` flags.
+fn simulated_as(d: &Path, name: &str, extra: &[&str]) -> PathBuf {
+    let meas = d.join(name);
+    let mut args = vec![
         "simulate",
         "--synthetic",
         "--size",
@@ -33,11 +44,10 @@ fn simulated(d: &Path) -> (PathBuf, PathBuf) {
         "-o",
         s(&meas),
         "-q",
-    ]));
-    // the mask the simulation used, as a file
-    let m = cassi_core::synth::random_binary_mask(32, 32, 0.5, 1).unwrap();
-    cassi_io::save_frame(&mask, &m, "mask").unwrap();
-    (meas, mask)
+    ];
+    args.extend_from_slice(extra);
+    ok(&cassi(&args));
+    meas
 }
 
 #[test]
@@ -685,23 +695,11 @@ fn a_band_spread_travels_from_the_calibration_to_the_model() {
         assert!(record.get("band_spread").is_none(), "{extra:?}: {record}");
     }
     // a physical simulation's sidecar records its spread, which is fitted
-    let physical = d.join("physical.npy");
-    ok(&cassi(&[
-        "simulate",
-        "--synthetic",
-        "--size",
-        "32",
-        "--bands",
-        "4",
-        "--random-mask",
-        "--oversample",
-        "2",
-        "--band-spread",
-        "linear",
-        "-o",
-        s(&physical),
-        "-q",
-    ]));
+    let physical = simulated_as(
+        &d,
+        "physical.npy",
+        &["--oversample", "2", "--band-spread", "linear"],
+    );
     let record = calibrated(&d, &physical, &mask, &[], "physical_cal.json");
     assert_eq!(record["band_spread"], "linear", "{record}");
     let record = calibrated(&d, &meas, &mask, &["--band-spread", "linear"], "cal.json");

@@ -26,19 +26,12 @@ fn case(size: usize, bands: usize) -> (Cube, Mask) {
     (scene, random_binary_mask(size, size, 0.5, 4).unwrap())
 }
 
-#[test]
-fn scenarios_order_as_they_must_and_calibration_closes_the_gap() {
-    let (scene, mask) = case(80, 8);
-    let study = Study {
-        mismatch: Mismatch {
-            dx: 1.3,
-            dy: -0.8,
-            theta_deg: 0.35,
-            a1: 2.0,
-            alpha_deg: 0.0,
-            ..Mismatch::nominal(2.0)
-        },
-        instrument: DispersionModel::Rounded,
+/// The study of an instrument at `mismatch` in `instrument`'s family, the
+/// default preset, GAP-TV at 40 iterations, the default noise, stride 2.
+fn gap_tv_study(mismatch: Mismatch, instrument: DispersionModel) -> Study {
+    Study {
+        mismatch,
+        instrument,
         noise: NoiseModel::default(),
         preset: Preset::by_name("default", 2.0).unwrap(),
         methods: vec![
@@ -48,7 +41,23 @@ fn scenarios_order_as_they_must_and_calibration_closes_the_gap() {
                 .into(),
         ],
         stride: 2.0,
-    };
+    }
+}
+
+#[test]
+fn scenarios_order_as_they_must_and_calibration_closes_the_gap() {
+    let (scene, mask) = case(80, 8);
+    let study = gap_tv_study(
+        Mismatch {
+            dx: 1.3,
+            dy: -0.8,
+            theta_deg: 0.35,
+            a1: 2.0,
+            alpha_deg: 0.0,
+            ..Mismatch::nominal(2.0)
+        },
+        DispersionModel::Rounded,
+    );
     let mut steps = Vec::new();
     let mut stages = Vec::new();
     let (r, kept) = run_scene(
@@ -164,21 +173,9 @@ fn the_scenarios_hold_the_calibrations_band_spread() {
         ..PhysicalSpec::default()
     };
     let measurement = simulate_physical(&scene, &mask, &wavelengths, &truth, &spec, None).unwrap();
-    let noise = NoiseModel::default();
-    let (ideal_clean, ideal_noisy) = ideal_measurements(&scene, &mask, 2.0, &noise).unwrap();
-    let study = Study {
-        mismatch: truth,
-        instrument: DispersionModel::DispersedMask,
-        noise,
-        preset: Preset::by_name("default", 2.0).unwrap(),
-        methods: vec![
-            Method::by_name("gap-tv")
-                .unwrap()
-                .with_overrides(Some(40), None)
-                .into(),
-        ],
-        stride: 2.0,
-    };
+    let (ideal_clean, ideal_noisy) =
+        ideal_measurements(&scene, &mask, 2.0, &NoiseModel::default()).unwrap();
+    let study = gap_tv_study(truth, DispersionModel::DispersedMask);
     let run = |spread: BandSpread, scenario: Scenario| {
         let prepared = Prepared {
             ideal_clean: ideal_clean.clone(),

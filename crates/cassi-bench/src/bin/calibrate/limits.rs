@@ -335,6 +335,14 @@ pub enum KnownScene {
     SpectralNodes {
         nodes: usize,
     },
+    /// The same through `nodes` bands placed where the scene's own
+    /// spectra bend (`--limits-placed-spectral-scene NODES`: the first and
+    /// last band and those between that leave the least squared
+    /// interpolation error over the scene): what a basis of that size
+    /// placed for the scene would leave out.
+    PlacedSpectralNodes {
+        nodes: usize,
+    },
 }
 
 impl KnownScene {
@@ -351,6 +359,13 @@ impl KnownScene {
                 Cube::from_vec(bands, h, w, through_spectral_nodes(scene, nodes))
                     .expect("the scene's own shape")
             }
+            KnownScene::PlacedSpectralNodes { nodes } => Cube::from_vec(
+                bands,
+                h,
+                w,
+                through_band_nodes(scene, &placed_band_nodes(scene, nodes)),
+            )
+            .expect("the scene's own shape"),
             KnownScene::TvDenoised { weight } => {
                 let mut denoised = scene.clone();
                 tv_chambolle_2d(
@@ -401,6 +416,80 @@ fn through_spectral_nodes(scene: &Cube, nodes: usize) -> Vec<f32> {
         }
     }
     out
+}
+
+/// `scene` with every pixel's spectrum interpolated linearly between its
+/// values at the bands `at` (ascending, the first band and the last among
+/// them).
+fn through_band_nodes(scene: &Cube, at: &[usize]) -> Vec<f32> {
+    let (bands, h, w) = scene.shape();
+    let plane = h * w;
+    let x = scene.as_slice();
+    let mut out = x.to_vec();
+    for pair in at.windows(2) {
+        let (i, j) = (pair[0], pair[1]);
+        for k in i + 1..j.min(bands) {
+            let f = (k - i) as f32 / (j - i) as f32;
+            for p in 0..plane {
+                let (a, b) = (x[i * plane + p], x[j * plane + p]);
+                out[k * plane + p] = a + f * (b - a);
+            }
+        }
+    }
+    out
+}
+
+/// The `nodes` bands (the first and the last among them) between which
+/// linear interpolation leaves the least squared error over `scene`'s
+/// spectra: dynamic programming over the segments' errors.
+fn placed_band_nodes(scene: &Cube, nodes: usize) -> Vec<usize> {
+    let (bands, h, w) = scene.shape();
+    let plane = h * w;
+    let x = scene.as_slice();
+    if nodes >= bands || bands < 3 {
+        return (0..bands).collect();
+    }
+    let nodes = nodes.max(2);
+    // err[i][j]: the squared error of the bands strictly between i and j
+    let mut err = vec![vec![0.0f64; bands]; bands];
+    for i in 0..bands {
+        for j in i + 2..bands {
+            let mut e = 0.0f64;
+            for k in i + 1..j {
+                let f = (k - i) as f32 / (j - i) as f32;
+                for p in 0..plane {
+                    let (a, b) = (x[i * plane + p], x[j * plane + p]);
+                    let d = (x[k * plane + p] - (a + f * (b - a))) as f64;
+                    e += d * d;
+                }
+            }
+            err[i][j] = e;
+        }
+    }
+    // best[m][j]: the least error of m segments from band 0 ending at j
+    let segments = nodes - 1;
+    let mut best = vec![vec![f64::INFINITY; bands]; segments + 1];
+    let mut from = vec![vec![0usize; bands]; segments + 1];
+    best[0][0] = 0.0;
+    for m in 1..=segments {
+        for j in m..bands {
+            for i in m - 1..j {
+                let e = best[m - 1][i] + err[i][j];
+                if e < best[m][j] {
+                    best[m][j] = e;
+                    from[m][j] = i;
+                }
+            }
+        }
+    }
+    let mut at = vec![bands - 1];
+    let mut j = bands - 1;
+    for m in (1..=segments).rev() {
+        j = from[m][j];
+        at.push(j);
+    }
+    at.reverse();
+    at
 }
 
 /// `--limits-smoothed-scene PX` / `--limits-tv-scene WEIGHT`: the
@@ -459,6 +548,10 @@ pub fn told_scene_fits(
         KnownScene::Smoothed { px } => record["smooth_px"] = json!(px),
         KnownScene::TvDenoised { weight } => record["tv_weight"] = json!(weight),
         KnownScene::SpectralNodes { nodes } => record["spectral_nodes"] = json!(nodes),
+        KnownScene::PlacedSpectralNodes { nodes } => {
+            record["spectral_nodes"] = json!(nodes);
+            record["spectral_nodes_at_bands"] = json!(placed_band_nodes(scene, nodes));
+        }
     }
     record
 }
@@ -924,6 +1017,15 @@ mod tests {
         let two = through_spectral_nodes(&peak, 2);
         assert!(two.iter().all(|v| v.abs() < 1e-6), "{two:?}");
         assert_eq!(through_spectral_nodes(&peak, bands), peak.as_slice());
+        // placed where the spectrum bends: the peak and its feet, exactly
+        let at = placed_band_nodes(&peak, 5);
+        assert_eq!(
+            (at[0], at[at.len() - 1], at.len()),
+            (0, bands - 1, 5),
+            "{at:?}"
+        );
+        assert!([2, 3, 4].iter().all(|k| at.contains(k)), "{at:?}");
+        assert_eq!(through_band_nodes(&peak, &at), peak.as_slice());
     }
 
     /// Noiseless data of a textured scene at ψ*: the fit that knows the
@@ -950,7 +1052,9 @@ mod tests {
                 KnownScene::Smoothed { px } => assert_eq!(record["smooth_px"], px),
                 KnownScene::TvDenoised { weight } => assert_eq!(record["tv_weight"], weight),
                 // this scene's spectra are linear: its nodes keep it
-                KnownScene::SpectralNodes { .. } => unreachable!("not told here"),
+                KnownScene::SpectralNodes { .. } | KnownScene::PlacedSpectralNodes { .. } => {
+                    unreachable!("not told here")
+                }
             }
             let change = record["told_scene_rms_change"].as_f64().unwrap();
             let level = record["scene_rms"].as_f64().unwrap();
