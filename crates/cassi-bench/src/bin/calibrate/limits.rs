@@ -385,21 +385,38 @@ impl KnownScene {
 /// bands around each) and interpolated linearly between them again — the
 /// coarse scene's spectral basis (`calib::coarse_scene`), every pixel kept.
 fn through_spectral_nodes(scene: &Cube, nodes: usize) -> Vec<f32> {
+    let bands = scene.bands();
+    if nodes >= bands || bands < 2 {
+        return scene.as_slice().to_vec();
+    }
+    let nodes = nodes.max(2);
+    let at: Vec<f64> = (0..nodes)
+        .map(|j| j as f64 * (bands - 1) as f64 / (nodes - 1) as f64)
+        .collect();
+    through_nodes_at(scene, &at)
+}
+
+/// `scene` with every pixel's spectrum interpolated linearly between its
+/// values at the bands `at` (ascending, the first band and the last among
+/// them).
+fn through_band_nodes(scene: &Cube, at: &[usize]) -> Vec<f32> {
+    let at: Vec<f64> = at.iter().map(|&k| k as f64).collect();
+    through_nodes_at(scene, &at)
+}
+
+/// `scene` with every pixel's spectrum sampled at the spectral positions
+/// `at` (in bands, ascending from 0 to the last band; linearly between the
+/// two bands around a fractional one) and interpolated linearly between
+/// them again.
+fn through_nodes_at(scene: &Cube, at: &[f64]) -> Vec<f32> {
     let (bands, h, w) = scene.shape();
     let plane = h * w;
     let x = scene.as_slice();
-    if nodes >= bands || bands < 2 {
-        return x.to_vec();
-    }
-    let nodes = nodes.max(2);
-    // band position t (in bands) as two bands and the second's weight
-    let between = |t: f64| {
-        let k0 = (t.floor() as usize).min(bands - 1);
-        (k0, (k0 + 1).min(bands - 1), (t - k0 as f64) as f32)
-    };
-    let node_images: Vec<Vec<f32>> = (0..nodes)
-        .map(|j| {
-            let (k0, k1, f) = between(j as f64 * (bands - 1) as f64 / (nodes - 1) as f64);
+    let node_images: Vec<Vec<f32>> = at
+        .iter()
+        .map(|&t| {
+            let k0 = (t.floor() as usize).min(bands - 1);
+            let (k1, f) = ((k0 + 1).min(bands - 1), (t - k0 as f64) as f32);
             (0..plane)
                 .map(|i| x[k0 * plane + i] + f * (x[k1 * plane + i] - x[k0 * plane + i]))
                 .collect()
@@ -407,33 +424,14 @@ fn through_spectral_nodes(scene: &Cube, nodes: usize) -> Vec<f32> {
         .collect();
     let mut out = vec![0.0f32; x.len()];
     for (k, band) in out.chunks_mut(plane).enumerate() {
-        let t = k as f64 * (nodes - 1) as f64 / (bands - 1) as f64;
-        let j = (t.floor() as usize).min(nodes - 2);
-        let f = (t - j as f64) as f32;
+        let j = at
+            .windows(2)
+            .position(|s| (k as f64) < s[1])
+            .unwrap_or(at.len() - 2);
+        let f = ((k as f64 - at[j]) / (at[j + 1] - at[j])) as f32;
         let (a, b) = (&node_images[j], &node_images[j + 1]);
         for (i, o) in band.iter_mut().enumerate() {
             *o = a[i] + f * (b[i] - a[i]);
-        }
-    }
-    out
-}
-
-/// `scene` with every pixel's spectrum interpolated linearly between its
-/// values at the bands `at` (ascending, the first band and the last among
-/// them).
-fn through_band_nodes(scene: &Cube, at: &[usize]) -> Vec<f32> {
-    let (bands, h, w) = scene.shape();
-    let plane = h * w;
-    let x = scene.as_slice();
-    let mut out = x.to_vec();
-    for pair in at.windows(2) {
-        let (i, j) = (pair[0], pair[1]);
-        for k in i + 1..j.min(bands) {
-            let f = (k - i) as f32 / (j - i) as f32;
-            for p in 0..plane {
-                let (a, b) = (x[i * plane + p], x[j * plane + p]);
-                out[k * plane + p] = a + f * (b - a);
-            }
         }
     }
     out
