@@ -142,12 +142,14 @@ pub struct FinePass {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub weighting: Option<ResidualWeighting>,
     /// Its scene's spectral nodes; `None` (the default, and settings
-    /// written before the field): the first pass's. Why more: the first
-    /// pass's 6 nodes, told the true scene through them, bias dx and a1
-    /// along their ridge on scenes with sharp spectra (stop 58, held-out
-    /// round 32: peppers dx −0.060 px, a1 +0.0057; with 10 nodes −0.012,
-    /// +0.0014), while more nodes in the first pass let the blind fit
-    /// slide; the ridge holds this pass's scene near the first pass's.
+    /// written before the field): the first pass's. A probe, not adopted:
+    /// the first pass's 6 nodes, told the true scene through them, bias dx
+    /// and a1 along their ridge on scenes with sharp spectra (stop 58,
+    /// held-out round 32: peppers dx −0.060 px, a1 +0.0057; with 10 nodes
+    /// −0.012, +0.0014); 10 nodes here took the tuning half 15 → 18 of 25
+    /// but fresh round 35 22 → 17 of 35 — aligned 10 → 14 of 15, random
+    /// poses 12 → 3 of 20, sliding along dx–a1
+    /// (`bench/results/default_band_spread_stop58/`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub spectral_nodes: Option<usize>,
 }

@@ -33,7 +33,8 @@ use std::time::Instant;
 use cassi_bench::{predict_with, psi_of};
 use cassi_core::calib::{
     CalibrationProblem, DefaultPreset, SCENE_SMOOTH_PX, SceneEstimate, SceneFitSettings,
-    gap_tv_reconstruction, gaussian_taps, nelder_mead, scene_fit_score, smooth_bands, texture_fit,
+    coarse_scene_of, gap_tv_reconstruction, gaussian_taps, nelder_mead, scene_fit_score,
+    smooth_bands, texture_fit,
 };
 use cassi_core::denoise::{TvChambolleParams, TvScratch2d, tv_chambolle_2d};
 use cassi_core::linop::LinearOperator;
@@ -346,26 +347,17 @@ pub enum KnownScene {
 }
 
 impl KnownScene {
-    /// The scene as the fit is told it.
-    fn of(self, scene: &Cube) -> Cube {
+    /// The scene as the fit is told it, and what the record says of the
+    /// telling (the width, weight or nodes; the placed nodes' bands).
+    fn told(self, scene: &Cube) -> (Cube, Value) {
         let (bands, h, w) = scene.shape();
         match self {
             KnownScene::Smoothed { px } => {
                 let mut smoothed = scene.clone().into_vec();
                 smooth_bands(&mut smoothed, h, w, &gaussian_taps(px as f32));
-                Cube::from_vec(bands, h, w, smoothed).expect("the scene's own shape")
+                let told = Cube::from_vec(bands, h, w, smoothed).expect("the scene's own shape");
+                (told, json!({ "smooth_px": px }))
             }
-            KnownScene::SpectralNodes { nodes } => {
-                Cube::from_vec(bands, h, w, through_spectral_nodes(scene, nodes))
-                    .expect("the scene's own shape")
-            }
-            KnownScene::PlacedSpectralNodes { nodes } => Cube::from_vec(
-                bands,
-                h,
-                w,
-                through_band_nodes(scene, &placed_band_nodes(scene, nodes)),
-            )
-            .expect("the scene's own shape"),
             KnownScene::TvDenoised { weight } => {
                 let mut denoised = scene.clone();
                 tv_chambolle_2d(
@@ -374,64 +366,48 @@ impl KnownScene {
                     &TvChambolleParams::default(),
                     &mut TvScratch2d::default(),
                 );
-                denoised
+                (denoised, json!({ "tv_weight": weight }))
+            }
+            // the scene fit's own basis on 1-px cells: its spectral
+            // interpolation alone
+            KnownScene::SpectralNodes { nodes } => {
+                let basis = SceneFitSettings {
+                    cell_px: 1,
+                    spectral_nodes: nodes,
+                    ..SceneFitSettings::default()
+                };
+                (
+                    coarse_scene_of(scene, &basis),
+                    json!({ "spectral_nodes": nodes }),
+                )
+            }
+            KnownScene::PlacedSpectralNodes { nodes } => {
+                let at = placed_band_nodes(scene, nodes);
+                let told = Cube::from_vec(bands, h, w, through_band_nodes(scene, &at))
+                    .expect("the scene's own shape");
+                let record = json!({ "spectral_nodes": nodes, "spectral_nodes_at_bands": at });
+                (told, record)
             }
         }
     }
 }
 
-/// `scene` with every pixel's spectrum sampled at `nodes` evenly spaced
-/// spectral positions j·(bands − 1)/(nodes − 1) (linearly between the two
-/// bands around each) and interpolated linearly between them again — the
-/// coarse scene's spectral basis (`calib::coarse_scene`), every pixel kept.
-fn through_spectral_nodes(scene: &Cube, nodes: usize) -> Vec<f32> {
-    let bands = scene.bands();
-    if nodes >= bands || bands < 2 {
-        return scene.as_slice().to_vec();
-    }
-    let nodes = nodes.max(2);
-    let at: Vec<f64> = (0..nodes)
-        .map(|j| j as f64 * (bands - 1) as f64 / (nodes - 1) as f64)
-        .collect();
-    through_nodes_at(scene, &at)
-}
-
 /// `scene` with every pixel's spectrum interpolated linearly between its
 /// values at the bands `at` (ascending, the first band and the last among
-/// them).
+/// them; the bands there kept).
 fn through_band_nodes(scene: &Cube, at: &[usize]) -> Vec<f32> {
-    let at: Vec<f64> = at.iter().map(|&k| k as f64).collect();
-    through_nodes_at(scene, &at)
-}
-
-/// `scene` with every pixel's spectrum sampled at the spectral positions
-/// `at` (in bands, ascending from 0 to the last band; linearly between the
-/// two bands around a fractional one) and interpolated linearly between
-/// them again.
-fn through_nodes_at(scene: &Cube, at: &[f64]) -> Vec<f32> {
     let (bands, h, w) = scene.shape();
     let plane = h * w;
     let x = scene.as_slice();
-    let node_images: Vec<Vec<f32>> = at
-        .iter()
-        .map(|&t| {
-            let k0 = (t.floor() as usize).min(bands - 1);
-            let (k1, f) = ((k0 + 1).min(bands - 1), (t - k0 as f64) as f32);
-            (0..plane)
-                .map(|i| x[k0 * plane + i] + f * (x[k1 * plane + i] - x[k0 * plane + i]))
-                .collect()
-        })
-        .collect();
-    let mut out = vec![0.0f32; x.len()];
-    for (k, band) in out.chunks_mut(plane).enumerate() {
-        let j = at
-            .windows(2)
-            .position(|s| (k as f64) < s[1])
-            .unwrap_or(at.len() - 2);
-        let f = ((k as f64 - at[j]) / (at[j + 1] - at[j])) as f32;
-        let (a, b) = (&node_images[j], &node_images[j + 1]);
-        for (i, o) in band.iter_mut().enumerate() {
-            *o = a[i] + f * (b[i] - a[i]);
+    let mut out = x.to_vec();
+    for pair in at.windows(2) {
+        let (i, j) = (pair[0], pair[1]);
+        for k in i + 1..j.min(bands) {
+            let f = (k - i) as f32 / (j - i) as f32;
+            for p in 0..plane {
+                let (a, b) = (x[i * plane + p], x[j * plane + p]);
+                out[k * plane + p] = a + f * (b - a);
+            }
         }
     }
     out
@@ -511,7 +487,7 @@ pub fn told_scene_fits(
     known: KnownScene,
 ) -> Value {
     let (rows, cols) = y.shape();
-    let told = known.of(scene);
+    let (told, telling) = known.told(scene);
     let rms = |v: &[f32], from: Option<&[f32]>| {
         let sum: f64 = match from {
             Some(b) => v
@@ -542,14 +518,8 @@ pub fn told_scene_fits(
         "told_scene_rms_change": change,
         "fits": out,
     });
-    match known {
-        KnownScene::Smoothed { px } => record["smooth_px"] = json!(px),
-        KnownScene::TvDenoised { weight } => record["tv_weight"] = json!(weight),
-        KnownScene::SpectralNodes { nodes } => record["spectral_nodes"] = json!(nodes),
-        KnownScene::PlacedSpectralNodes { nodes } => {
-            record["spectral_nodes"] = json!(nodes);
-            record["spectral_nodes_at_bands"] = json!(placed_band_nodes(scene, nodes));
-        }
+    if let (Some(record), Value::Object(telling)) = (record.as_object_mut(), telling) {
+        record.extend(telling);
     }
     record
 }
@@ -987,6 +957,8 @@ mod tests {
             Cube::from_vec(bands, rows, cols, v).unwrap()
         };
         let linear = cube(&|k, i| 0.1 * k as f32 + 0.01 * i as f32);
+        let through_spectral_nodes =
+            |cube: &Cube, nodes| KnownScene::SpectralNodes { nodes }.told(cube).0.into_vec();
         for nodes in [2, 3, 4] {
             let through = through_spectral_nodes(&linear, nodes);
             for (a, b) in through.iter().zip(linear.as_slice()) {
