@@ -83,7 +83,8 @@ pub const TRADE_OFF_CORRELATION: f64 = 0.8;
 /// `SCENE_DISPERSED_MASK`).
 /// Tuning run: CAVE scenes 1–5, 4× oversampled instrument, 2·10⁴ e⁻,
 /// `cargo run --release -p cassi-bench --bin calibrate -- --half tuning
-/// --cases 6 --no-recon --no-limits --no-inverse-crime` (30 random and 15
+/// --cases 6 --no-recon --no-limits --no-inverse-crime --band-spread point
+/// --model-band-spread point` (the bench's defaults then; 30 random and 15
 /// aligned cases at blur 0–0.8 px, the `wide_blur` row's 20 at 1.0 and
 /// 1.5 px; `--model subpixel` for the subpixel model's floors); derived by
 /// `bench/uncertainty_floors.py bench/results/calibrate_physical_tuning.json`

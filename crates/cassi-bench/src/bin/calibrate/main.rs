@@ -2,7 +2,9 @@
 //! deliverables 2–3): how the self-calibration fares on measurements that no
 //! operator it fits made. Each case is a CAVE scene (TSA simulation mask)
 //! measured through the 4× oversampled simulator on a fixed 256×310
-//! detector, Poisson noise at a 2·10⁴ e⁻ peak and 3 e⁻ read noise, with a
+//! detector, each band's light spread evenly over its width (a camera's
+//! continuous spectrum; `--band-spread point` the point-band instrument of
+//! every record made before stop 59), Poisson noise at a 2·10⁴ e⁻ peak and 3 e⁻ read noise, with a
 //! known mismatch ψ (dx, dy, θ, a1, α, blur σ); the calibration sees only
 //! the measurement and the nominal mask.
 //!
@@ -20,7 +22,8 @@
 //! α ∈ ±1°, σ ∈ 0–0.8 px, drawn from `Rng::new(seed)` in that order),
 //! `aligned_blur` (no mismatch, σ ∈ {0.3, 0.5, 0.7}), and with
 //! `--inverse-crime` a separately labelled `inverse_crime` row per random
-//! case: its sharp ψ simulated by the calibrated model's discrete operator. With
+//! case: its sharp ψ simulated by the calibrated model's own operator (the
+//! band spread it holds). With
 //! `--wide-blur` (on by default) a separately labelled `wide_blur` row:
 //! σ ∈ {1.0, 1.5} px, the blur the real TSA snapshots show (1.3–1.6 px),
 //! outside the issue's 0–0.8 px range, once on an aligned instrument (seed
@@ -104,11 +107,16 @@
 //! landing PX px further (errors against a1 plus the step's line through
 //! band 0), `--hold-band-table`: the calibration holding that step as a
 //! band table (`cassi calibrate --band-offsets`), `--hold-step K:PX` another
-//! step's (a wrong table); `--band-spread uniform|linear`: each band's
+//! step's (a wrong table); `--band-spread point|uniform|linear` (uniform by
+//! default since stop 59, point before): each band's
 //! light spread along the dispersion between its neighbours as a real
 //! camera's continuous spectrum is (`optics::BandSpread`; σ's truth stays
 //! the optics' blur), `--model-band-spread SPREAD`: the calibration's model
-//! spreading them so (`cassi calibrate --band-spread`; ρ's reconstructions
+//! spreading them so (`cassi calibrate --band-spread`; by default the
+//! preset's, `Preset::default_band_spread`, as `cassi calibrate` fits
+//! without a sidecar: uniform with the default preset since stop 59, point
+//! before — the earlier records' runs are theirs with `--band-spread point
+//! --model-band-spread point`; ρ's reconstructions
 //! and the limits in that model too); `--model-a2 A2`: the calibration
 //! holding the curvature A2
 //! (`DefaultPreset::dispersion_a2`; with `--dispersion-a2` the same value,
@@ -131,10 +139,13 @@
 //! band scaled by the real snapshots' light per band, `smooth-PX`: every band
 //! blurred by a Gaussian of σ PX — diagnoses of what the blind scene
 //! leaves out); without flags it
-//! reproduces the README's held-out table (every scene of the held-out
-//! half, 2 random cases and 3 aligned-blur cases each, the inverse-crime
-//! row, GAP-TV recovery and the limits). Writes
-//! `bench/results/calibrate_physical_<half>.json` unless `--out` says. The
+//! reproduces the README's held-out table of the default (every scene of
+//! the held-out half, 2 random cases and 3 aligned-blur cases each, the
+//! inverse-crime row, GAP-TV recovery and the limits, on the
+//! continuous-spectrum instrument; the table's rounds add `--seed-round R
+//! --cases 4`). Writes `bench/results/calibrate_physical_<half>_<spread>_bands.json`
+//! (`calibrate_physical_<half>.json` for the point-band instrument) unless
+//! `--out` says. The
 //! benchmark on measurements of the discrete operators themselves is
 //! `calibrate_discrete`.
 
@@ -155,7 +166,7 @@ use cassi_core::metrics::psnr;
 use cassi_core::optics::blur::GaussianBlur;
 use cassi_core::optics::{
     BandOffsets, BandSpread, DispersionModel, DispersionStep, Halo, NoiseModel, PhysicalSpec,
-    SimulationSpec, simulate, simulate_physical,
+    simulate_physical,
 };
 use cassi_core::recon::{Method, Model};
 use cassi_core::solvers::Silent;
@@ -268,11 +279,12 @@ struct Args {
     /// PX px further along the dispersion.
     dispersion_step: Option<DispersionStep>,
     /// `--band-spread SPREAD`: where each band's light lies along the
-    /// dispersion in the simulated instrument (a model study: every model
-    /// fitted puts it at the band's position).
+    /// dispersion in the simulated instrument (uniform: a continuous
+    /// spectrum).
     band_spread: BandSpread,
     /// `--model-band-spread SPREAD`: the calibration's model spreads each
-    /// band's light so (`CalibrationProblem::with_band_spread`).
+    /// band's light so (`CalibrationProblem::with_band_spread`); the
+    /// preset's default without the flag.
     model_band_spread: BandSpread,
     /// `--hold-band-table`: the calibration holds that step as a band
     /// table (`cassi calibrate --band-offsets`): the model that knows it.
@@ -544,8 +556,9 @@ fn parse_args(argv: &[String]) -> Result<Args> {
     let mut halo = None;
     let mut dispersion_a2 = 0.0;
     let mut dispersion_step: Option<DispersionStep> = None;
-    let mut band_spread = BandSpread::Point;
-    let mut model_band_spread = BandSpread::Point;
+    // a camera's continuous spectrum: each band's light over its width
+    let mut band_spread = BandSpread::Uniform;
+    let mut model_band_spread: Option<BandSpread> = None;
     let mut hold_band_table = false;
     let mut held_step: Option<DispersionStep> = None;
     let mut mask_capture_px = None;
@@ -782,9 +795,10 @@ fn parse_args(argv: &[String]) -> Result<Args> {
             }
             "--model-band-spread" => {
                 let v = value()?;
-                model_band_spread = v
-                    .parse()
-                    .map_err(|e: String| anyhow!("--model-band-spread: {e}"))?;
+                model_band_spread = Some(
+                    v.parse()
+                        .map_err(|e: String| anyhow!("--model-band-spread: {e}"))?,
+                );
             }
             "--hold-band-table" => hold_band_table = true,
             "--hold-step" => held_step = Some(parse_step("--hold-step", &value()?)?),
@@ -1173,11 +1187,17 @@ fn parse_args(argv: &[String]) -> Result<Args> {
             weighting.window_px, weighting.floor_quantile
         );
     }
+    // the point-band instrument's records kept their names from before the
+    // continuous spectrum became the benchmark's instrument (stop 59)
     let out = out.unwrap_or_else(|| {
+        let instrument = match band_spread {
+            BandSpread::Point => String::new(),
+            spread => format!("_{}_bands", spread.name()),
+        };
         Path::new(env!("CARGO_MANIFEST_DIR"))
             .join("../../bench/results")
             .join(format!(
-                "calibrate_physical_{}.json",
+                "calibrate_physical_{}{instrument}.json",
                 half_name.replace('-', "_")
             ))
     });
@@ -1204,10 +1224,12 @@ fn parse_args(argv: &[String]) -> Result<Args> {
          --no-inverse-crime, no --snapshots): the reconstructions, the limits and the discrete \
          operator know no step or table"
     );
+    // what `cassi calibrate` fits without the flag and without a sidecar
+    let model_band_spread = model_band_spread.unwrap_or(preset.default_band_spread(model));
     ensure!(
-        model_band_spread.is_point() || !(inverse_crime || snapshots_n.is_some()),
-        "--model-band-spread: no inverse-crime row (--no-inverse-crime: the discrete operator \
-         spreads no band) and no --snapshots"
+        model_band_spread.is_point() || snapshots_n.is_none(),
+        "--snapshots: the several-snapshot fits hold a point per band; add --model-band-spread \
+         point (and --band-spread point for the instrument of the records before stop 59)"
     );
     if !model_band_spread.is_point() {
         preset.check_band_spread(model_band_spread)?;
@@ -1450,13 +1472,22 @@ fn measure(
             )?
         }
         Kind::InverseCrime => {
-            let spec = SimulationSpec {
-                mismatch: case.truth.sharp(),
+            // the calibrated model's own operator, with the mask it is
+            // handed and the band spread it holds
+            let clean = Model::new(
+                &masks.nominal,
+                scene.bands(),
+                STRIDE,
+                case.truth.sharp(),
                 model,
-                noise: noise.copied(),
-            };
-            // the model's own operator: with the mask it is handed
-            simulate(scene, &masks.nominal, &spec)?
+            )?
+            .with_band_spread(args.model_band_spread)
+            .operator()?
+            .forward(scene)?;
+            match noise {
+                Some(noise) => noise.apply(&clean)?,
+                None => clean,
+            }
         }
     })
 }
@@ -2178,7 +2209,7 @@ fn main() -> Result<()> {
         "kinds": {
             "random": "dx, dy U(±2.5) px, θ U(±0.8)°, a1 U(1.93, 2.07), α U(±1)°, σ U(0, 0.8) px",
             "aligned_blur": { "mismatch": "nominal (stride 2)", "blur_sigma_px": ALIGNED_SIGMAS },
-            "inverse_crime": "the random case's sharp ψ through the calibrated model's discrete operator (simulate), same noise",
+            "inverse_crime": "the random case's sharp ψ through the calibrated model's own operator (its band spread held), same noise",
             "wide_blur": { "mismatch": "nominal (stride 2), and a random pose and dispersion drawn as for random",
                            "blur_sigma_px": WIDE_SIGMAS,
                            "seed": format!("aligned: seed_base + {WIDE_SEED_OFFSET} + 2·(scene index in half) + j; \
