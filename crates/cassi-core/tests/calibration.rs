@@ -304,6 +304,8 @@ fn default_preset_recovers_a_known_mask_misalignment() {
                 assert_eq!(cal.stages[7].name, DETAIL_PASS_STAGE);
                 let fine = cal.stages[8].name.as_str();
                 assert!(fine.starts_with("scene fit's fine pass"), "{fine}");
+                // a rotated mask and a drifted stride: off the pixel grid
+                assert!(!fine.contains("spectral nodes"), "{fine}");
                 assert_eq!(last, BLUR_PASS_STAGE);
                 assert_eq!(cal.uncertainty_fit, Some(Fit::SceneDetailPass));
             }
@@ -347,6 +349,42 @@ fn default_preset_recovers_a_known_mask_misalignment() {
             }
         }
     }
+}
+
+/// On an aligned, blurred instrument the default's fine pass starts on the
+/// pixel grid and takes its on-grid spectral nodes (every band of 8 here);
+/// the answer stays aligned.
+#[test]
+fn the_fine_pass_refines_the_spectra_of_an_aligned_instrument() {
+    let truth = Mismatch {
+        blur_sigma_px: 0.5,
+        ..Mismatch::nominal(2.0)
+    };
+    let model = DispersionModel::DispersedMask;
+    let (y, mask) = setup(96, 8, truth, model);
+    let p = CalibrationProblem::nominal(&y, &mask, 8, 2.0, model).unwrap();
+    let cal = calibrate_default(&p, &DefaultPreset::default(), &mut |_| {}).unwrap();
+    let fine = cal
+        .stages
+        .iter()
+        .find(|s| s.name.starts_with("scene fit's fine pass"))
+        .expect("the fine pass");
+    assert!(
+        fine.name
+            .contains("8 spectral nodes: the mask on the pixel grid"),
+        "{}",
+        fine.name
+    );
+    // the drifted prism's bounds above (this small 8-band problem pins α
+    // to about 0.25°, with or without the on-grid nodes)
+    let e = cal.parameters;
+    assert!(e.dx.abs() < 0.1 && e.dy.abs() < 0.1, "{e:?}");
+    assert!(e.theta_deg.abs() < 0.15, "{e:?}");
+    assert!(
+        (e.a1 - 2.0).abs() < 0.02 && e.alpha_deg.abs() < 0.5,
+        "{e:?}"
+    );
+    assert!((e.blur_sigma_px - 0.5).abs() < 0.05, "{e:?}");
 }
 
 /// A raised cancel flag stops either preset with `Cancelled` (no result

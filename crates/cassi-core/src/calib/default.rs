@@ -22,15 +22,15 @@ use super::ridge_probes::{RidgeProbes, farthest_alternative};
 use super::rounded_dispersion::{rounded_dispersion, rounding_intervals};
 use super::row_window::{RowBand, RowWindow};
 use super::scene_fit::{
-    FinePassFree, SceneFit, SceneFitResult, SceneFitSettings, fit_scene, fit_scene_from,
+    FinePass, FinePassFree, SceneFit, SceneFitResult, SceneFitSettings, fit_scene, fit_scene_from,
     scene_fit_score,
 };
 use super::stages::{Scored, Stage, StageRunner, lowest};
 use super::subpixel_tilt::subpixel_tilt;
 use super::texture::{SceneEstimate, TextureFit};
 use super::uncertainty::{
-    Fit, UncertaintyEstimate, curvature_uncertainty, scene_fit_uncertainty, texture_uncertainty,
-    two_pass_uncertainty, with_restart_disagreement,
+    Fit, UncertaintyEstimate, curvature_uncertainty, grid_phase, scene_fit_uncertainty,
+    texture_uncertainty, two_pass_uncertainty, with_restart_disagreement,
 };
 use super::{Calibration, CalibrationProblem, PassedOver, ProxyParams, StageReport, Uncertainty};
 use super::{grid, init, nelder_mead};
@@ -897,24 +897,41 @@ fn scene_fit_stage(
             pending.finish(run);
             problem.check_cancelled()?;
             let stage = run.start();
-            let (fine, scene) =
-                pass.scene_fit(problem, settings, (&fit, &found.best), fine_detail)?;
             let moved = moved_by(pass.free);
-            let refined = if moved.contains(&A2) {
-                // the curvature from the straight pass's answer, its scene
-                // warm: the curved answer never scores above the straight
-                // one. Why: refitted from the first pass's answer on the
-                // five real snapshots, two went down another basin along
-                // dx–a1 and ended 0.7–0.8 % above the straight fit
-                // (bench/results/real/stop53_curvature/one_step/)
-                let straight: Vec<Parameter> = moved.iter().copied().filter(|&p| p != A2).collect();
-                let first = fit_scene_from(&fine, &found.best.psi, Some(&scene), &straight)?;
-                stage.count(first.evaluations);
-                fit_scene_from(&fine, &first.best.psi, Some(&first.best.z), &moved)?
-            } else {
-                fit_scene_from(&fine, &found.best.psi, Some(&scene), &moved)?
+            let refit = |pass: &FinePass| -> Result<(SceneFit<'_>, SceneFitResult)> {
+                let (fine, scene) =
+                    pass.scene_fit(problem, settings, (&fit, &found.best), fine_detail.clone())?;
+                let refined = if moved.contains(&A2) {
+                    // the curvature from the straight pass's answer, its
+                    // scene warm: the curved answer never scores above the
+                    // straight one. Why: refitted from the first pass's
+                    // answer on the five real snapshots, two went down
+                    // another basin along dx–a1 and ended 0.7–0.8 % above
+                    // the straight fit (bench/results/real/stop53_curvature/one_step/)
+                    let straight: Vec<Parameter> =
+                        moved.iter().copied().filter(|&p| p != A2).collect();
+                    let first = fit_scene_from(&fine, &found.best.psi, Some(&scene), &straight)?;
+                    stage.count(first.evaluations);
+                    fit_scene_from(&fine, &first.best.psi, Some(&first.best.z), &moved)?
+                } else {
+                    fit_scene_from(&fine, &found.best.psi, Some(&scene), &moved)?
+                };
+                stage.count(refined.evaluations);
+                Ok((fine, refined))
             };
-            stage.count(refined.evaluations);
+            let (fine, refined) = refit(&pass)?;
+            // on the pixel grid, again on the on-grid spectral nodes from
+            // the same start ([`OnGridNodes`](super::OnGridNodes): judged at
+            // this answer, where aligned and posed masks lie apart)
+            let (rows, cols) = problem.nominal_mask().shape();
+            let phase = grid_phase(rows, cols, problem.bands(), &refined.best.psi);
+            let (on_grid, (fine, refined)) = match pass.at_phase(phase) {
+                (spectral, true) => {
+                    problem.check_cancelled()?;
+                    (spectral.spectral_nodes, refit(&spectral)?)
+                }
+                (_, false) => (None, (fine, refined)),
+            };
             let floors = match pass.free {
                 _ if detailed.is_some() => Fit::SceneDetailPass,
                 FinePassFree::Geometry | FinePassFree::All | FinePassFree::GeometryAndCurvature => {
@@ -926,7 +943,16 @@ fn scene_fit_stage(
             let u = two_pass_uncertainty(first, (&fine, &refined, &moved), start, floors);
             // its score is the penalised one on the finer scene: not
             // comparable with the first pass's
-            let name = format!("scene fit's fine pass ({}-px scene, ridge)", pass.cell_px);
+            let name = match on_grid {
+                // the basis clamps its nodes to the bands
+                Some(nodes) => format!(
+                    "scene fit's fine pass ({}-px scene, ridge; again on {} spectral nodes: \
+                     the mask on the pixel grid)",
+                    pass.cell_px,
+                    nodes.min(problem.bands())
+                ),
+                None => format!("scene fit's fine pass ({}-px scene, ridge)", pass.cell_px),
+            };
             let answer = run.finish(stage, name, scored(&refined));
             match preset.ridge_probes {
                 Some(probes) => {

@@ -96,7 +96,10 @@
 //! `--fine-pass-weighted WINDOW_PX,FLOOR_QUANTILE`: the fine pass's residual
 //! weighted from the detail pass's (`FinePass::weighting`);
 //! `--fine-pass-nodes N`: the fine pass's scene on N spectral nodes
-//! (`FinePass::spectral_nodes`; the first pass's by default);
+//! (`FinePass::spectral_nodes`; the first pass's by default, 10 where the
+//! fine pass starts on the pixel grid since stop 59); `--no-on-grid-nodes`:
+//! the first pass's nodes on the pixel grid too (`FinePass::on_grid` off,
+//! the default before stop 59);
 //! `--preset-file PATH`: a whole preset as the records' `preset` holds it
 //! (time and tuning studies set any field without a flag of their own; the
 //! flags after it still apply);
@@ -525,7 +528,7 @@ impl SceneTransform {
 
 const USAGE: &str = "calibrate [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] \
                      [--no-aligned] [--no-inverse-crime] [--no-wide-blur] [--model rounded|subpixel|dispersed-mask|crisp-cells] \
-                     [--preset NAME | --preset-file PATH] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all|geometry-and-curvature] [--scene-cell PX] [--scene-nodes N] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv N] [--detail-pre-smooth PX] [--search-rows N] [--fine-pass-detail] [--fine-pass-weighted WINDOW_PX,FLOOR_QUANTILE] [--fine-pass-nodes N] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N]] [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX | --limits-tv-scene WEIGHT | --limits-spectral-scene NODES | --limits-placed-spectral-scene NODES] [--out PATH] \
+                     [--preset NAME | --preset-file PATH] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all|geometry-and-curvature] [--scene-cell PX] [--scene-nodes N] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv N] [--detail-pre-smooth PX] [--search-rows N] [--fine-pass-detail] [--fine-pass-weighted WINDOW_PX,FLOOR_QUANTILE] [--fine-pass-nodes N] [--no-on-grid-nodes] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N]] [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX | --limits-tv-scene WEIGHT | --limits-spectral-scene NODES | --limits-placed-spectral-scene NODES] [--out PATH] \
                      [--scene-transform none|flip-cols|flip-rows|transpose|coarse|real-band-light|smooth-PX] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--snapshots N [--joint [--joint-model MODEL]]] [--verbose]";
 
 fn parse_args(argv: &[String]) -> Result<Args> {
@@ -570,6 +573,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
     let mut preset_file: Option<PathBuf> = None;
     let mut fine_pass_detail = false;
     let mut fine_pass_nodes: Option<usize> = None;
+    let mut no_on_grid_nodes = false;
     let mut fine_pass_weighting: Option<ResidualWeighting> = None;
     let mut blur_bootstrap: Option<DispersionModel> = None;
     let mut blur_pass = false;
@@ -711,6 +715,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
                 ensure!(n >= 2, "--fine-pass-nodes {v}: at least 2 spectral nodes");
                 fine_pass_nodes = Some(n);
             }
+            "--no-on-grid-nodes" => no_on_grid_nodes = true,
             "--fine-pass-weighted" => {
                 let v = value()?;
                 let parsed = v.split_once(',').and_then(|(w, q)| {
@@ -1175,6 +1180,14 @@ fn parse_args(argv: &[String]) -> Result<Args> {
         };
         pass.spectral_nodes = Some(n);
         preset_name += &format!(" (fine pass on {n} spectral nodes)");
+    }
+    if no_on_grid_nodes {
+        let settings = scene_fit_settings(&mut preset, "--no-on-grid-nodes")?;
+        let Some(pass) = settings.fine_pass.as_mut() else {
+            bail!("--no-on-grid-nodes: the fine pass is off");
+        };
+        pass.on_grid = None;
+        preset_name += " (fine pass on the first pass's spectral nodes on the pixel grid too)";
     }
     if let Some(weighting) = fine_pass_weighting {
         let settings = scene_fit_settings(&mut preset, "--fine-pass-weighted")?;
