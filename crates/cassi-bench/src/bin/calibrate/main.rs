@@ -96,10 +96,10 @@
 //! `--fine-pass-weighted WINDOW_PX,FLOOR_QUANTILE`: the fine pass's residual
 //! weighted from the detail pass's (`FinePass::weighting`);
 //! `--fine-pass-nodes N`: the fine pass's scene on N spectral nodes
-//! (`FinePass::spectral_nodes`; the first pass's by default, 10 where the
-//! fine pass starts on the pixel grid since stop 59); `--no-on-grid-nodes`:
-//! the first pass's nodes on the pixel grid too (`FinePass::on_grid` off,
-//! the default before stop 59);
+//! (`FinePass::spectral_nodes`; the first pass's by default, the pass run
+//! again on 10 where its answer lands on the pixel grid since stop 59);
+//! `--no-on-grid-nodes`: never run again so (`FinePass::on_grid` off, the
+//! default before stop 59);
 //! `--preset-file PATH`: a whole preset as the records' `preset` holds it
 //! (time and tuning studies set any field without a flag of their own; the
 //! flags after it still apply);
