@@ -925,12 +925,12 @@ fn scene_fit_stage(
             // this answer, where aligned and posed masks lie apart)
             let (rows, cols) = problem.nominal_mask().shape();
             let phase = grid_phase(rows, cols, problem.bands(), &refined.best.psi);
-            let (on_grid, (fine, refined)) = match pass.at_phase(phase) {
-                (spectral, true) => {
+            let (on_grid, (fine, refined)) = match pass.again_at(phase) {
+                Some(again) => {
                     problem.check_cancelled()?;
-                    (spectral.spectral_nodes, refit(&spectral)?)
+                    (again.spectral_nodes, refit(&again)?)
                 }
-                (_, false) => (None, (fine, refined)),
+                None => (None, (fine, refined)),
             };
             let floors = match pass.free {
                 _ if detailed.is_some() => Fit::SceneDetailPass,

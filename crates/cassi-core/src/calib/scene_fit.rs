@@ -346,19 +346,14 @@ impl Default for FinePass {
 
 impl FinePass {
     /// The pass to run again after an answer at grid phase `phase`
-    /// ([`grid_phase`](super::grid_phase)), and whether to: on its
-    /// [`OnGridNodes`]' spectral nodes below their phase.
-    pub(crate) fn at_phase(&self, phase: f64) -> (Self, bool) {
-        match self.on_grid {
-            Some(on_grid) if self.spectral_nodes.is_none() && phase < on_grid.below_phase => {
-                let pass = Self {
-                    spectral_nodes: Some(on_grid.spectral_nodes),
-                    ..*self
-                };
-                (pass, true)
-            }
-            _ => (*self, false),
-        }
+    /// ([`grid_phase`](super::grid_phase)), if any: on its [`OnGridNodes`]'
+    /// spectral nodes below their phase.
+    pub(crate) fn again_at(&self, phase: f64) -> Option<Self> {
+        let on_grid = self.on_grid?;
+        (self.spectral_nodes.is_none() && phase < on_grid.below_phase).then_some(Self {
+            spectral_nodes: Some(on_grid.spectral_nodes),
+            ..*self
+        })
     }
 
     /// The pass's scene fit (`settings` with its nodes, first solve and
@@ -1323,8 +1318,7 @@ pub(crate) mod tests {
     fn the_fine_pass_takes_more_spectral_nodes_on_the_pixel_grid_only() {
         let pass = FinePass::default();
         let on_grid = pass.on_grid.unwrap();
-        let (near, taken) = pass.at_phase(0.2);
-        assert!(taken);
+        let near = pass.again_at(0.2).expect("run again on the grid");
         assert_eq!(near.spectral_nodes, Some(on_grid.spectral_nodes));
         assert_eq!(
             FinePass {
@@ -1334,18 +1328,18 @@ pub(crate) mod tests {
             pass
         );
         for phase in [on_grid.below_phase, 1.0, 1.5, f64::NAN] {
-            assert_eq!(pass.at_phase(phase), (pass, false), "phase {phase}");
+            assert_eq!(pass.again_at(phase), None, "phase {phase}");
         }
         let probe = FinePass {
             spectral_nodes: Some(8),
             ..pass
         };
-        assert_eq!(probe.at_phase(0.0), (probe, false));
+        assert_eq!(probe.again_at(0.0), None);
         let off = FinePass {
             on_grid: None,
             ..pass
         };
-        assert_eq!(off.at_phase(0.0), (off, false));
+        assert_eq!(off.again_at(0.0), None);
     }
 
     /// Settings written before the detail pass read back without one; with
