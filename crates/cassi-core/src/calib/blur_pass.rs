@@ -82,6 +82,11 @@ pub struct BlurPass {
     /// 0.029 both) in 0.37 s against 0.52 s (medians).
     #[serde(default)]
     pub max_steps: Option<usize>,
+    /// GAP-TV's blur σ for the detail maps' scene, pixels; `None` (the
+    /// default, and settings written before the field): the σ the pass
+    /// starts from. A probe.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gap_blur_px: Option<f64>,
 }
 
 impl Default for BlurPass {
@@ -91,6 +96,7 @@ impl Default for BlurPass {
             gap_iterations: 50,
             window_share: Some(0.25),
             max_steps: Some(2),
+            gap_blur_px: None,
         }
     }
 }
@@ -177,7 +183,11 @@ impl BlurPass {
             },
             ..DetailPass::default()
         };
-        let detail = maps.detail_map(problem, at, proxy)?;
+        let gap_at = Mismatch {
+            blur_sigma_px: self.gap_blur_px.unwrap_or(at.blur_sigma_px),
+            ..*at
+        };
+        let detail = maps.detail_map(problem, &gap_at, proxy)?;
         let refitted = problem.with_model(self.model);
         let settings = SceneFitSettings {
             max_steps: self.max_steps.unwrap_or(first_pass.max_steps),

@@ -37,8 +37,13 @@ pub(crate) struct CoarseScene {
     /// offset 0 … cell − 1 within a cell.
     cell: usize,
     fractions: Vec<f32>,
-    /// Per band: its two spectral nodes and their weights.
-    band_taps: Vec<[(usize, f32); 2]>,
+    /// Per band: its spectral nodes and their weights (two, between
+    /// evenly spaced nodes; every one, in a basis of given spectra).
+    band_taps: Vec<Vec<(usize, f32)>>,
+    /// In a basis of given spectra ([`CoarseScene::with_spectra`]): their
+    /// least-squares projector (nodes × bands), which [`Self::nodes_of`]
+    /// takes a cube's spectra through; `None`: evenly spaced nodes.
+    projector: Option<Vec<f64>>,
     /// Per map and pixel (maps × rows × cols): the factor a band's pixels
     /// are multiplied by, band k by map ⌊k·maps/bands⌋ (`None`: 1).
     detail: Option<Vec<f32>>,
@@ -296,12 +301,12 @@ impl CoarseScene {
         let band_taps = (0..bands)
             .map(|k| {
                 if spectral_nodes == bands || bands < 2 {
-                    return [(k, 1.0), (k, 0.0)];
+                    return vec![(k, 1.0), (k, 0.0)];
                 }
                 let t = k as f64 * (spectral_nodes - 1) as f64 / (bands - 1) as f64;
                 let j = (t.floor() as usize).min(spectral_nodes - 2);
                 let f = (t - j as f64) as f32;
-                [(j, 1.0 - f), (j + 1, f)]
+                vec![(j, 1.0 - f), (j + 1, f)]
             })
             .collect();
         Self {
@@ -315,6 +320,7 @@ impl CoarseScene {
             cell,
             fractions,
             band_taps,
+            projector: None,
             detail: None,
             detail_offsets: Vec::new(),
             simd: Simd::detect(false),
@@ -337,6 +343,24 @@ impl CoarseScene {
             .map(|k| k * maps / self.bands * plane)
             .collect();
         self.detail = Some(detail);
+        self
+    }
+
+    /// The basis with its spectra spanned by the columns of `spectra`
+    /// (bands × m, row-major, linearly independent) in place of evenly
+    /// spaced nodes: band k of node j's image weighs `spectra[k·m + j]`.
+    pub(crate) fn with_spectra(mut self, spectra: &[f64], m: usize) -> Self {
+        let bands = self.bands;
+        assert!(
+            m >= 1 && spectra.len() == bands * m,
+            "CoarseScene::with_spectra: {} values for {bands} bands × {m}",
+            spectra.len()
+        );
+        self.spectral_nodes = m;
+        self.band_taps = (0..bands)
+            .map(|k| (0..m).map(|j| (j, spectra[k * m + j] as f32)).collect())
+            .collect();
+        self.projector = Some(super::spectral_basis::projector(spectra, bands, m));
         self
     }
 
@@ -548,6 +572,27 @@ impl CoarseScene {
         let (bands, rows, cols) = (self.bands, self.rows, self.cols);
         let plane = self.plane();
         let mut z = vec![0.0f32; self.domain_len()];
+        let pixel = |q: usize, p: usize| {
+            let r = (q * self.cell).min(rows - 1);
+            let c = (p * self.cell).min(cols - 1);
+            r * cols + c
+        };
+        if let Some(projector) = &self.projector {
+            // each node's spectrum projected onto the basis' spectra
+            let m = self.spectral_nodes;
+            for q in 0..self.node_rows {
+                for p in 0..self.node_cols {
+                    let at = pixel(q, p);
+                    for j in 0..m {
+                        let v: f64 = (0..bands)
+                            .map(|k| projector[j * bands + k] * cube[k * rows * cols + at] as f64)
+                            .sum();
+                        z[j * plane + q * self.node_cols + p] = v as f32;
+                    }
+                }
+            }
+            return z;
+        }
         for (j, out) in z.chunks_mut(plane).enumerate() {
             let (k0, k1, f) = if self.spectral_nodes == bands || bands < 2 {
                 (j, j, 0.0)
@@ -557,13 +602,9 @@ impl CoarseScene {
                 (k0, (k0 + 1).min(bands - 1), (t - k0 as f64) as f32)
             };
             for (q, row) in out.chunks_mut(self.node_cols).enumerate() {
-                let r = (q * self.cell).min(rows - 1);
                 for (p, o) in row.iter_mut().enumerate() {
-                    let c = (p * self.cell).min(cols - 1);
-                    let (a, b) = (
-                        cube[(k0 * rows + r) * cols + c],
-                        cube[(k1 * rows + r) * cols + c],
-                    );
+                    let at = pixel(q, p);
+                    let (a, b) = (cube[k0 * rows * cols + at], cube[k1 * rows * cols + at]);
                     *o = a + f * (b - a);
                 }
             }
@@ -824,5 +865,46 @@ mod tests {
             .map(|(a, b)| (a - b).abs())
             .fold(0.0f32, f32::max);
         assert!(worst < 1e-5, "{worst}");
+    }
+
+    /// In a basis of given spectra (three, not orthogonal) the adjoint is
+    /// exact, band k of a node's image weighs the spectra's row k, and a
+    /// cube the basis holds is its own projection (`nodes_of`).
+    #[test]
+    fn a_basis_of_given_spectra_has_an_exact_adjoint_and_projects_its_own_cubes() {
+        let (bands, rows, cols, m) = (9, 17, 13, 3);
+        let spectra: Vec<f64> = (0..bands * m)
+            .map(|i| {
+                let (k, j) = (i / m, i % m);
+                [1.0, (k as f64 * 0.6).cos(), (k as f64 - 4.0).powi(2) / 16.0][j]
+            })
+            .collect();
+        let u = CoarseScene::new(bands, rows, cols, 4, 5).with_spectra(&spectra, m);
+        assert_eq!(u.domain_len(), m * u.plane());
+        let mismatch = adjoint_mismatch(&u, 3);
+        assert!(mismatch < 1e-5, "{mismatch}");
+        // node (spectrum 2, row 1, col 2) alone: pixel (4, 8) of band k is spectra[k][2]
+        let mut z = vec![0.0f32; u.domain_len()];
+        z[2 * u.plane() + u.node_cols + 2] = 1.0;
+        let mut cube = vec![0.0f32; u.range_len()];
+        u.apply(&z, &mut cube);
+        for k in 0..bands {
+            let v = cube[(k * rows + 4) * cols + 8];
+            assert!(
+                (v as f64 - spectra[k * m + 2]).abs() < 1e-6,
+                "band {k}: {v}"
+            );
+        }
+        let z: Vec<f32> = (0..u.domain_len())
+            .map(|i| ((i * 37) % 11) as f32 / 11.0)
+            .collect();
+        u.apply(&z, &mut cube);
+        let back = u.nodes_of(&cube);
+        let worst = z
+            .iter()
+            .zip(&back)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0f32, f32::max);
+        assert!(worst < 1e-4, "{worst}");
     }
 }

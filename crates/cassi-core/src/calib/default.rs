@@ -259,6 +259,13 @@ pub fn calibrate_default(
     if let Some(pass) = preset.scene_fit.and_then(|s| s.detail_pass) {
         pass.check(problem.bands())?;
     }
+    if let Some(basis) = preset
+        .scene_fit
+        .and_then(|s| s.fine_pass)
+        .and_then(|f| f.spectral_basis)
+    {
+        basis.check(problem.bands())?;
+    }
     if let Some(pass) = preset.blur_pass {
         pass.check()?;
     }
@@ -926,6 +933,21 @@ fn scene_fit_stage(
             let (rows, cols) = problem.nominal_mask().shape();
             let phase = grid_phase(rows, cols, problem.bands(), &refined.best.psi);
             let (on_grid, (fine, refined)) = match pass.again_at(phase) {
+                Some(again) if pass.on_grid.is_some_and(|g| g.from_first_answer) => {
+                    problem.check_cancelled()?;
+                    // the same objective, from where the first run ended
+                    let (again_fit, _) = again.scene_fit(
+                        problem,
+                        settings,
+                        (&fit, &found.best),
+                        fine_detail.clone(),
+                    )?;
+                    let scene = again_fit.coefficients_from(&fine, &refined.best.z);
+                    let second =
+                        fit_scene_from(&again_fit, &refined.best.psi, Some(&scene), &moved)?;
+                    stage.count(second.evaluations);
+                    (again.spectral_nodes, (again_fit, second))
+                }
                 Some(again) => {
                     problem.check_cancelled()?;
                     (again.spectral_nodes, refit(&again)?)
@@ -951,7 +973,17 @@ fn scene_fit_stage(
                     pass.cell_px,
                     nodes.min(problem.bands())
                 ),
-                None => format!("scene fit's fine pass ({}-px scene, ridge)", pass.cell_px),
+                None => match pass
+                    .spectral_basis
+                    .filter(|_| pass.spectral_nodes.is_none())
+                {
+                    Some(basis) => format!(
+                        "scene fit's fine pass ({}-px scene on GAP-TV's {} principal spectra, \
+                         ridge)",
+                        pass.cell_px, basis.components
+                    ),
+                    None => format!("scene fit's fine pass ({}-px scene, ridge)", pass.cell_px),
+                },
             };
             let answer = run.finish(stage, name, scored(&refined));
             match preset.ridge_probes {

@@ -32,6 +32,7 @@ mod scene_fit;
 pub(crate) mod score;
 pub(crate) mod smooth;
 mod snapshots;
+mod spectral_basis;
 mod stages;
 mod subpixel_tilt;
 mod texture;
@@ -73,6 +74,7 @@ pub use scene_fit::{
 pub use score::{CalibrationProblem, ProxyParams, gap_tv_reconstruction};
 pub use smooth::{gaussian_taps, smooth_bands};
 pub use snapshots::{Centre, CombineParams, Consistency, SnapshotSpread, combine_snapshots};
+pub use spectral_basis::SpectralBasis;
 pub use texture::{SCENE_SMOOTH_PX, SceneEstimate};
 
 use crate::optics::{BandOffsets, BandSpread, DispersionModel};

@@ -39,6 +39,7 @@ use super::detail_pass::DetailPass;
 use super::nominal_start::NominalStart;
 use super::quasi_newton::{LeastSquares, minimise};
 use super::residual_weights::ResidualWeighting;
+use super::spectral_basis::SpectralBasis;
 use super::{CalibrationProblem, reframe};
 use crate::cube::Cube;
 use crate::error::Result;
@@ -157,6 +158,17 @@ pub struct FinePass {
     /// the field): never. [`Self::spectral_nodes`], when set, wins.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub on_grid: Option<OnGridNodes>,
+    /// σ of its high-pass's Gaussian, pixels; `None` (the default, and
+    /// settings written before the field): the first pass's
+    /// [`SceneFitSettings::high_pass_px`]. A probe.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub high_pass_px: Option<f64>,
+    /// Its scene's spectra the principal spectra of GAP-TV's reconstruction
+    /// at its start ([`SpectralBasis`]) instead of evenly spaced nodes;
+    /// `None` (the default, and settings written before the field): nodes.
+    /// [`Self::spectral_nodes`], when set, wins. A probe.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub spectral_basis: Option<SpectralBasis>,
 }
 
 /// The fine pass run again from its start with its scene on
@@ -178,6 +190,12 @@ pub struct FinePass {
 pub struct OnGridNodes {
     pub spectral_nodes: usize,
     pub below_phase: f64,
+    /// Run again from the first run's answer and scene (on the new nodes)
+    /// instead of from the first run's start; the objective is the same
+    /// (the ridge still anchored on the first pass's scene). `false` in
+    /// settings written before the field, as they ran.
+    #[serde(default)]
+    pub from_first_answer: bool,
 }
 
 impl Default for OnGridNodes {
@@ -185,6 +203,7 @@ impl Default for OnGridNodes {
         Self {
             spectral_nodes: 10,
             below_phase: 0.5,
+            from_first_answer: false,
         }
     }
 }
@@ -340,6 +359,8 @@ impl Default for FinePass {
             weighting: None,
             spectral_nodes: None,
             on_grid: Some(OnGridNodes::default()),
+            high_pass_px: None,
+            spectral_basis: None,
         }
     }
 }
@@ -372,12 +393,17 @@ impl FinePass {
         let fine_settings = SceneFitSettings {
             cell_px: self.cell_px,
             spectral_nodes: self.spectral_nodes.unwrap_or(settings.spectral_nodes),
+            high_pass_px: self.high_pass_px.unwrap_or(settings.high_pass_px),
             cold_solve: self.first_solve,
             max_steps: self.max_steps,
             fine_pass: None,
             ..settings
         };
         let mut fine = SceneFit::new(problem, fine_settings)?;
+        if let (None, Some(basis)) = (self.spectral_nodes, self.spectral_basis) {
+            let spectra = basis.spectra(problem, &first.psi)?;
+            fine = fine.with_spectra(&spectra, basis.components);
+        }
         // the smooth factor's nodes either way: `coarse` is the plain basis
         let scene = fine.coefficients_from(coarse, &first.z);
         if let Some(map) = detail {
@@ -724,6 +750,13 @@ impl<'a> SceneFit<'a> {
     /// cols): the detail pass's.
     pub(crate) fn with_detail(mut self, detail: Vec<f32>) -> Self {
         self.basis = self.basis.with_detail(detail);
+        self
+    }
+
+    /// The fit with its scene's spectra spanned by `spectra`'s m columns
+    /// (bands × m) in place of evenly spaced nodes.
+    pub(crate) fn with_spectra(mut self, spectra: &[f64], m: usize) -> Self {
+        self.basis = self.basis.with_spectra(spectra, m);
         self
     }
 
@@ -1290,13 +1323,25 @@ pub(crate) mod tests {
         let default_json = serde_json::to_string(&FinePass::default()).unwrap();
         assert!(!default_json.contains("carries_detail"), "{default_json}");
         assert!(!default_json.contains("weighting"), "{default_json}");
+        assert!(!default_json.contains("high_pass_px"), "{default_json}");
+        assert!(!default_json.contains("spectral_basis"), "{default_json}");
         let probe = FinePass {
             carries_detail: true,
             weighting: Some(ResidualWeighting::default()),
+            high_pass_px: Some(4.0),
+            spectral_basis: Some(SpectralBasis {
+                components: 6,
+                gap_iterations: 50,
+            }),
+            on_grid: Some(OnGridNodes {
+                from_first_answer: true,
+                ..OnGridNodes::default()
+            }),
             ..FinePass::default()
         };
         let json = serde_json::to_string(&probe).unwrap();
         assert!(json.contains("\"carries_detail\":true"), "{json}");
+        assert!(json.contains("\"from_first_answer\":true"), "{json}");
         assert_eq!(serde_json::from_str::<FinePass>(&json).unwrap(), probe);
         // the on-grid nodes: written by default, absent from (so off in)
         // settings written before them
@@ -1310,6 +1355,45 @@ pub(crate) mod tests {
         before.remove("on_grid");
         let read: FinePass = serde_json::from_value(before.into()).unwrap();
         assert_eq!(read.on_grid, None);
+        // on-grid settings written before `from_first_answer`: from the start
+        let old_on_grid: OnGridNodes =
+            serde_json::from_str(r#"{"spectral_nodes":10,"below_phase":0.5}"#).unwrap();
+        assert_eq!(old_on_grid, OnGridNodes::default());
+    }
+
+    /// With principal spectra the fine pass's scene lives on them: as many
+    /// coefficients per node as spectra (3 here against the default's 6
+    /// nodes), its start the first pass's scene projected onto them.
+    #[test]
+    fn the_fine_pass_on_principal_spectra_solves_its_scene_on_them() {
+        let truth = truth();
+        let (y, mask) = measured(&truth, false);
+        let problem =
+            CalibrationProblem::nominal(&y, &mask, BANDS, 2.0, DispersionModel::DispersedMask)
+                .unwrap();
+        let settings = SceneFitSettings::default();
+        let coarse = SceneFit::new(&problem, settings.first_pass_only()).unwrap();
+        let first = coarse.solve(&truth, None).unwrap();
+        let per_spectrum = |spectral_basis: Option<SpectralBasis>, m: usize| {
+            let pass = FinePass {
+                spectral_basis,
+                ..FinePass::default()
+            };
+            let (fine, scene) = pass
+                .scene_fit(&problem, settings, (&coarse, &first), None)
+                .unwrap();
+            assert_eq!(scene.len(), fine.basis.domain_len());
+            assert_eq!(scene.len() % m, 0);
+            scene.len() / m
+        };
+        let basis = SpectralBasis {
+            components: 3,
+            gap_iterations: 10,
+        };
+        assert_eq!(
+            per_spectrum(Some(basis), 3),
+            per_spectrum(None, settings.spectral_nodes)
+        );
     }
 
     /// The fine pass takes its on-grid nodes below their phase only, and

@@ -1061,7 +1061,7 @@ fn cholesky(a: &[f64], n: usize) -> Option<Vec<f64>> {
 
 /// The inverse of a symmetric positive definite n × n matrix (Cholesky);
 /// `None` when it is not positive definite.
-fn invert_positive_definite(a: &[f64], n: usize) -> Option<Vec<f64>> {
+pub(crate) fn invert_positive_definite(a: &[f64], n: usize) -> Option<Vec<f64>> {
     let l = cholesky(a, n)?;
     // columns of A⁻¹ by forward and back substitution
     let mut inv = vec![0.0f64; n * n];

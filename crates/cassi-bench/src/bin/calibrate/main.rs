@@ -68,7 +68,7 @@
 //! [--no-inverse-crime] [--model rounded|subpixel|dispersed-mask|crisp-cells] [--preset NAME | --preset-file PATH]
 //! [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene]
 //! [--fine-pass-free pose-and-slope|geometry|all|geometry-and-curvature] [--scene-cell PX] [--scene-nodes N]
-//! [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv ITERATIONS] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N]]
+//! [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv ITERATIONS] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N] [--blur-pass-gap-blur PX]]
 //! [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX | --limits-tv-scene WEIGHT | --limits-spectral-scene NODES | --limits-placed-spectral-scene NODES] [--out PATH] [--scene-transform none|flip-cols|flip-rows|transpose|coarse|real-band-light|smooth-PX] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--model-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--detail-cold-above PX|none] [--blur-bootstrap crisp-cells|dispersed-mask [--blur-bootstrap-noise] [--blur-bootstrap-residual] [--blur-bootstrap-min PX]] [--snapshots N [--joint [--joint-model MODEL]]] [--verbose]`
 //! (`--no-texture`: the default preset without its texture fit, as it was
 //! before issue #14 — the "before" row; `--no-scene-fit`: without its
@@ -98,6 +98,14 @@
 //! `--fine-pass-nodes N`: the fine pass's scene on N spectral nodes
 //! (`FinePass::spectral_nodes`; the first pass's by default, the pass run
 //! again on 10 where its answer lands on the pixel grid since stop 59);
+//! `--fine-pass-high-pass PX`: the fine pass's high-pass σ
+//! (`FinePass::high_pass_px`); `--fine-pass-principal-spectra N`: its scene
+//! on the N principal spectra of GAP-TV's reconstruction (50 iterations)
+//! at its start (`FinePass::spectral_basis`); `--on-grid-from-answer`: the
+//! on-grid run from the first run's answer (`OnGridNodes::from_first_answer`);
+//! `--blur-pass-gap-blur PX`: the blur pass's GAP-TV scene made at σ PX
+//! (`BlurPass::gap_blur_px`) — stop 60's probes, none adopted
+//! (`bench/results/default_stop60/`);
 //! `--no-on-grid-nodes`: never run again so (`FinePass::on_grid` off, the
 //! default before stop 59);
 //! `--preset-file PATH`: a whole preset as the records' `preset` holds it
@@ -528,7 +536,7 @@ impl SceneTransform {
 
 const USAGE: &str = "calibrate [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] \
                      [--no-aligned] [--no-inverse-crime] [--no-wide-blur] [--model rounded|subpixel|dispersed-mask|crisp-cells] \
-                     [--preset NAME | --preset-file PATH] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all|geometry-and-curvature] [--scene-cell PX] [--scene-nodes N] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv N] [--detail-pre-smooth PX] [--search-rows N] [--fine-pass-detail] [--fine-pass-weighted WINDOW_PX,FLOOR_QUANTILE] [--fine-pass-nodes N] [--no-on-grid-nodes] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N]] [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX | --limits-tv-scene WEIGHT | --limits-spectral-scene NODES | --limits-placed-spectral-scene NODES] [--out PATH] \
+                     [--preset NAME | --preset-file PATH] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all|geometry-and-curvature] [--scene-cell PX] [--scene-nodes N] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv N] [--detail-pre-smooth PX] [--search-rows N] [--fine-pass-detail] [--fine-pass-weighted WINDOW_PX,FLOOR_QUANTILE] [--fine-pass-nodes N] [--fine-pass-high-pass PX] [--fine-pass-principal-spectra N] [--no-on-grid-nodes | --on-grid-from-answer] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N] [--blur-pass-gap-blur PX]] [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX | --limits-tv-scene WEIGHT | --limits-spectral-scene NODES | --limits-placed-spectral-scene NODES] [--out PATH] \
                      [--scene-transform none|flip-cols|flip-rows|transpose|coarse|real-band-light|smooth-PX] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--snapshots N [--joint [--joint-model MODEL]]] [--verbose]";
 
 fn parse_args(argv: &[String]) -> Result<Args> {
@@ -573,6 +581,9 @@ fn parse_args(argv: &[String]) -> Result<Args> {
     let mut preset_file: Option<PathBuf> = None;
     let mut fine_pass_detail = false;
     let mut fine_pass_nodes: Option<usize> = None;
+    let mut fine_pass_high_pass: Option<f64> = None;
+    let mut fine_pass_spectra: Option<usize> = None;
+    let mut on_grid_from_answer = false;
     let mut no_on_grid_nodes = false;
     let mut fine_pass_weighting: Option<ResidualWeighting> = None;
     let mut blur_bootstrap: Option<DispersionModel> = None;
@@ -581,6 +592,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
     let mut blur_pass_gap: Option<usize> = None;
     let mut blur_pass_share: Option<Option<f64>> = None;
     let mut blur_pass_steps: Option<usize> = None;
+    let mut blur_pass_gap_blur: Option<f64> = None;
     let mut blur_bootstrap_noise = false;
     let mut blur_bootstrap_residual = false;
     let mut blur_bootstrap_min: Option<f64> = None;
@@ -647,6 +659,17 @@ fn parse_args(argv: &[String]) -> Result<Args> {
                 let n: usize = v.parse().with_context(|| format!("--blur-pass-gap {v}"))?;
                 ensure!(n >= 1, "--blur-pass-gap {v}: at least one GAP-TV iteration");
                 blur_pass_gap = Some(n);
+            }
+            "--blur-pass-gap-blur" => {
+                let v = value()?;
+                let px: f64 = v
+                    .parse()
+                    .with_context(|| format!("--blur-pass-gap-blur {v}"))?;
+                ensure!(
+                    px.is_finite() && px >= 0.0,
+                    "--blur-pass-gap-blur {v}: a blur σ in pixels, 0 or more"
+                );
+                blur_pass_gap_blur = Some(px);
             }
             "--blur-pass-steps" => {
                 let v = value()?;
@@ -716,6 +739,29 @@ fn parse_args(argv: &[String]) -> Result<Args> {
                 fine_pass_nodes = Some(n);
             }
             "--no-on-grid-nodes" => no_on_grid_nodes = true,
+            "--on-grid-from-answer" => on_grid_from_answer = true,
+            "--fine-pass-principal-spectra" => {
+                let v = value()?;
+                let n: usize = v
+                    .parse()
+                    .with_context(|| format!("--fine-pass-principal-spectra {v}"))?;
+                ensure!(
+                    n >= 1,
+                    "--fine-pass-principal-spectra {v}: at least one spectrum"
+                );
+                fine_pass_spectra = Some(n);
+            }
+            "--fine-pass-high-pass" => {
+                let v = value()?;
+                let px: f64 = v
+                    .parse()
+                    .with_context(|| format!("--fine-pass-high-pass {v}"))?;
+                ensure!(
+                    px.is_finite() && px > 0.0,
+                    "--fine-pass-high-pass {v}: a positive width in pixels"
+                );
+                fine_pass_high_pass = Some(px);
+            }
             "--fine-pass-weighted" => {
                 let v = value()?;
                 let parsed = v.split_once(',').and_then(|(w, q)| {
@@ -1076,7 +1122,8 @@ fn parse_args(argv: &[String]) -> Result<Args> {
     let tuned_pass = blur_pass
         || blur_pass_gap.is_some()
         || blur_pass_share.is_some()
-        || blur_pass_steps.is_some();
+        || blur_pass_steps.is_some()
+        || blur_pass_gap_blur.is_some();
     if no_blur_pass {
         ensure!(
             !tuned_pass,
@@ -1098,6 +1145,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
             gap_iterations,
             window_share,
             max_steps: blur_pass_steps.or(pass.max_steps),
+            gap_blur_px: blur_pass_gap_blur,
             ..pass
         });
         let rows = window_share.map_or(", every row".to_string(), |f| {
@@ -1106,6 +1154,9 @@ fn parse_args(argv: &[String]) -> Result<Args> {
         preset_name += &format!(
             " (blur pass: σ on the crisp-cell model with GAP-TV's texture, {gap_iterations} iterations{rows})"
         );
+        if let Some(px) = blur_pass_gap_blur {
+            preset_name += &format!(" (GAP-TV's detail scene at σ {px} px)");
+        }
     }
     if let Some(through) = blur_bootstrap {
         scene_fit_settings(&mut preset, "--blur-bootstrap")?;
@@ -1180,6 +1231,33 @@ fn parse_args(argv: &[String]) -> Result<Args> {
         };
         pass.spectral_nodes = Some(n);
         preset_name += &format!(" (fine pass on {n} spectral nodes)");
+    }
+    if let Some(components) = fine_pass_spectra {
+        let settings = scene_fit_settings(&mut preset, "--fine-pass-principal-spectra")?;
+        let Some(pass) = settings.fine_pass.as_mut() else {
+            bail!("--fine-pass-principal-spectra: the fine pass is off");
+        };
+        pass.spectral_basis = Some(cassi_core::calib::SpectralBasis {
+            components,
+            gap_iterations: 50,
+        });
+        preset_name += &format!(" (fine pass on GAP-TV's {components} principal spectra)");
+    }
+    if let Some(px) = fine_pass_high_pass {
+        let settings = scene_fit_settings(&mut preset, "--fine-pass-high-pass")?;
+        let Some(pass) = settings.fine_pass.as_mut() else {
+            bail!("--fine-pass-high-pass: the fine pass is off");
+        };
+        pass.high_pass_px = Some(px);
+        preset_name += &format!(" (fine pass's high-pass {px} px)");
+    }
+    if on_grid_from_answer {
+        let settings = scene_fit_settings(&mut preset, "--on-grid-from-answer")?;
+        let Some(on_grid) = settings.fine_pass.as_mut().and_then(|p| p.on_grid.as_mut()) else {
+            bail!("--on-grid-from-answer: the fine pass or its on-grid run is off");
+        };
+        on_grid.from_first_answer = true;
+        preset_name += " (on the pixel grid, again from the fine pass's answer)";
     }
     if no_on_grid_nodes {
         let settings = scene_fit_settings(&mut preset, "--no-on-grid-nodes")?;
