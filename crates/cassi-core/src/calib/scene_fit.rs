@@ -160,13 +160,19 @@ pub struct FinePass {
     pub on_grid: Option<OnGridNodes>,
     /// σ of its high-pass's Gaussian, pixels; `None` (the default, and
     /// settings written before the field): the first pass's
-    /// [`SceneFitSettings::high_pass_px`]. A probe.
+    /// [`SceneFitSettings::high_pass_px`]. A probe, not adopted: a wider one
+    /// lets the band light's slow ramps in, and the coarse scene's slow
+    /// errors with them — tuning half's 30 random poses, all six 9 → 8
+    /// (1 px) and 7 (4 px), dx sliding further along dx–a1
+    /// (`bench/results/default_stop60/`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub high_pass_px: Option<f64>,
     /// Its scene's spectra the principal spectra of GAP-TV's reconstruction
     /// at its start ([`SpectralBasis`]) instead of evenly spaced nodes;
     /// `None` (the default, and settings written before the field): nodes.
-    /// [`Self::spectral_nodes`], when set, wins. A probe.
+    /// [`Self::spectral_nodes`], when set, wins. A probe, not adopted: 6
+    /// principal spectra, tuning half's 30 random poses, all six 9 → 10,
+    /// dx within 16 → 16, dx moving both ways (`bench/results/default_stop60/`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub spectral_basis: Option<SpectralBasis>,
 }
@@ -193,7 +199,10 @@ pub struct OnGridNodes {
     /// Run again from the first run's answer and scene (on the new nodes)
     /// instead of from the first run's start; the objective is the same
     /// (the ridge still anchored on the first pass's scene). `false` in
-    /// settings written before the field, as they ran.
+    /// settings written before the field, as they ran, and by default: a
+    /// probe, not adopted — a quarter fewer scores in that run, but the
+    /// tuning half's aligned instruments 14 → 13 of 15 (beads stays in the
+    /// first run's minimum, dx +0.100 px; `bench/results/default_stop60/`).
     #[serde(default)]
     pub from_first_answer: bool,
 }
