@@ -68,7 +68,7 @@
 //! [--no-inverse-crime] [--model rounded|subpixel|dispersed-mask|crisp-cells] [--preset NAME | --preset-file PATH]
 //! [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene]
 //! [--fine-pass-free pose-and-slope|geometry|all|geometry-and-curvature] [--scene-cell PX] [--scene-nodes N]
-//! [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv ITERATIONS] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N] [--blur-pass-gap-blur PX]]
+//! [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv ITERATIONS] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N] [--blur-pass-gap-blur PX] [--blur-pass-pre-smooth PX]]
 //! [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX | --limits-tv-scene WEIGHT | --limits-spectral-scene NODES | --limits-placed-spectral-scene NODES] [--out PATH] [--scene-transform none|flip-cols|flip-rows|transpose|coarse|real-band-light|smooth-PX] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--model-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--detail-cold-above PX|none] [--blur-bootstrap crisp-cells|dispersed-mask [--blur-bootstrap-noise] [--blur-bootstrap-residual] [--blur-bootstrap-min PX]] [--snapshots N [--joint [--joint-model MODEL]]] [--verbose]`
 //! (`--no-texture`: the default preset without its texture fit, as it was
 //! before issue #14 — the "before" row; `--no-scene-fit`: without its
@@ -104,8 +104,9 @@
 //! at its start (`FinePass::spectral_basis`); `--on-grid-from-answer`: the
 //! on-grid run from the first run's answer (`OnGridNodes::from_first_answer`);
 //! `--blur-pass-gap-blur PX`: the blur pass's GAP-TV scene made at σ PX
-//! (`BlurPass::gap_blur_px`) — stop 60's probes, none adopted
-//! (`bench/results/default_stop60/`);
+//! (`BlurPass::gap_blur_px`); `--blur-pass-pre-smooth PX`: its detail maps
+//! pre-smoothed by PX (`BlurPass::pre_smooth_px`) — stop 60's probes, none
+//! adopted (`bench/results/default_stop60/`);
 //! `--no-on-grid-nodes`: never run again so (`FinePass::on_grid` off, the
 //! default before stop 59);
 //! `--preset-file PATH`: a whole preset as the records' `preset` holds it
@@ -536,7 +537,7 @@ impl SceneTransform {
 
 const USAGE: &str = "calibrate [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] \
                      [--no-aligned] [--no-inverse-crime] [--no-wide-blur] [--model rounded|subpixel|dispersed-mask|crisp-cells] \
-                     [--preset NAME | --preset-file PATH] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all|geometry-and-curvature] [--scene-cell PX] [--scene-nodes N] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv N] [--detail-pre-smooth PX] [--search-rows N] [--fine-pass-detail] [--fine-pass-weighted WINDOW_PX,FLOOR_QUANTILE] [--fine-pass-nodes N] [--fine-pass-high-pass PX] [--fine-pass-principal-spectra N] [--no-on-grid-nodes | --on-grid-from-answer] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N] [--blur-pass-gap-blur PX]] [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX | --limits-tv-scene WEIGHT | --limits-spectral-scene NODES | --limits-placed-spectral-scene NODES] [--out PATH] \
+                     [--preset NAME | --preset-file PATH] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all|geometry-and-curvature] [--scene-cell PX] [--scene-nodes N] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv N] [--detail-pre-smooth PX] [--search-rows N] [--fine-pass-detail] [--fine-pass-weighted WINDOW_PX,FLOOR_QUANTILE] [--fine-pass-nodes N] [--fine-pass-high-pass PX] [--fine-pass-principal-spectra N] [--no-on-grid-nodes | --on-grid-from-answer] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N] [--blur-pass-gap-blur PX] [--blur-pass-pre-smooth PX]] [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX | --limits-tv-scene WEIGHT | --limits-spectral-scene NODES | --limits-placed-spectral-scene NODES] [--out PATH] \
                      [--scene-transform none|flip-cols|flip-rows|transpose|coarse|real-band-light|smooth-PX] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--snapshots N [--joint [--joint-model MODEL]]] [--verbose]";
 
 fn parse_args(argv: &[String]) -> Result<Args> {
@@ -593,6 +594,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
     let mut blur_pass_share: Option<Option<f64>> = None;
     let mut blur_pass_steps: Option<usize> = None;
     let mut blur_pass_gap_blur: Option<f64> = None;
+    let mut blur_pass_pre_smooth: Option<f64> = None;
     let mut blur_bootstrap_noise = false;
     let mut blur_bootstrap_residual = false;
     let mut blur_bootstrap_min: Option<f64> = None;
@@ -670,6 +672,17 @@ fn parse_args(argv: &[String]) -> Result<Args> {
                     "--blur-pass-gap-blur {v}: a blur σ in pixels, 0 or more"
                 );
                 blur_pass_gap_blur = Some(px);
+            }
+            "--blur-pass-pre-smooth" => {
+                let v = value()?;
+                let px: f64 = v
+                    .parse()
+                    .with_context(|| format!("--blur-pass-pre-smooth {v}"))?;
+                ensure!(
+                    px.is_finite() && px >= 0.0,
+                    "--blur-pass-pre-smooth {v}: a width in pixels, 0 (none) or more"
+                );
+                blur_pass_pre_smooth = Some(px);
             }
             "--blur-pass-steps" => {
                 let v = value()?;
@@ -1123,7 +1136,8 @@ fn parse_args(argv: &[String]) -> Result<Args> {
         || blur_pass_gap.is_some()
         || blur_pass_share.is_some()
         || blur_pass_steps.is_some()
-        || blur_pass_gap_blur.is_some();
+        || blur_pass_gap_blur.is_some()
+        || blur_pass_pre_smooth.is_some();
     if no_blur_pass {
         ensure!(
             !tuned_pass,
@@ -1146,6 +1160,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
             window_share,
             max_steps: blur_pass_steps.or(pass.max_steps),
             gap_blur_px: blur_pass_gap_blur,
+            pre_smooth_px: blur_pass_pre_smooth,
             ..pass
         });
         let rows = window_share.map_or(", every row".to_string(), |f| {
@@ -1156,6 +1171,12 @@ fn parse_args(argv: &[String]) -> Result<Args> {
         );
         if let Some(px) = blur_pass_gap_blur {
             preset_name += &format!(" (GAP-TV's detail scene at σ {px} px)");
+        }
+        if let Some(px) = blur_pass_pre_smooth {
+            preset_name += &format!(" (its detail maps pre-smoothed by {px} px)");
+        }
+        if let Some(n) = blur_pass_steps {
+            preset_name += &format!(" (at most {n} steps)");
         }
     }
     if let Some(through) = blur_bootstrap {
