@@ -358,13 +358,8 @@ fn default_preset_recovers_a_known_mask_misalignment() {
 /// measured on the physical benchmark (`bench/results/default_stop59/`).
 #[test]
 fn the_fine_pass_refines_the_spectra_of_an_aligned_instrument() {
-    let truth = Mismatch {
-        blur_sigma_px: 0.5,
-        ..Mismatch::nominal(2.0)
-    };
-    let model = DispersionModel::DispersedMask;
-    let (y, mask) = setup(96, 8, truth, model);
-    let p = CalibrationProblem::nominal(&y, &mask, 8, 2.0, model).unwrap();
+    let (y, mask) = aligned_blurred();
+    let p = CalibrationProblem::nominal(&y, &mask, 8, 2.0, DispersionModel::DispersedMask).unwrap();
     // the default, and the probe that runs again from the first run's answer
     for from_first_answer in [false, true] {
         let mut preset = DefaultPreset::default();
@@ -387,17 +382,32 @@ fn the_fine_pass_refines_the_spectra_of_an_aligned_instrument() {
             "{}",
             fine.name
         );
-        // the drifted prism's bounds above (this small 8-band problem pins α
-        // to about 0.25°, with or without the on-grid nodes)
+        assert_stays_aligned(&cal.parameters);
         let e = cal.parameters;
-        assert!(e.dx.abs() < 0.1 && e.dy.abs() < 0.1, "{e:?}");
-        assert!(e.theta_deg.abs() < 0.15, "{e:?}");
-        assert!(
-            (e.a1 - 2.0).abs() < 0.02 && e.alpha_deg.abs() < 0.5,
-            "{e:?}"
-        );
         assert!((e.blur_sigma_px - 0.5).abs() < 0.05, "{e:?}");
     }
+}
+
+/// An aligned instrument blurred by σ 0.5 px: the discrete operator's
+/// 96×96, 8-band measurement ([`setup`]).
+fn aligned_blurred() -> (cassi_core::Measurement, cassi_core::Mask) {
+    let truth = Mismatch {
+        blur_sigma_px: 0.5,
+        ..Mismatch::nominal(2.0)
+    };
+    setup(96, 8, truth, DispersionModel::DispersedMask)
+}
+
+/// The drifted prism's bounds above, around the aligned geometry (this
+/// small 8-band problem pins α to about 0.25°, with or without the on-grid
+/// nodes).
+fn assert_stays_aligned(e: &Mismatch) {
+    assert!(e.dx.abs() < 0.1 && e.dy.abs() < 0.1, "{e:?}");
+    assert!(e.theta_deg.abs() < 0.15, "{e:?}");
+    assert!(
+        (e.a1 - 2.0).abs() < 0.02 && e.alpha_deg.abs() < 0.5,
+        "{e:?}"
+    );
 }
 
 /// The fine pass on GAP-TV's principal spectra (a probe, not the default)
@@ -408,13 +418,8 @@ fn the_fine_pass_refines_the_spectra_of_an_aligned_instrument() {
 #[test]
 fn the_fine_pass_on_principal_spectra_keeps_an_aligned_instrument_aligned() {
     use cassi_core::calib::{FinePass, SceneFitSettings, SpectralBasis};
-    let truth = Mismatch {
-        blur_sigma_px: 0.5,
-        ..Mismatch::nominal(2.0)
-    };
-    let model = DispersionModel::DispersedMask;
-    let (y, mask) = setup(96, 8, truth, model);
-    let p = CalibrationProblem::nominal(&y, &mask, 8, 2.0, model).unwrap();
+    let (y, mask) = aligned_blurred();
+    let p = CalibrationProblem::nominal(&y, &mask, 8, 2.0, DispersionModel::DispersedMask).unwrap();
     let settings = SceneFitSettings {
         fine_pass: Some(FinePass {
             spectral_basis: Some(SpectralBasis {
@@ -437,13 +442,7 @@ fn the_fine_pass_on_principal_spectra_keeps_an_aligned_instrument_aligned() {
         .find(|s| s.name.starts_with("scene fit's fine pass"))
         .expect("the fine pass");
     assert!(fine.name.contains("4 principal spectra"), "{}", fine.name);
-    let e = cal.parameters;
-    assert!(e.dx.abs() < 0.1 && e.dy.abs() < 0.1, "{e:?}");
-    assert!(e.theta_deg.abs() < 0.15, "{e:?}");
-    assert!(
-        (e.a1 - 2.0).abs() < 0.02 && e.alpha_deg.abs() < 0.5,
-        "{e:?}"
-    );
+    assert_stays_aligned(&cal.parameters);
     // a basis of more spectra than bands is refused by its own name
     let too_many = DefaultPreset {
         scene_fit: Some(SceneFitSettings {
