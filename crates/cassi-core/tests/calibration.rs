@@ -371,21 +371,24 @@ fn the_fine_pass_refines_the_spectra_of_an_aligned_instrument() {
             .expect("the default's on-grid nodes");
         on_grid.from_first_answer = from_first_answer;
         let cal = calibrate_default(&p, &preset, &mut |_| {}).unwrap();
-        let fine = cal
-            .stages
-            .iter()
-            .find(|s| s.name.starts_with("scene fit's fine pass"))
-            .expect("the fine pass");
+        let fine = fine_pass_name(&cal);
         assert!(
-            fine.name
-                .contains("8 spectral nodes: the mask on the pixel grid"),
-            "{}",
-            fine.name
+            fine.contains("8 spectral nodes: the mask on the pixel grid"),
+            "{fine}"
         );
         assert_stays_aligned(&cal.parameters);
         let e = cal.parameters;
         assert!((e.blur_sigma_px - 0.5).abs() < 0.05, "{e:?}");
     }
+}
+
+/// The name of the fine pass's stage in `cal`'s report.
+fn fine_pass_name(cal: &cassi_core::calib::Calibration) -> &str {
+    cal.stages
+        .iter()
+        .find(|s| s.name.starts_with("scene fit's fine pass"))
+        .map(|s| s.name.as_str())
+        .expect("the fine pass")
 }
 
 /// An aligned instrument blurred by σ 0.5 px: the discrete operator's
@@ -436,12 +439,8 @@ fn the_fine_pass_on_principal_spectra_keeps_an_aligned_instrument_aligned() {
         ..DefaultPreset::default()
     };
     let cal = calibrate_default(&p, &preset, &mut |_| {}).unwrap();
-    let fine = cal
-        .stages
-        .iter()
-        .find(|s| s.name.starts_with("scene fit's fine pass"))
-        .expect("the fine pass");
-    assert!(fine.name.contains("4 principal spectra"), "{}", fine.name);
+    let fine = fine_pass_name(&cal);
+    assert!(fine.contains("4 principal spectra"), "{fine}");
     assert_stays_aligned(&cal.parameters);
     // a basis of more spectra than bands is refused by its own name
     let too_many = DefaultPreset {
