@@ -463,6 +463,20 @@ fn the_fine_pass_on_principal_spectra_keeps_an_aligned_instrument_aligned() {
         "{err}"
     );
     assert_eq!(stages, 0, "refused before any stage");
+    // and a negative high-pass width, by its own name
+    let negative = DefaultPreset {
+        scene_fit: Some(SceneFitSettings {
+            fine_pass: Some(FinePass {
+                high_pass_px: Some(-1.0),
+                ..FinePass::default()
+            }),
+            ..settings
+        }),
+        ..DefaultPreset::default()
+    };
+    let err = calibrate_default(&p, &negative, &mut |_| stages += 1).unwrap_err();
+    assert!(err.to_string().contains("fine_pass.high_pass_px"), "{err}");
+    assert_eq!(stages, 0, "refused before any stage");
 }
 
 /// A raised cancel flag stops either preset with `Cancelled` (no result

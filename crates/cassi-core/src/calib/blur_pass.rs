@@ -135,6 +135,27 @@ impl BlurPass {
                     .into(),
             });
         }
+        if let Some(px) = self.gap_blur_px
+            && !(px.is_finite() && (0.0..=crate::params::MAX_BLUR_SIGMA_PX).contains(&px))
+        {
+            return Err(CassiError::InvalidParameter {
+                name: "blur_pass.gap_blur_px",
+                value: px,
+                reason: format!(
+                    "GAP-TV's blur for the blur pass's texture, pixels: 0 to {}",
+                    crate::params::MAX_BLUR_SIGMA_PX
+                ),
+            });
+        }
+        if let Some(px) = self.pre_smooth_px
+            && !(px.is_finite() && px >= 0.0)
+        {
+            return Err(CassiError::InvalidParameter {
+                name: "blur_pass.pre_smooth_px",
+                value: px,
+                reason: "the detail maps' pre-smoothing, pixels: 0 (none) or more".into(),
+            });
+        }
         if self.gap_iterations == 0 {
             return Err(CassiError::InvalidParameter {
                 name: "blur_pass.gap_iterations",
@@ -243,6 +264,27 @@ mod tests {
         };
         let json = serde_json::to_string(&probe).unwrap();
         assert_eq!(serde_json::from_str::<BlurPass>(&json).unwrap(), probe);
+        // out of range: refused by their own names
+        assert!(probe.check().is_ok());
+        for (bad, name) in [
+            (
+                BlurPass {
+                    gap_blur_px: Some(-0.1),
+                    ..probe
+                },
+                "blur_pass.gap_blur_px",
+            ),
+            (
+                BlurPass {
+                    pre_smooth_px: Some(f64::NAN),
+                    ..probe
+                },
+                "blur_pass.pre_smooth_px",
+            ),
+        ] {
+            let e = bad.check().unwrap_err();
+            assert!(e.to_string().contains(name), "{e}");
+        }
     }
 
     /// A physical-simulator measurement (4× oversampled, crisp cells, blur,

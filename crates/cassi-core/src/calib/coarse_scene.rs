@@ -301,7 +301,7 @@ impl CoarseScene {
         let band_taps = (0..bands)
             .map(|k| {
                 if spectral_nodes == bands || bands < 2 {
-                    return vec![(k, 1.0), (k, 0.0)];
+                    return vec![(k, 1.0)];
                 }
                 let t = k as f64 * (spectral_nodes - 1) as f64 / (bands - 1) as f64;
                 let j = (t.floor() as usize).min(spectral_nodes - 2);

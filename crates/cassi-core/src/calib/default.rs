@@ -259,12 +259,8 @@ pub fn calibrate_default(
     if let Some(pass) = preset.scene_fit.and_then(|s| s.detail_pass) {
         pass.check(problem.bands())?;
     }
-    if let Some(basis) = preset
-        .scene_fit
-        .and_then(|s| s.fine_pass)
-        .and_then(|f| f.spectral_basis)
-    {
-        basis.check(problem.bands())?;
+    if let Some(pass) = preset.scene_fit.and_then(|s| s.fine_pass) {
+        pass.check(problem.bands())?;
     }
     if let Some(pass) = preset.blur_pass {
         pass.check()?;

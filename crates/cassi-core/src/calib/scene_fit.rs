@@ -375,6 +375,27 @@ impl Default for FinePass {
 }
 
 impl FinePass {
+    /// Its probes' settings for a cube of `bands` bands, named when out of
+    /// range (a settings file's, say): before any stage runs.
+    pub(crate) fn check(&self, bands: usize) -> Result<()> {
+        if let Some(px) = self.high_pass_px
+            && !(px.is_finite() && (0.0..=crate::params::MAX_BLUR_SIGMA_PX).contains(&px))
+        {
+            return Err(crate::error::CassiError::InvalidParameter {
+                name: "fine_pass.high_pass_px",
+                value: px,
+                reason: format!(
+                    "the fine pass's high-pass width, pixels: 0 to {}",
+                    crate::params::MAX_BLUR_SIGMA_PX
+                ),
+            });
+        }
+        match self.spectral_basis {
+            Some(basis) => basis.check(bands),
+            None => Ok(()),
+        }
+    }
+
     /// The pass to run again after an answer at grid phase `phase`
     /// ([`grid_phase`](super::grid_phase)), if any: on its [`OnGridNodes`]'
     /// spectral nodes below their phase.
