@@ -6,7 +6,7 @@
 
 use rayon::prelude::*;
 
-use super::dispersion::{Dispersion, DispersionModel};
+use super::dispersion::{Dispersion, DispersionModel, Tap};
 use super::warp::{LandingMasks, warp_mask};
 use crate::cube::{Cube, Frame, Mask, Measurement};
 use crate::error::{CassiError, Result, shape_error};
@@ -171,6 +171,15 @@ impl CassiOperator {
                 &l.stored()[start..start + cols]
             }
         }
+    }
+
+    /// The stored band mask of band `k` on detector row `yr`, `len` columns
+    /// from `c0` (the dispersed-mask model's; its rows are the detector's).
+    #[inline]
+    fn landed_mask(&self, k: usize, yr: usize, c0: usize, len: usize) -> &[f32] {
+        let l = self.landing.as_ref().expect("a dispersed-mask operator");
+        let start = (k * self.mask.rows() + yr) * self.det_cols + c0;
+        &l.stored()[start..start + len]
     }
 
     /// The effective mask on the mask grid (the nominal one moved by the
@@ -444,7 +453,8 @@ impl CassiOperator {
                         for k in 0..bands {
                             let lo = l.masks.first_col(k);
                             let mut filled = false;
-                            for tap in self.dispersion.taps(k) {
+                            for run in tap_runs(self.dispersion.taps(k)) {
+                                let tap = run.first;
                                 let Some(r) = shifted_row(yr, -tap.row, rows) else {
                                     continue;
                                 };
@@ -454,9 +464,10 @@ impl CassiOperator {
                                     filled = true;
                                 }
                                 let c0 = tap.col as usize;
-                                let mrow = &buf[c0 - lo..c0 - lo + cols];
+                                let span = cols + run.next.is_some() as usize;
+                                let mrow = &buf[c0 - lo..c0 - lo + span];
                                 let xrow = x.row(k, r, scratch);
-                                accumulate(simd, &mut yrow[c0..c0 + cols], xrow, mrow, tap.weight);
+                                accumulate_landed(simd, &mut yrow[c0..c0 + span], xrow, mrow, run);
                             }
                         }
                     },
@@ -469,6 +480,20 @@ impl CassiOperator {
             .for_each_init(R::Scratch::default, |scratch, (yr, yrow)| {
                 yrow.fill(0.0);
                 for k in 0..bands {
+                    if self.landing.is_some() {
+                        for run in tap_runs(self.dispersion.taps(k)) {
+                            let tap = run.first;
+                            let Some(r) = shifted_row(yr, -tap.row, rows) else {
+                                continue;
+                            };
+                            let xrow = x.row(k, r, scratch);
+                            let c0 = tap.col as usize;
+                            let span = cols + run.next.is_some() as usize;
+                            let mrow = self.landed_mask(k, yr, c0, span);
+                            accumulate_landed(simd, &mut yrow[c0..c0 + span], xrow, mrow, run);
+                        }
+                        continue;
+                    }
                     for tap in self.dispersion.taps(k) {
                         // source row r with r + tap.row = yr
                         let Some(r) = shifted_row(yr, -tap.row, rows) else {
@@ -492,14 +517,21 @@ impl CassiOperator {
         xrow.fill(0.0);
         if self.landing.is_some() {
             // the mask differs per tap: multiply before summing
-            for tap in self.dispersion.taps(k) {
+            for run in tap_runs(self.dispersion.taps(k)) {
+                let tap = run.first;
                 let Some(yr) = shifted_row(r, tap.row, rows) else {
                     continue;
                 };
                 let c0 = tap.col as usize;
-                let src = &y[yr * self.det_cols + c0..yr * self.det_cols + c0 + cols];
-                let m = self.mask_slice(k, r, yr, c0);
-                weighted_coded_row(simd, xrow, src, m, tap.weight);
+                let span = cols + run.next.is_some() as usize;
+                let src = &y[yr * self.det_cols + c0..yr * self.det_cols + c0 + span];
+                let m = self.landed_mask(k, yr, c0, span);
+                match run.next {
+                    None => weighted_coded_row(simd, xrow, src, m, tap.weight),
+                    Some(next) => {
+                        weighted_coded_pair_adjoint(simd, xrow, src, m, tap.weight, next.weight)
+                    }
+                }
             }
             return;
         }
@@ -529,6 +561,38 @@ fn accumulate(simd: Simd, out: &mut [f32], x: &[f32], m: &[f32], weight: f32) {
     }
 }
 
+/// A band's taps taken in order, two at a time where the second lands one
+/// column right of the first on the same row (a subpixel split): the
+/// dispersed-mask model's pair reads its mask row and writes its detector
+/// row once, for the same sums in the same order as tap by tap.
+#[derive(Clone, Copy)]
+struct TapRun<'t> {
+    first: &'t Tap,
+    next: Option<&'t Tap>,
+}
+
+fn tap_runs(taps: &[Tap]) -> impl Iterator<Item = TapRun<'_>> {
+    let mut t = 0;
+    std::iter::from_fn(move || {
+        let first = taps.get(t)?;
+        let next = taps
+            .get(t + 1)
+            .filter(|n| n.row == first.row && n.col == first.col + 1);
+        t += 1 + next.is_some() as usize;
+        Some(TapRun { first, next })
+    })
+}
+
+/// out += (band mask m) ⊙ (the run's taps of x): `out` and `m` span the
+/// run's columns (one more than x for a pair).
+#[inline]
+fn accumulate_landed(simd: Simd, out: &mut [f32], x: &[f32], m: &[f32], run: TapRun<'_>) {
+    match run.next {
+        None => accumulate(simd, out, x, m, run.first.weight),
+        Some(next) => weighted_coded_pair(simd, out, x, m, run.first.weight, next.weight),
+    }
+}
+
 // The operator's row loops, compiled for the baseline target and for AVX
 // (picked at run time): the same arithmetic per element in either copy, so
 // results do not depend on the CPU.
@@ -542,6 +606,42 @@ kernel!(weighted_coded_row, weighted_coded_row_port, weighted_coded_row_avx,
 (out: &mut [f32], x: &[f32], m: &[f32], w: f32) -> () = {
     for ((o, &xv), &mv) in out.iter_mut().zip(x).zip(m) {
         *o += w * (mv * xv);
+    }
+});
+// A subpixel pair, tap by tap's arithmetic per element in the same order:
+// out[i] += w0·(m[i]·x[i]), then out[i] += w1·(m[i]·x[i−1]) (out and m one
+// longer than x).
+kernel!(weighted_coded_pair, weighted_coded_pair_port, weighted_coded_pair_avx,
+(out: &mut [f32], x: &[f32], m: &[f32], w0: f32, w1: f32) -> () = {
+    let n = x.len();
+    if n == 0 {
+        return;
+    }
+    out[0] += w0 * (m[0] * x[0]);
+    for (((o, &mv), &x0), &x1) in out[1..n]
+        .iter_mut()
+        .zip(&m[1..n])
+        .zip(&x[1..])
+        .zip(&x[..n - 1])
+    {
+        let t = *o + w0 * (mv * x0);
+        *o = t + w1 * (mv * x1);
+    }
+    out[n] += w1 * (m[n] * x[n - 1]);
+});
+// Its adjoint, tap by tap's order: out[i] += w0·(m[i]·y[i]), then
+// out[i] += w1·(m[i+1]·y[i+1]) (y and m one longer than out).
+kernel!(weighted_coded_pair_adjoint, weighted_coded_pair_adjoint_port,
+weighted_coded_pair_adjoint_avx,
+(out: &mut [f32], y: &[f32], m: &[f32], w0: f32, w1: f32) -> () = {
+    for (((o, (&m0, &m1)), &y0), &y1) in out
+        .iter_mut()
+        .zip(m.iter().zip(&m[1..]))
+        .zip(y)
+        .zip(&y[1..])
+    {
+        let t = *o + w0 * (m0 * y0);
+        *o = t + w1 * (m1 * y1);
     }
 });
 kernel!(add_row, add_row_port, add_row_avx,
@@ -673,6 +773,89 @@ mod tests {
         let _ = op.back_project(&on_the_fly).unwrap();
         assert!(op.landing.as_ref().unwrap().stored.get().is_some());
         assert_eq!(op.forward(&x).unwrap(), on_the_fly);
+    }
+
+    /// The dispersed-mask model's subpixel pairs, taken together, give the
+    /// bits of the tap-by-tap loop (forward on the fly and stored, and the
+    /// adjoint), with two taps a band (α = 0) and four (α ≠ 0).
+    #[test]
+    fn dispersed_mask_pairs_give_the_bits_of_tap_by_tap_sums() {
+        let nominal = uniform_grey_mask(13, 21, 9);
+        let (bands, rows, cols) = (7, 13, 21);
+        for alpha in [0.0, 1.7, -0.6] {
+            let m = Mismatch {
+                dx: 0.37,
+                dy: -0.55,
+                theta_deg: 0.3,
+                a1: 2.013,
+                alpha_deg: alpha,
+                ..Mismatch::nominal(2.0)
+            };
+            let op =
+                CassiOperator::with_mismatch(&nominal, bands, &m, DispersionModel::DispersedMask)
+                    .unwrap();
+            // band 0 lands whole; the others split two or four ways
+            let taps: Vec<usize> = (0..bands).map(|k| op.dispersion.taps(k).len()).collect();
+            assert!(
+                taps[1..]
+                    .iter()
+                    .all(|&n| n == if alpha == 0.0 { 2 } else { 4 })
+            );
+            let x: Vec<f32> = (0..bands * rows * cols)
+                .map(|i| ((i * 7919) % 1013) as f32 / 1013.0 + 0.1)
+                .collect();
+            let (_, det_cols) = op.measurement_shape();
+            let on_the_fly = op
+                .forward(&Cube::from_vec(bands, rows, cols, x.clone()).unwrap())
+                .unwrap();
+            let y = on_the_fly.as_slice().to_vec();
+            let mut back = vec![0.0f32; x.len()];
+            op.adjoint(&y, &mut back);
+            let stored = op
+                .forward(&Cube::from_vec(bands, rows, cols, x.clone()).unwrap())
+                .unwrap();
+            // the reference: each tap alone, in band and tap order
+            let mut want_y = vec![0.0f32; rows * det_cols];
+            let mut want_back = vec![0.0f32; x.len()];
+            for k in 0..bands {
+                for tap in op.dispersion.taps(k) {
+                    let c0 = tap.col as usize;
+                    for yr in 0..rows {
+                        let Some(r) = shifted_row(yr, -tap.row, rows) else {
+                            continue;
+                        };
+                        let mrow = op.landed_mask(k, yr, c0, cols);
+                        for i in 0..cols {
+                            let o = &mut want_y[yr * det_cols + c0 + i];
+                            *o += tap.weight * (mrow[i] * x[(k * rows + r) * cols + i]);
+                        }
+                    }
+                }
+            }
+            for k in 0..bands {
+                for r in 0..rows {
+                    for tap in op.dispersion.taps(k) {
+                        let Some(yr) = shifted_row(r, tap.row, rows) else {
+                            continue;
+                        };
+                        let c0 = tap.col as usize;
+                        let mrow = op.landed_mask(k, yr, c0, cols);
+                        for i in 0..cols {
+                            let o = &mut want_back[(k * rows + r) * cols + i];
+                            *o += tap.weight * (mrow[i] * y[yr * det_cols + c0 + i]);
+                        }
+                    }
+                }
+            }
+            let bits = |v: &[f32]| v.iter().map(|f| f.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&y), bits(&want_y), "α {alpha}: forward on the fly");
+            assert_eq!(
+                bits(stored.as_slice()),
+                bits(&want_y),
+                "α {alpha}: forward stored"
+            );
+            assert_eq!(bits(&back), bits(&want_back), "α {alpha}: adjoint");
+        }
     }
 
     /// Where every offset is whole the two subpixel models are one operator;
