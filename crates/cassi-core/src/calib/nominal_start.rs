@@ -34,11 +34,22 @@ pub struct NominalStart {
     /// (`bench/results/calibrate_physical_tuning_nominal_start/`); 0.05
     /// spares most of that cost and the paper's a1 of 2.04.
     pub min_a1_gap: f64,
+    /// A probe (off by default): the second start's dx moved along the
+    /// dx–a1 ridge so that this band still lands where the first answer put
+    /// it (dx + a1·k kept), instead of the first answer's dx. The held-out
+    /// random poses' dx misses pivot on the last band (dx error ≈ −28 × the
+    /// a1 error, stop 60): a start at the nominal a1 with the first answer's
+    /// dx lies off that ridge by the whole slide.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ridge_pivot_band: Option<f64>,
 }
 
 impl Default for NominalStart {
     fn default() -> Self {
-        Self { min_a1_gap: 0.05 }
+        Self {
+            min_a1_gap: 0.05,
+            ridge_pivot_band: None,
+        }
     }
 }
 
@@ -46,7 +57,12 @@ impl NominalStart {
     /// The second start from `first` (the first pass's answer), or `None`
     /// when its a1 lies within `min_a1_gap` of the nominal `stride`.
     pub fn start(&self, first: &Mismatch, stride: f64) -> Option<Mismatch> {
+        let dx = match self.ridge_pivot_band {
+            Some(band) => first.dx + (first.a1 - stride) * band,
+            None => first.dx,
+        };
         ((first.a1 - stride).abs() > self.min_a1_gap).then_some(Mismatch {
+            dx,
             a1: stride,
             alpha_deg: 0.0,
             ..*first
@@ -83,5 +99,35 @@ mod tests {
         assert_eq!(NominalStart::default().start(&near, 2.0), None);
         let below = Mismatch { a1: 1.95, ..first };
         assert!(NominalStart::default().start(&below, 2.0).is_some());
+    }
+
+    #[test]
+    fn the_ridge_start_keeps_the_pivot_bands_landing() {
+        let first = Mismatch {
+            dx: -3.433,
+            a1: 2.0495,
+            ..Mismatch::nominal(2.0)
+        };
+        let ridge = NominalStart {
+            min_a1_gap: 0.04,
+            ridge_pivot_band: Some(27.0),
+        };
+        let start = ridge.start(&first, 2.0).unwrap();
+        assert_eq!(start.a1, 2.0);
+        // band 27 lands where it did: dx + a1·27 unchanged
+        let landing = |m: &Mismatch| m.dx + m.a1 * 27.0;
+        assert!((landing(&start) - landing(&first)).abs() < 1e-12);
+        // the default keeps dx and does not start within its wider gap
+        assert_eq!(NominalStart::default().start(&first, 2.0), None);
+    }
+
+    #[test]
+    fn a_settings_file_without_the_pivot_reads_as_before() {
+        let read: NominalStart = serde_json::from_str(r#"{"min_a1_gap":0.05}"#).unwrap();
+        assert_eq!(read, NominalStart::default());
+        assert_eq!(
+            serde_json::to_string(&NominalStart::default()).unwrap(),
+            r#"{"min_a1_gap":0.05}"#
+        );
     }
 }

@@ -66,7 +66,7 @@
 //! Run: `cargo run --release -p cassi-bench --bin calibrate --
 //! [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] [--no-aligned]
 //! [--no-inverse-crime] [--model rounded|subpixel|dispersed-mask|crisp-cells] [--preset NAME | --preset-file PATH]
-//! [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene]
+//! [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start | [--nominal-start-gap G] [--nominal-start-ridge BAND]] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene]
 //! [--fine-pass-free pose-and-slope|geometry|all|geometry-and-curvature] [--scene-cell PX] [--scene-nodes N]
 //! [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv ITERATIONS] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N] [--blur-pass-gap-blur PX] [--blur-pass-pre-smooth PX]]
 //! [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX | --limits-tv-scene WEIGHT | --limits-spectral-scene NODES | --limits-placed-spectral-scene NODES] [--out PATH] [--scene-transform none|flip-cols|flip-rows|transpose|coarse|real-band-light|smooth-PX] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--model-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--detail-cold-above PX|none] [--blur-bootstrap crisp-cells|dispersed-mask [--blur-bootstrap-noise] [--blur-bootstrap-residual] [--blur-bootstrap-min PX]] [--snapshots N [--joint [--joint-model MODEL]]] [--verbose]`
@@ -81,6 +81,9 @@
 //! up to 20 steps: `--blur-pass-share all --blur-pass-steps 20`);
 //! `--no-nominal-start`: the scene fit's first pass from the texture fit's
 //! answer alone (`calib::NominalStart` off), as the records before it were made;
+//! `--nominal-start-gap G` and `--nominal-start-ridge BAND`: that second start
+//! beyond this a1 gap, its dx moved along the dx–a1 ridge so that band BAND
+//! lands where it did (`NominalStart::ridge_pivot_band`; a probe);
 //! `--fine-pass RIDGE`: the pass with this ridge and, with
 //! `--fine-pass-anchor` and `--fine-pass-free`, this anchor and these
 //! parameters; `geometry-and-curvature` fits a2 too, from `--model-a2`,
@@ -537,7 +540,7 @@ impl SceneTransform {
 
 const USAGE: &str = "calibrate [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] \
                      [--no-aligned] [--no-inverse-crime] [--no-wide-blur] [--model rounded|subpixel|dispersed-mask|crisp-cells] \
-                     [--preset NAME | --preset-file PATH] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all|geometry-and-curvature] [--scene-cell PX] [--scene-nodes N] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv N] [--detail-pre-smooth PX] [--search-rows N] [--fine-pass-detail] [--fine-pass-weighted WINDOW_PX,FLOOR_QUANTILE] [--fine-pass-nodes N] [--fine-pass-high-pass PX] [--fine-pass-principal-spectra N] [--no-on-grid-nodes | --on-grid-from-answer] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N] [--blur-pass-gap-blur PX] [--blur-pass-pre-smooth PX]] [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX | --limits-tv-scene WEIGHT | --limits-spectral-scene NODES | --limits-placed-spectral-scene NODES] [--out PATH] \
+                     [--preset NAME | --preset-file PATH] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start | [--nominal-start-gap G] [--nominal-start-ridge BAND]] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all|geometry-and-curvature] [--scene-cell PX] [--scene-nodes N] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv N] [--detail-pre-smooth PX] [--search-rows N] [--fine-pass-detail] [--fine-pass-weighted WINDOW_PX,FLOOR_QUANTILE] [--fine-pass-nodes N] [--fine-pass-high-pass PX] [--fine-pass-principal-spectra N] [--no-on-grid-nodes | --on-grid-from-answer] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N] [--blur-pass-gap-blur PX] [--blur-pass-pre-smooth PX]] [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX | --limits-tv-scene WEIGHT | --limits-spectral-scene NODES | --limits-placed-spectral-scene NODES] [--out PATH] \
                      [--scene-transform none|flip-cols|flip-rows|transpose|coarse|real-band-light|smooth-PX] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--snapshots N [--joint [--joint-model MODEL]]] [--verbose]";
 
 fn parse_args(argv: &[String]) -> Result<Args> {
@@ -558,6 +561,8 @@ fn parse_args(argv: &[String]) -> Result<Args> {
     let mut fine_pass_free = None;
     let mut no_fine_pass = false;
     let mut no_nominal_start = false;
+    let mut nominal_start_gap: Option<f64> = None;
+    let mut nominal_start_ridge: Option<f64> = None;
     let mut scene_cell: Option<usize> = None;
     let mut scene_nodes: Option<usize> = None;
     let mut detail_groups: Option<usize> = None;
@@ -647,6 +652,25 @@ fn parse_args(argv: &[String]) -> Result<Args> {
             "--no-scene-fit" => scene_fit = false,
             "--no-fine-pass" => no_fine_pass = true,
             "--no-nominal-start" => no_nominal_start = true,
+            "--nominal-start-gap" => {
+                let v = value()?;
+                let gap: f64 = v
+                    .parse()
+                    .with_context(|| format!("--nominal-start-gap {v}"))?;
+                ensure!(
+                    gap.is_finite() && gap >= 0.0,
+                    "--nominal-start-gap {v}: a gap in px/band, ≥ 0"
+                );
+                nominal_start_gap = Some(gap);
+            }
+            "--nominal-start-ridge" => {
+                let v = value()?;
+                let band: f64 = v
+                    .parse()
+                    .with_context(|| format!("--nominal-start-ridge {v}"))?;
+                ensure!(band.is_finite(), "--nominal-start-ridge {v}: a band index");
+                nominal_start_ridge = Some(band);
+            }
             "--detail-pass" => {
                 let free = value()?
                     .parse()
@@ -1065,6 +1089,24 @@ fn parse_args(argv: &[String]) -> Result<Args> {
     if no_nominal_start {
         scene_fit_settings(&mut preset, "--no-nominal-start")?.nominal_start = None;
         preset_name += " (no nominal start)";
+    }
+    if nominal_start_gap.is_some() || nominal_start_ridge.is_some() {
+        ensure!(
+            !no_nominal_start,
+            "--no-nominal-start with --nominal-start-gap or --nominal-start-ridge: one or the other"
+        );
+        let settings = scene_fit_settings(&mut preset, "--nominal-start-gap/-ridge")?;
+        let Some(start) = settings.nominal_start.as_mut() else {
+            bail!("--nominal-start-gap/-ridge: the preset's nominal start is off");
+        };
+        if let Some(gap) = nominal_start_gap {
+            start.min_a1_gap = gap;
+            preset_name += &format!(" (nominal start beyond a1 gap {gap})");
+        }
+        if let Some(band) = nominal_start_ridge {
+            start.ridge_pivot_band = Some(band);
+            preset_name += &format!(" (nominal start along dx-a1, band {band} kept)");
+        }
     }
     // the scene fit's first pass on another node spacing (a model study)
     if let Some(px) = scene_cell {
