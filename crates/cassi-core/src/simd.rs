@@ -26,7 +26,7 @@ impl Simd {
 /// The slices are arguments of a non-inlined function, so LLVM knows they do
 /// not alias and vectorises the lane loops.
 macro_rules! kernel {
-    ($name:ident, $port:ident, $avx:ident, ($($a:ident: $t:ty),* $(,)?) -> $r:ty = $call:expr) => {
+    ($vis:vis $name:ident, $port:ident, $avx:ident, ($($a:ident: $t:ty),* $(,)?) -> $r:ty = $call:expr) => {
         #[inline(never)]
         #[allow(clippy::too_many_arguments)]
         fn $port($($a: $t),*) -> $r {
@@ -43,7 +43,7 @@ macro_rules! kernel {
 
         #[inline(always)]
         #[allow(clippy::too_many_arguments)]
-        fn $name(simd: Simd, $($a: $t),*) -> $r {
+        $vis fn $name(simd: Simd, $($a: $t),*) -> $r {
             #[cfg(target_arch = "x86_64")]
             if simd.avx {
                 // SAFETY: `$avx` only needs the CPU to have AVX, and

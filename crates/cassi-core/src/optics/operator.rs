@@ -650,7 +650,7 @@ kernel!(add_row, add_row_port, add_row_avx,
         *o += v;
     }
 });
-kernel!(weighted_add_row, weighted_add_row_port, weighted_add_row_avx,
+kernel!(pub(crate) weighted_add_row, weighted_add_row_port, weighted_add_row_avx,
 (out: &mut [f32], src: &[f32], w: f32) -> () = {
     for (o, &v) in out.iter_mut().zip(src) {
         *o += w * v;
