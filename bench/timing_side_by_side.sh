@@ -1,0 +1,62 @@
+#!/usr/bin/env bash
+# Two builds' calibration time side by side on this machine: the 25 timing
+# cases of the calibration benchmark (`calibrate --no-recon --no-limits
+# --no-inverse-crime --no-wide-blur`, round 0: 10 random poses, 15 aligned
+# instruments) and, when ../shared/data/real is there, the five real TSA
+# snapshots (`cassi calibrate`, the default). Each run is alone; the order
+# alternates (the benchmark: FIRST's build first; the snapshots: by turns), so
+# a drift of the machine falls on both. Speed is the per-case ratio, not one
+# sitting's median: the project's VMs drift by as much as a change gains.
+#
+# Run from the repository root with a clean tree:
+#   bench/timing_side_by_side.sh OUTDIR BASE_REV NEW_REV [--first new]
+# Writes OUTDIR/{base,new}_timing.json, OUTDIR/real/<snapshot>.{base,new}.calib.json
+# and prints the table (bench/timing_table.py OUTDIR).
+set -euo pipefail
+out=$1
+base_rev=$2
+new_rev=$3
+first=base
+if [[ ${4:-} == --first && ${5:-} == new ]]; then
+  first=new
+fi
+root=$(pwd)
+mkdir -p "$out/real"
+out=$(cd "$out" && pwd)
+work=$(mktemp -d)
+trap 'git -C "$root" worktree remove --force "$work/base" 2>/dev/null || true;
+      git -C "$root" worktree remove --force "$work/new" 2>/dev/null || true; rm -rf "$work"' EXIT
+for which in base new; do
+  rev=$base_rev
+  [[ $which == new ]] && rev=$new_rev
+  git -C "$root" worktree add -q --detach "$work/$which" "$rev"
+  (cd "$work/$which" && cargo build --release -q -p cassi-cli -p cassi-bench --bin cassi --bin calibrate)
+  cp "$work/$which/target/release/cassi" "$work/cassi_$which"
+  cp "$work/$which/target/release/calibrate" "$work/calibrate_$which"
+  git -C "$work/$which" rev-parse HEAD > "$out/$which.rev"
+done
+
+order="base new"
+[[ $first == new ]] && order="new base"
+for which in $order; do
+  echo "== timing cases, $which ($(cat "$out/$which.rev"))"
+  "$work/calibrate_$which" --no-recon --no-limits --no-inverse-crime --no-wide-blur \
+    --out "$out/${which}_timing.json" > "$out/${which}_timing.log" 2>&1
+done
+
+data=$root/../shared/data/real
+if [[ -d $data ]]; then
+  i=0
+  for meas in "$data"/scene*.mat; do
+    name=$(basename "${meas%.*}")
+    pair="base new"
+    (( i % 2 == 1 )) && pair="new base"
+    for which in $pair; do
+      echo "== $name, $which"
+      "$work/cassi_$which" calibrate "$meas" --mask "$data/tsa_real_mask660.mat" \
+        -o "$out/real/$name.$which.calib.json" > "$out/real/$name.$which.log" 2>&1
+    done
+    i=$((i + 1))
+  done
+fi
+python3 "$root/bench/timing_table.py" "$out"
