@@ -21,6 +21,9 @@ if [[ ${4:-} == --first && ${5:-} == new ]]; then
   first=new
 fi
 root=$(pwd)
+# the builds live in temporary worktrees: the benchmark's scenes and masks
+# are found through this, not through ../shared beside them
+export CASSI_SHARED_DATA=${CASSI_SHARED_DATA:-$(cd "$root/.." && pwd)/shared/data}
 mkdir -p "$out/real"
 out=$(cd "$out" && pwd)
 work=$(mktemp -d)
@@ -44,7 +47,7 @@ for which in $order; do
     --out "$out/${which}_timing.json" > "$out/${which}_timing.log" 2>&1
 done
 
-data=$root/../shared/data/real
+data=$CASSI_SHARED_DATA/real
 if [[ -d $data ]]; then
   i=0
   for meas in "$data"/scene*.mat; do
