@@ -9,7 +9,7 @@
 # sitting's median: the project's VMs drift by as much as a change gains.
 #
 # Run from the repository root with a clean tree:
-#   bench/timing_side_by_side.sh OUTDIR BASE_REV NEW_REV [--first new]
+#   bench/timing_side_by_side.sh OUTDIR BASE_REV NEW_REV [--first base|new]
 # Writes OUTDIR/{base,new}_timing.json, OUTDIR/real/<snapshot>.{base,new}.calib.json
 # and prints the table (bench/timing_table.py OUTDIR).
 set -euo pipefail
@@ -17,9 +17,12 @@ out=$1
 base_rev=$2
 new_rev=$3
 first=base
-if [[ ${4:-} == --first && ${5:-} == new ]]; then
-  first=new
-fi
+case "${4:-} ${5:-}" in
+  " ") ;;
+  "--first new") first=new ;;
+  "--first base") ;;
+  *) echo "usage: $0 OUTDIR BASE_REV NEW_REV [--first base|new]" >&2; exit 2 ;;
+esac
 root=$(pwd)
 # the builds live in temporary worktrees: the benchmark's scenes and masks
 # are found through this, not through ../shared beside them
@@ -39,12 +42,19 @@ for which in base new; do
   git -C "$work/$which" rev-parse HEAD > "$out/$which.rev"
 done
 
+# a run's output goes to its log; a failed run shows the log's end and stops
+logged() {
+  local log=$1
+  shift
+  "$@" > "$log" 2>&1 || { echo "failed: $* (log $log):" >&2; tail -n 5 "$log" >&2; exit 1; }
+}
+
 order="base new"
 [[ $first == new ]] && order="new base"
 for which in $order; do
   echo "== timing cases, $which ($(cat "$out/$which.rev"))"
-  "$work/calibrate_$which" --no-recon --no-limits --no-inverse-crime --no-wide-blur \
-    --out "$out/${which}_timing.json" > "$out/${which}_timing.log" 2>&1
+  logged "$out/${which}_timing.log" "$work/calibrate_$which" --no-recon --no-limits \
+    --no-inverse-crime --no-wide-blur --out "$out/${which}_timing.json"
 done
 
 data=$CASSI_SHARED_DATA/real
@@ -56,8 +66,8 @@ if [[ -d $data ]]; then
     (( i % 2 == 1 )) && pair="new base"
     for which in $pair; do
       echo "== $name, $which"
-      "$work/cassi_$which" calibrate "$meas" --mask "$data/tsa_real_mask660.mat" \
-        -o "$out/real/$name.$which.calib.json" > "$out/real/$name.$which.log" 2>&1
+      logged "$out/real/$name.$which.log" "$work/cassi_$which" calibrate "$meas" \
+        --mask "$data/tsa_real_mask660.mat" -o "$out/real/$name.$which.calib.json"
     done
     i=$((i + 1))
   done
