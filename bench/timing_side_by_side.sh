@@ -10,7 +10,7 @@
 #
 # Run from the repository root with a clean tree:
 #   bench/timing_side_by_side.sh OUTDIR BASE_REV NEW_REV [--first base|new]
-# Writes OUTDIR/{base,new}_timing.json, OUTDIR/real/<snapshot>.{base,new}.calib.json
+# OUTDIR must be new or empty. Writes OUTDIR/{base,new}_timing.json, OUTDIR/real/<snapshot>.{base,new}.calib.json
 # and prints the table (bench/timing_table.py OUTDIR).
 set -euo pipefail
 out=$1
@@ -23,6 +23,11 @@ case "${4:-} ${5:-}" in
   "--first base") ;;
   *) echo "usage: $0 OUTDIR BASE_REV NEW_REV [--first base|new]" >&2; exit 2 ;;
 esac
+# a fresh OUTDIR: no earlier sitting's files mixed into this one's table
+if [[ -e $out && -n $(ls -A "$out" 2>/dev/null) ]]; then
+  echo "$out: not empty; give a new or empty OUTDIR" >&2
+  exit 2
+fi
 root=$(pwd)
 # the builds live in temporary worktrees: the benchmark's scenes and masks
 # are found through this, not through ../shared beside them

@@ -262,6 +262,9 @@ pub fn calibrate_default(
     if let Some(pass) = preset.scene_fit.and_then(|s| s.fine_pass) {
         pass.check(problem.bands())?;
     }
+    if let Some(start) = preset.scene_fit.and_then(|s| s.nominal_start) {
+        start.check(problem.bands())?;
+    }
     if let Some(pass) = preset.blur_pass {
         pass.check()?;
     }

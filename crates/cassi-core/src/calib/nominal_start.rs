@@ -12,6 +12,7 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::error::{CassiError, Result};
 use crate::params::Mismatch;
 
 /// The first pass run again from its own answer's pose and blur with the
@@ -54,6 +55,28 @@ impl Default for NominalStart {
 }
 
 impl NominalStart {
+    /// Its settings for a cube of `bands` bands, named when out of range (a
+    /// settings file's, say): before any stage runs.
+    pub(crate) fn check(&self, bands: usize) -> Result<()> {
+        if !(self.min_a1_gap.is_finite() && self.min_a1_gap >= 0.0) {
+            return Err(CassiError::InvalidParameter {
+                name: "nominal_start.min_a1_gap",
+                value: self.min_a1_gap,
+                reason: "the a1 gap beyond which the second start runs, px/band: 0 or more".into(),
+            });
+        }
+        if let Some(band) = self.ridge_pivot_band
+            && !(band.is_finite() && (0.0..=bands.saturating_sub(1) as f64).contains(&band))
+        {
+            return Err(CassiError::InvalidParameter {
+                name: "nominal_start.ridge_pivot_band",
+                value: band,
+                reason: format!("the band kept in place, 0 to {}", bands.saturating_sub(1)),
+            });
+        }
+        Ok(())
+    }
+
     /// The second start from `first` (the first pass's answer), or `None`
     /// when its a1 lies within `min_a1_gap` of the nominal `stride`.
     pub fn start(&self, first: &Mismatch, stride: f64) -> Option<Mismatch> {
@@ -119,6 +142,35 @@ mod tests {
         assert!((landing(&start) - landing(&first)).abs() < 1e-12);
         // the default keeps dx and does not start within its wider gap
         assert_eq!(NominalStart::default().start(&first, 2.0), None);
+    }
+
+    #[test]
+    fn out_of_range_settings_are_refused_by_name() {
+        assert!(NominalStart::default().check(28).is_ok());
+        for (bad, name) in [
+            (
+                NominalStart {
+                    min_a1_gap: -0.01,
+                    ..NominalStart::default()
+                },
+                "nominal_start.min_a1_gap",
+            ),
+            (
+                NominalStart {
+                    ridge_pivot_band: Some(28.0),
+                    ..NominalStart::default()
+                },
+                "nominal_start.ridge_pivot_band",
+            ),
+        ] {
+            let e = bad.check(28).unwrap_err().to_string();
+            assert!(e.contains(name), "{e}");
+        }
+        let last = NominalStart {
+            ridge_pivot_band: Some(27.0),
+            ..NominalStart::default()
+        };
+        assert!(last.check(28).is_ok());
     }
 
     #[test]

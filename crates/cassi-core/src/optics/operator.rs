@@ -165,11 +165,7 @@ impl CassiOperator {
     fn mask_slice(&self, k: usize, r: usize, yr: usize, c0: usize) -> &[f32] {
         match &self.landing {
             None => self.mask.row(r),
-            Some(l) => {
-                let (rows, cols) = (self.mask.rows(), self.mask.cols());
-                let start = (k * rows + yr) * self.det_cols + c0;
-                &l.stored()[start..start + cols]
-            }
+            Some(_) => self.landed_mask(k, yr, c0, self.mask.cols()),
         }
     }
 
