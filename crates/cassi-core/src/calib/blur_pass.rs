@@ -79,7 +79,10 @@ pub struct BlurPass {
     /// steps move σ to within about 0.004 px of where it settles; later ones
     /// creep (the warm solves still converging): on the tuning half 2
     /// steps read σ as 20 do (random RMSE 0.039 against 0.040 px, aligned
-    /// 0.029 both) in 0.37 s against 0.52 s (medians).
+    /// 0.029 both) in 0.37 s against 0.52 s (medians). From stop 62 the
+    /// default is 20 again, with [`Self::start`] the texture fit's σ: on
+    /// the tuning half's random poses 2 steps from that start left σ where
+    /// the texture fit reads it low (within 20 of 30 against 26 with 20).
     #[serde(default)]
     pub max_steps: Option<usize>,
     /// GAP-TV's blur σ for the detail maps' scene, pixels; `None` (the
@@ -97,6 +100,62 @@ pub struct BlurPass {
     /// px; all six 23 → 21 of 45; `bench/results/default_stop60/`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub pre_smooth_px: Option<f64>,
+    /// Where σ starts from (settings written before the field: the scene
+    /// fit's σ, as they ran).
+    #[serde(default = "BlurPassStart::before_the_field")]
+    pub start: BlurPassStart,
+}
+
+/// Where the blur pass starts σ from; the rest of ψ is the scene fit's.
+///
+/// Why (stop 62): on random poses at small blur the pass's objective has
+/// two minima in σ, near 0 and near the truth (`bench/results/default_stop62/`).
+/// The scene fit's σ, fitted on the dispersed-mask model, lands in the one
+/// near 0 on fractional mask phases (its bilinear mask is a blur of its
+/// own), and the pass, capped at 2 steps, stayed near it: tuning half's
+/// random poses at σ 0.19–0.27 read 0.04–0.15 px. The texture fit's σ
+/// (full-resolution scene per ψ) starts in the truth's basin there, though
+/// it reads low at large σ (−0.1 … −0.16 px at 0.5–0.7), where the pass's
+/// objective has one minimum and 20 steps reach it from either start.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum BlurPassStart {
+    /// The scene fit's σ (the default before stop 62).
+    SceneFit,
+    /// The texture fit's σ.
+    TextureFit,
+}
+
+impl BlurPassStart {
+    pub const ALL: [BlurPassStart; 2] = [BlurPassStart::SceneFit, BlurPassStart::TextureFit];
+
+    /// The name in settings files and on command lines.
+    pub fn key(self) -> &'static str {
+        match self {
+            BlurPassStart::SceneFit => "scene-fit",
+            BlurPassStart::TextureFit => "texture-fit",
+        }
+    }
+
+    /// What settings written before [`BlurPass::start`] existed ran.
+    fn before_the_field() -> Self {
+        BlurPassStart::SceneFit
+    }
+
+    /// The start's σ of the two fits'.
+    pub(crate) fn sigma(self, scene_fit_px: f64, texture_fit_px: f64) -> f64 {
+        match self {
+            BlurPassStart::SceneFit => scene_fit_px,
+            BlurPassStart::TextureFit => texture_fit_px,
+        }
+    }
+}
+
+impl std::str::FromStr for BlurPassStart {
+    type Err = String;
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        super::scene_fit::by_key(s, &BlurPassStart::ALL, BlurPassStart::key)
+    }
 }
 
 impl Default for BlurPass {
@@ -105,9 +164,10 @@ impl Default for BlurPass {
             model: DispersionModel::CrispCells,
             gap_iterations: 50,
             window_share: Some(0.25),
-            max_steps: Some(2),
+            max_steps: Some(20),
             gap_blur_px: None,
             pre_smooth_px: None,
+            start: BlurPassStart::TextureFit,
         }
     }
 }
@@ -285,6 +345,30 @@ mod tests {
             let e = bad.check().unwrap_err();
             assert!(e.to_string().contains(name), "{e}");
         }
+    }
+
+    /// The start is a setting of its own: the default the texture fit's σ,
+    /// settings written before the field the scene fit's (as they ran),
+    /// named on command lines by its key.
+    #[test]
+    fn the_start_defaults_to_the_texture_fit_and_older_settings_to_the_scene_fit() {
+        let pass = BlurPass::default();
+        assert_eq!(pass.start, BlurPassStart::TextureFit);
+        assert_eq!(pass.start.sigma(0.04, 0.19), 0.19);
+        assert_eq!(BlurPassStart::SceneFit.sigma(0.04, 0.19), 0.04);
+        let json = serde_json::to_string(&pass).unwrap();
+        assert!(json.contains("\"start\":\"texture-fit\""), "{json}");
+        assert_eq!(serde_json::from_str::<BlurPass>(&json).unwrap(), pass);
+        // a settings file from before the field
+        let mut older: serde_json::Value = serde_json::from_str(&json).unwrap();
+        older.as_object_mut().unwrap().remove("start");
+        let older: BlurPass = serde_json::from_value(older).unwrap();
+        assert_eq!(older.start, BlurPassStart::SceneFit);
+        for start in BlurPassStart::ALL {
+            assert_eq!(start.key().parse::<BlurPassStart>(), Ok(start));
+        }
+        let e = "texture".parse::<BlurPassStart>().unwrap_err();
+        assert!(e.contains("scene-fit, texture-fit"), "{e}");
     }
 
     /// A physical-simulator measurement (4× oversampled, crisp cells, blur,

@@ -138,8 +138,9 @@ pub struct DefaultPreset {
     /// After the scene fit, σ refitted on the crisp-cell model with
     /// GAP-TV's texture, the geometry held ([`BlurPass`]; needs the scene
     /// fit and `fit_blur`; before the bootstrap when both are on). On by
-    /// default since stop 41 (on a quarter of the rows, two steps: cheap
-    /// enough; see `blur_pass.rs`); `None` in records made before it.
+    /// default since stop 41 (on a quarter of the rows: cheap enough; since
+    /// stop 62 from the texture fit's σ, up to 20 steps; see
+    /// `blur_pass.rs`); `None` in records made before it.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub blur_pass: Option<BlurPass>,
     /// The search stages (2, 3 and 3b: the pose from several starts, the
@@ -303,6 +304,7 @@ pub fn calibrate_default(
         let estimate = SceneEstimate::Proxy { at: best };
         let (found, u) = texture_stage(&mut run, problem, preset, &best, estimate)?;
         best = found;
+        let texture_blur_sigma_px = found.blur_sigma_px;
         match preset.scene_fit {
             Some(settings) if problem.model().samples_mask_per_band() => {
                 let mut found = scene_fit_stage(&mut run, problem, preset, settings, &best)?;
@@ -313,7 +315,13 @@ pub fn calibrate_default(
                     if pass.model != problem.model() {
                         model_blur_sigma_px = Some(found.0.blur_sigma_px);
                     }
-                    found.0 = blur_pass_stage(&mut run, problem, preset, settings, pass, found.0)?;
+                    let start = Mismatch {
+                        blur_sigma_px: pass
+                            .start
+                            .sigma(found.0.blur_sigma_px, texture_blur_sigma_px),
+                        ..found.0
+                    };
+                    found.0 = blur_pass_stage(&mut run, problem, preset, settings, pass, start)?;
                 }
                 if let (Some(bootstrap), true) = (preset.blur_bootstrap, preset.fit_blur)
                     && found.0.blur_sigma_px >= bootstrap.min_blur_px
@@ -1133,8 +1141,8 @@ fn blur_bootstrap_stage(
     Ok(run.finish(stage, BLUR_BOOTSTRAP_STAGE, scored))
 }
 
-/// σ refitted by the [`BlurPass`]; every other parameter as the scene fit
-/// left it.
+/// σ refitted by the [`BlurPass`] from `found`'s σ (the pass's start);
+/// every other parameter as the scene fit left it.
 fn blur_pass_stage(
     run: &mut StageRunner<'_>,
     problem: &CalibrationProblem<'_>,

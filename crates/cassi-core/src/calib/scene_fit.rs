@@ -322,7 +322,7 @@ impl std::str::FromStr for FinePassFree {
 }
 
 /// The one of `all` whose `key` is `s`, or an error naming them all.
-fn by_key<T: Copy>(
+pub(super) fn by_key<T: Copy>(
     s: &str,
     all: &[T],
     key: fn(T) -> &'static str,

@@ -68,7 +68,7 @@
 //! [--no-inverse-crime] [--model rounded|subpixel|dispersed-mask|crisp-cells] [--preset NAME | --preset-file PATH]
 //! [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start | [--nominal-start-gap G] [--nominal-start-ridge BAND]] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene]
 //! [--fine-pass-free pose-and-slope|geometry|all|geometry-and-curvature] [--scene-cell PX] [--scene-nodes N]
-//! [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv ITERATIONS] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N] [--blur-pass-gap-blur PX] [--blur-pass-pre-smooth PX]]
+//! [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv ITERATIONS] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N] [--blur-pass-start scene-fit|texture-fit] [--blur-pass-gap-blur PX] [--blur-pass-pre-smooth PX]]
 //! [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX | --limits-tv-scene WEIGHT | --limits-spectral-scene NODES | --limits-placed-spectral-scene NODES] [--out PATH] [--scene-transform none|flip-cols|flip-rows|transpose|coarse|real-band-light|smooth-PX] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--model-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--detail-cold-above PX|none] [--blur-bootstrap crisp-cells|dispersed-mask [--blur-bootstrap-noise] [--blur-bootstrap-residual] [--blur-bootstrap-min PX]] [--snapshots N [--joint [--joint-model MODEL]]] [--verbose]`
 //! (`--no-texture`: the default preset without its texture fit, as it was
 //! before issue #14 — the "before" row; `--no-scene-fit`: without its
@@ -109,7 +109,9 @@
 //! `--blur-pass-gap-blur PX`: the blur pass's GAP-TV scene made at σ PX
 //! (`BlurPass::gap_blur_px`); `--blur-pass-pre-smooth PX`: its detail maps
 //! pre-smoothed by PX (`BlurPass::pre_smooth_px`) — stop 60's probes, none
-//! adopted (`bench/results/default_stop60/`);
+//! adopted (`bench/results/default_stop60/`); `--blur-pass-start
+//! scene-fit`: the blur pass's σ from the scene fit's (`BlurPass::start`,
+//! the default before stop 62; with `--blur-pass-steps 2`, stop 61's pass);
 //! `--no-on-grid-nodes`: never run again so (`FinePass::on_grid` off, the
 //! default before stop 59);
 //! `--preset-file PATH`: a whole preset as the records' `preset` holds it
@@ -173,9 +175,10 @@ use cassi_bench::{
     scene_name, shared_data,
 };
 use cassi_core::calib::{
-    BlurBootstrap, BlurPass, Calibration, CalibrationProblem, CombineParams, DefaultPreset,
-    DetailPass, DetailSource, FinePass, FinePassFree, PRESET_NAMES, Preset, ResidualWeighting,
-    SCENE_FIT_STAGE, SceneFitSettings, calibrate, grid_phase, interval_95_floor, model_error_floor,
+    BlurBootstrap, BlurPass, BlurPassStart, Calibration, CalibrationProblem, CombineParams,
+    DefaultPreset, DetailPass, DetailSource, FinePass, FinePassFree, PRESET_NAMES, Preset,
+    ResidualWeighting, SCENE_FIT_STAGE, SceneFitSettings, calibrate, grid_phase, interval_95_floor,
+    model_error_floor,
 };
 use cassi_core::metrics::psnr;
 use cassi_core::optics::blur::GaussianBlur;
@@ -540,7 +543,7 @@ impl SceneTransform {
 
 const USAGE: &str = "calibrate [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] \
                      [--no-aligned] [--no-inverse-crime] [--no-wide-blur] [--model rounded|subpixel|dispersed-mask|crisp-cells] \
-                     [--preset NAME | --preset-file PATH] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start | [--nominal-start-gap G] [--nominal-start-ridge BAND]] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all|geometry-and-curvature] [--scene-cell PX] [--scene-nodes N] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv N] [--detail-pre-smooth PX] [--search-rows N] [--fine-pass-detail] [--fine-pass-weighted WINDOW_PX,FLOOR_QUANTILE] [--fine-pass-nodes N] [--fine-pass-high-pass PX] [--fine-pass-principal-spectra N] [--no-on-grid-nodes | --on-grid-from-answer] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N] [--blur-pass-gap-blur PX] [--blur-pass-pre-smooth PX]] [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX | --limits-tv-scene WEIGHT | --limits-spectral-scene NODES | --limits-placed-spectral-scene NODES] [--out PATH] \
+                     [--preset NAME | --preset-file PATH] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start | [--nominal-start-gap G] [--nominal-start-ridge BAND]] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all|geometry-and-curvature] [--scene-cell PX] [--scene-nodes N] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv N] [--detail-pre-smooth PX] [--search-rows N] [--fine-pass-detail] [--fine-pass-weighted WINDOW_PX,FLOOR_QUANTILE] [--fine-pass-nodes N] [--fine-pass-high-pass PX] [--fine-pass-principal-spectra N] [--no-on-grid-nodes | --on-grid-from-answer] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N] [--blur-pass-start scene-fit|texture-fit] [--blur-pass-gap-blur PX] [--blur-pass-pre-smooth PX]] [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX | --limits-tv-scene WEIGHT | --limits-spectral-scene NODES | --limits-placed-spectral-scene NODES] [--out PATH] \
                      [--scene-transform none|flip-cols|flip-rows|transpose|coarse|real-band-light|smooth-PX] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--snapshots N [--joint [--joint-model MODEL]]] [--verbose]";
 
 fn parse_args(argv: &[String]) -> Result<Args> {
@@ -598,6 +601,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
     let mut blur_pass_gap: Option<usize> = None;
     let mut blur_pass_share: Option<Option<f64>> = None;
     let mut blur_pass_steps: Option<usize> = None;
+    let mut blur_pass_start: Option<BlurPassStart> = None;
     let mut blur_pass_gap_blur: Option<f64> = None;
     let mut blur_pass_pre_smooth: Option<f64> = None;
     let mut blur_bootstrap_noise = false;
@@ -715,6 +719,13 @@ fn parse_args(argv: &[String]) -> Result<Args> {
                     .with_context(|| format!("--blur-pass-steps {v}"))?;
                 ensure!(n >= 1, "--blur-pass-steps {v}: at least one step");
                 blur_pass_steps = Some(n);
+            }
+            "--blur-pass-start" => {
+                blur_pass_start = Some(
+                    value()?
+                        .parse()
+                        .map_err(|e: String| anyhow!("--blur-pass-start {e}"))?,
+                );
             }
             "--blur-pass-share" => {
                 let v = value()?;
@@ -1178,12 +1189,13 @@ fn parse_args(argv: &[String]) -> Result<Args> {
         || blur_pass_gap.is_some()
         || blur_pass_share.is_some()
         || blur_pass_steps.is_some()
+        || blur_pass_start.is_some()
         || blur_pass_gap_blur.is_some()
         || blur_pass_pre_smooth.is_some();
     if no_blur_pass {
         ensure!(
             !tuned_pass,
-            "--no-blur-pass with --blur-pass, --blur-pass-gap, --blur-pass-share or --blur-pass-steps: pick one"
+            "--no-blur-pass with --blur-pass or its settings (--blur-pass-gap, --blur-pass-share, --blur-pass-steps, --blur-pass-start, …): pick one"
         );
         if let Preset::Default(d) = &mut preset {
             d.blur_pass = None;
@@ -1201,6 +1213,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
             gap_iterations,
             window_share,
             max_steps: blur_pass_steps.or(pass.max_steps),
+            start: blur_pass_start.unwrap_or(pass.start),
             gap_blur_px: blur_pass_gap_blur,
             pre_smooth_px: blur_pass_pre_smooth,
             ..pass
@@ -1219,6 +1232,9 @@ fn parse_args(argv: &[String]) -> Result<Args> {
         }
         if let Some(n) = blur_pass_steps {
             preset_name += &format!(" (at most {n} steps)");
+        }
+        if let Some(start) = blur_pass_start {
+            preset_name += &format!(" (σ from the {} σ)", start.key());
         }
     }
     if let Some(through) = blur_bootstrap {
