@@ -55,8 +55,9 @@ pub struct CalibrateArgs {
     /// with GAP-TV's texture, the geometry held, on the middle quarter of
     /// the rows — σ nearer the truth on blurred instruments and above all
     /// on smooth scenes at a pose off the pixel grid, where the scene fit
-    /// reads σ about 0.07 px low (README: the blur pass). About 0.3 s on a
-    /// 256×256 frame, 1–3 s on a 660×714 one. Default preset only.
+    /// reads σ about 0.07 px low (README: the blur pass). Since stop 62 it
+    /// starts from the texture fit's σ. About 0.35–0.6 s on a 256×256
+    /// frame, 1–3 s on a 660×714 one. Default preset only.
     #[arg(long, conflicts_with = "blur_pass")]
     pub no_blur_pass: bool,
     /// The blur pass, on by default since stop 41 (kept so that scripts

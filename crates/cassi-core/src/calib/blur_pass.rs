@@ -117,6 +117,9 @@ pub struct BlurPass {
 /// (full-resolution scene per ψ) starts in the truth's basin there, though
 /// it reads low at large σ (−0.1 … −0.16 px at 0.5–0.7), where the pass's
 /// objective has one minimum and 20 steps reach it from either start.
+/// Where the texture fit reads more than [`TEXTURE_START_MAX_PX`] — beyond
+/// the range the start was chosen on; the real snapshots — the pass runs
+/// as before ([`BlurPassStart::plan`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum BlurPassStart {
@@ -142,14 +145,43 @@ impl BlurPassStart {
         BlurPassStart::SceneFit
     }
 
-    /// The start's σ of the two fits'.
-    pub(crate) fn sigma(self, scene_fit_px: f64, texture_fit_px: f64) -> f64 {
+    /// The pass's start σ of the two fits' and its step cap: the texture
+    /// fit's σ with `max_steps` up to [`TEXTURE_START_MAX_PX`]; beyond it
+    /// the pass before stop 62 (the scene fit's σ, at most
+    /// [`SCENE_FIT_START_STEPS`] steps); [`Self::SceneFit`]: the scene
+    /// fit's σ with `max_steps`.
+    pub(crate) fn plan(
+        self,
+        scene_fit_px: f64,
+        texture_fit_px: f64,
+        max_steps: Option<usize>,
+    ) -> (f64, Option<usize>) {
         match self {
-            BlurPassStart::SceneFit => scene_fit_px,
-            BlurPassStart::TextureFit => texture_fit_px,
+            BlurPassStart::TextureFit if texture_fit_px <= TEXTURE_START_MAX_PX => {
+                (texture_fit_px, max_steps)
+            }
+            BlurPassStart::TextureFit => (scene_fit_px, Some(SCENE_FIT_START_STEPS)),
+            BlurPassStart::SceneFit => (scene_fit_px, max_steps),
         }
     }
 }
+
+/// The largest texture-fit σ [`BlurPassStart::TextureFit`] starts from,
+/// px: the benchmark's blur range (0–0.8 px, where the start was chosen;
+/// its texture fits read at most 0.87 px there) with a margin. Beyond it
+/// the texture fit is not reading the blur alone: on the five real TSA
+/// snapshots it reads 1.3–1.6 px where the scene fit reads 0.09–0.33, and
+/// the pass from there took 47 scores (8 s, against 2–3 s) to land at σ
+/// 0.03 and 0.45 where it had read 0.10 and 0.27 (legoplant, realplant1).
+/// There the pass runs as before stop 62: 20 steps from the scene fit's σ
+/// would read the two at 0.008 and 0.015 (its objective's minimum near 0,
+/// the one the two-step cap stops short of; `bench/results/default_stop62/`).
+pub const TEXTURE_START_MAX_PX: f64 = 1.0;
+
+/// The step cap of the pass before stop 62, which
+/// [`BlurPassStart::TextureFit`] falls back to beyond
+/// [`TEXTURE_START_MAX_PX`].
+pub const SCENE_FIT_START_STEPS: usize = 2;
 
 impl std::str::FromStr for BlurPassStart {
     type Err = String;
@@ -354,8 +386,20 @@ mod tests {
     fn the_start_defaults_to_the_texture_fit_and_older_settings_to_the_scene_fit() {
         let pass = BlurPass::default();
         assert_eq!(pass.start, BlurPassStart::TextureFit);
-        assert_eq!(pass.start.sigma(0.04, 0.19), 0.19);
-        assert_eq!(BlurPassStart::SceneFit.sigma(0.04, 0.19), 0.04);
+        let steps = pass.max_steps;
+        assert_eq!(steps, Some(20));
+        assert_eq!(pass.start.plan(0.04, 0.19, steps), (0.19, steps));
+        assert_eq!(
+            BlurPassStart::SceneFit.plan(0.04, 0.19, steps),
+            (0.04, steps)
+        );
+        // beyond the benchmark's blur range the texture fit is not trusted:
+        // the pass before stop 62
+        assert_eq!(
+            pass.start.plan(0.09, TEXTURE_START_MAX_PX, steps),
+            (1.0, steps)
+        );
+        assert_eq!(pass.start.plan(0.09, 1.62, steps), (0.09, Some(2)));
         let json = serde_json::to_string(&pass).unwrap();
         assert!(json.contains("\"start\":\"texture-fit\""), "{json}");
         assert_eq!(serde_json::from_str::<BlurPass>(&json).unwrap(), pass);

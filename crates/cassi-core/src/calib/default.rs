@@ -315,12 +315,16 @@ pub fn calibrate_default(
                     if pass.model != problem.model() {
                         model_blur_sigma_px = Some(found.0.blur_sigma_px);
                     }
+                    let (sigma, max_steps) = pass.start.plan(
+                        found.0.blur_sigma_px,
+                        texture_blur_sigma_px,
+                        pass.max_steps,
+                    );
                     let start = Mismatch {
-                        blur_sigma_px: pass
-                            .start
-                            .sigma(found.0.blur_sigma_px, texture_blur_sigma_px),
+                        blur_sigma_px: sigma,
                         ..found.0
                     };
+                    let pass = BlurPass { max_steps, ..pass };
                     found.0 = blur_pass_stage(&mut run, problem, preset, settings, pass, start)?;
                 }
                 if let (Some(bootstrap), true) = (preset.blur_bootstrap, preset.fit_blur)
