@@ -441,7 +441,8 @@ enum Message {
 ///         True asks for it (an error with the paper preset). It reads σ
 ///         nearer the truth on blurred instruments and above all on smooth
 ///         scenes at a pose off the pixel grid, where the scene fit reads σ
-///         about 0.07 px low; about 0.3 s on a 256×256 frame.
+///         about 0.07 px low. Since stop 62 it starts from the texture
+///         fit's σ; about 0.35–0.6 s on a 256×256 frame.
 ///     search_rows: the rows the default preset's search stages (pose from
 ///         several starts, dispersion hypotheses, their pose re-fits) run
 ///         on: None keeps the preset's own (the middle 256 rows of a taller
