@@ -1435,12 +1435,14 @@ mod tests {
             );
         }
         // the spread model: a1 within its tolerance, σ near the optics'
-        // (this 128² scene's own limit: dx 0.049 px, σ +0.06 px — the
-        // benchmark's figures are in bench/results); the point model reads
-        // the spread as a1 (0.03 off) and σ (0.2 high)
+        // (this 128² scene's own limit: dx 0.049 px; σ +0.06 px with the
+        // blur pass from the scene fit's σ, +0.12 from the texture fit's,
+        // stop 62's default — the benchmark's figures, where that start
+        // wins, are in bench/results/default_stop62); the point model
+        // reads the spread as a1 (0.03 off) and σ (0.2 high)
         assert!(error(&with, Parameter::A1) < 0.005, "{:?}", with.parameters);
         assert!(
-            error(&with, Parameter::BlurSigmaPx) < 0.1,
+            error(&with, Parameter::BlurSigmaPx) < 0.15,
             "{:?}",
             with.parameters
         );
