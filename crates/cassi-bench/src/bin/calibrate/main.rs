@@ -2401,7 +2401,11 @@ fn main() -> Result<()> {
                     one-sided for σ < 0.01); var_i = (y_i·k + read²)/k², k = photon_peak / max(y_clean)",
         })),
         "recon": args.recon.then(|| json!({
-            "method": "gap-tv (shipped settings)", "model": "subpixel, blur from ψ",
+            "method": "gap-tv (shipped settings)",
+            // the calibration's own family: the problem's nominal model at ψ
+            "model": format!("{} with the {} band spread (the calibrated model's family), blur σ from ψ \
+                              (III: the calibration's reconstruction_parameters)",
+                             args.model.name(), args.model_band_spread.name()),
             "II": "nominal ψ", "III": "calibrated ψ", "IV": "true ψ",
             "rho": format!("(III − II)/(IV − II); null where IV − II < {RHO_MIN_GAIN_DB} dB"),
             "psnr": "cassi_core::metrics::psnr (whole cube, peak 1) of the [0, 1]-clipped reconstruction",
