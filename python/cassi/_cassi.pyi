@@ -97,8 +97,8 @@ class Calibration:
         """The estimated ψ keyed by PARAMETERS (px, °, px/band)."""
     @property
     def reconstruction_parameters(self) -> Dict[str, float]:
-        """`parameters` with blur_sigma_px the calibrated model's own fit where the blur pass
-        read the reported one on the crisp-cell model; what reconstruct(calibration=) uses."""
+        """What reconstruct(calibration=) uses: `parameters`, or with blur_sigma_px the calibrated
+        model's own fit where the calibration kept it (its model_blur_sigma_px)."""
     @property
     def standard_errors(self) -> Dict[str, Optional[float]]:
         """Standard error per parameter; None where not estimated."""

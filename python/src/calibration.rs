@@ -67,9 +67,10 @@ impl PyCalibration {
     }
 
     /// The parameters `reconstruct(..., calibration=cal)` uses: `parameters`
-    /// with blur_sigma_px the calibrated model's own fit where the default's
-    /// blur pass read the reported one on the crisp-cell model (the
-    /// instrument's blur); otherwise `parameters` themselves.
+    /// themselves (since stop 63 the blur pass's σ too), or with
+    /// blur_sigma_px the calibrated model's own fit where the calibration
+    /// kept it to reconstruct with (the pass run as before stop 62 — the
+    /// real snapshots — or settings that say so).
     #[getter]
     fn reconstruction_parameters<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         params::to_dict(py, &self.inner.reconstruction_parameters())

@@ -4,7 +4,7 @@
 use cassi_core::calib::{
     BLUR_BOOTSTRAP_STAGE, BLUR_PASS_STAGE, BlurBootstrap, BlurPass, Calibration,
     CalibrationProblem, DETAIL_PASS_STAGE, DefaultPreset, Fit, NOMINAL_START_STAGE, ProxyParams,
-    calibrate_default,
+    ReconstructionSigma, TEXTURE_START_MAX_PX, calibrate_default,
 };
 use cassi_core::optics::{DispersionModel, SimulationSpec, simulate};
 use cassi_core::synth::{SceneSpec, random_binary_mask, synthetic_scene};
@@ -626,7 +626,9 @@ fn the_blur_bootstrap_moves_the_blur_alone() {
 /// of the crisp-cell model's own operator (an inverse crime: the pass's
 /// model made them, at a fractional row phase) it at least halves the
 /// scene fit's σ error, fitted in the dispersed-mask model on a smooth
-/// scene (measured −0.125 → −0.008 px).
+/// scene (measured −0.125 → −0.008 px). The calibrated model reconstructs
+/// with the pass's σ (since stop 63); settings that say so, and settings
+/// written before the choice, with its own fit's.
 #[test]
 fn the_blur_pass_moves_the_blur_alone() {
     let truth = Mismatch {
@@ -645,12 +647,31 @@ fn the_blur_pass_moves_the_blur_alone() {
     let cal = calibrate_default(&p, &preset, &mut |_| {}).unwrap();
     let (before, was, now) = blur_moved_alone_last(&cal, BLUR_PASS_STAGE, &truth);
     eprintln!("σ error: scene fit {was:+.4}, blur pass {now:+.4}");
-    // the pass reads σ on another model: the calibrated model's operator
-    // keeps its own fit's σ to reconstruct with, the report the pass's
-    assert_eq!(cal.model_blur_sigma_px, Some(before.blur_sigma_px));
-    assert_eq!(cal.reconstruction_parameters(), before);
     assert!(was.abs() > 0.02, "the scene fit's own error {was:+.4}");
     assert!(now.abs() <= 0.5 * was.abs(), "{was:+.4} -> {now:+.4}");
+    // the pass started from the texture fit's σ (within the start's range):
+    // the operator reconstructs with the reported σ, the pass's
+    let texture = cal
+        .stages
+        .iter()
+        .find(|s| s.name.starts_with("texture fit"))
+        .expect("a texture stage");
+    assert!(texture.parameters.blur_sigma_px <= TEXTURE_START_MAX_PX);
+    assert_eq!(cal.model_blur_sigma_px, None);
+    assert_eq!(cal.reconstruction_parameters(), cal.parameters);
+    // the choice before stop 63: the calibrated model's own fit's σ, the
+    // report the pass's, every estimate as with the default
+    let own = DefaultPreset {
+        blur_pass: Some(BlurPass {
+            reconstruct_with: ReconstructionSigma::ModelFit,
+            ..BlurPass::default()
+        }),
+        ..DefaultPreset::default()
+    };
+    let own = calibrate_default(&p, &own, &mut |_| {}).unwrap();
+    assert_eq!(own.parameters, cal.parameters);
+    assert_eq!(own.model_blur_sigma_px, Some(before.blur_sigma_px));
+    assert_eq!(own.reconstruction_parameters(), before);
     // a pass without GAP-TV iterations is refused by its own name, before any stage
     let empty = DefaultPreset {
         blur_pass: Some(BlurPass {

@@ -104,6 +104,73 @@ pub struct BlurPass {
     /// fit's σ, as they ran).
     #[serde(default = "BlurPassStart::before_the_field")]
     pub start: BlurPassStart,
+    /// Which σ the calibrated model reconstructs with (settings written
+    /// before the field: the model's own fit's, as they ran).
+    #[serde(default = "ReconstructionSigma::before_the_field")]
+    pub reconstruct_with: ReconstructionSigma,
+}
+
+/// The σ a calibration whose blur pass ran reconstructs with
+/// ([`Calibration::reconstruction_parameters`](super::Calibration::reconstruction_parameters)):
+/// the pass reads σ on its own model (the crisp-cell one), the calibrated
+/// model's scene fit reads another.
+///
+/// Why the pass's since stop 63: stop 44 chose the model's own σ on the
+/// tuning half of its day (GAP-TV recovery ρ ≥ 95 % in 45 of 45 cases with
+/// it, 44 with the pass's, which then started from the scene fit's σ with
+/// two steps). With the pass from the texture fit's σ (stop 62) the tuning
+/// half reads the other way: ρ ≥ 95 % in 43 of 45 with the pass's σ, 40
+/// with the model's, GAP-TV's PSNR +0.018 dB (random poses) and +0.003 dB
+/// (aligned) on average (`bench/results/default_stop63/tuning/recon_sigma.py`).
+/// Where the pass falls back to its form before stop 62 (a texture-fit σ
+/// beyond [`TEXTURE_START_MAX_PX`]: the real snapshots), its σ is two
+/// steps from the model's, not a converged answer, and the model's own is
+/// kept ([`BlurPass::reconstructs_with_pass`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum ReconstructionSigma {
+    /// The calibrated model's own fit's σ (the default from stop 44 to 62).
+    ModelFit,
+    /// The pass's σ, the reported one.
+    BlurPass,
+}
+
+impl ReconstructionSigma {
+    pub const ALL: [ReconstructionSigma; 2] =
+        [ReconstructionSigma::ModelFit, ReconstructionSigma::BlurPass];
+
+    /// The name in settings files and on command lines.
+    pub fn key(self) -> &'static str {
+        match self {
+            ReconstructionSigma::ModelFit => "model-fit",
+            ReconstructionSigma::BlurPass => "blur-pass",
+        }
+    }
+
+    /// What settings written before [`BlurPass::reconstruct_with`] existed ran.
+    fn before_the_field() -> Self {
+        ReconstructionSigma::ModelFit
+    }
+}
+
+impl std::str::FromStr for ReconstructionSigma {
+    type Err = String;
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        super::scene_fit::by_key(s, &ReconstructionSigma::ALL, ReconstructionSigma::key)
+    }
+}
+
+impl BlurPass {
+    /// Whether the calibrated model reconstructs with this pass's σ, the
+    /// texture fit having read `texture_fit_px`: as
+    /// [`Self::reconstruct_with`] says, but the model's own σ where the
+    /// start falls back to the pass before stop 62
+    /// ([`BlurPassStart::plan`]), which reconstructed with it.
+    pub(crate) fn reconstructs_with_pass(&self, texture_fit_px: f64) -> bool {
+        let falls_back =
+            self.start == BlurPassStart::TextureFit && texture_fit_px > TEXTURE_START_MAX_PX;
+        self.reconstruct_with == ReconstructionSigma::BlurPass && !falls_back
+    }
 }
 
 /// Where the blur pass starts σ from; the rest of ψ is the scene fit's.
@@ -200,6 +267,7 @@ impl Default for BlurPass {
             gap_blur_px: None,
             pre_smooth_px: None,
             start: BlurPassStart::TextureFit,
+            reconstruct_with: ReconstructionSigma::BlurPass,
         }
     }
 }
@@ -413,6 +481,45 @@ mod tests {
         }
         let e = "texture".parse::<BlurPassStart>().unwrap_err();
         assert!(e.contains("scene-fit, texture-fit"), "{e}");
+    }
+
+    /// The calibrated model reconstructs with the pass's σ by default, with
+    /// its own fit's where the start falls back to the pass before stop 62
+    /// (a texture-fit σ beyond the start's range) or where the settings say
+    /// so; settings written before the choice read as its own fit's, as
+    /// they ran.
+    #[test]
+    fn the_model_reconstructs_with_the_passs_sigma_unless_it_fell_back_or_is_told_otherwise() {
+        let pass = BlurPass::default();
+        assert_eq!(pass.reconstruct_with, ReconstructionSigma::BlurPass);
+        assert!(pass.reconstructs_with_pass(0.4));
+        assert!(pass.reconstructs_with_pass(TEXTURE_START_MAX_PX));
+        assert!(!pass.reconstructs_with_pass(1.3));
+        // from the scene fit's σ there is no fallback
+        let from_scene_fit = BlurPass {
+            start: BlurPassStart::SceneFit,
+            ..pass
+        };
+        assert!(from_scene_fit.reconstructs_with_pass(1.3));
+        let own = BlurPass {
+            reconstruct_with: ReconstructionSigma::ModelFit,
+            ..pass
+        };
+        assert!(!own.reconstructs_with_pass(0.4));
+        let json = serde_json::to_string(&pass).unwrap();
+        assert!(
+            json.contains("\"reconstruct_with\":\"blur-pass\""),
+            "{json}"
+        );
+        let mut older: serde_json::Value = serde_json::from_str(&json).unwrap();
+        older.as_object_mut().unwrap().remove("reconstruct_with");
+        let older: BlurPass = serde_json::from_value(older).unwrap();
+        assert_eq!(older.reconstruct_with, ReconstructionSigma::ModelFit);
+        for with in ReconstructionSigma::ALL {
+            assert_eq!(with.key().parse::<ReconstructionSigma>(), Ok(with));
+        }
+        let e = "pass".parse::<ReconstructionSigma>().unwrap_err();
+        assert!(e.contains("model-fit, blur-pass"), "{e}");
     }
 
     /// A physical-simulator measurement (4× oversampled, crisp cells, blur,

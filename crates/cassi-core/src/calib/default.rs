@@ -299,6 +299,7 @@ pub fn calibrate_default(
         best = joint_refinement(&mut run, &scores, best);
     }
     // σ as the model itself fits it, where the blur pass reads it on another
+    // and the model reconstructs with its own (blur_pass::ReconstructionSigma)
     let mut model_blur_sigma_px = None;
     let u = if texture {
         let estimate = SceneEstimate::Proxy { at: best };
@@ -312,7 +313,9 @@ pub fn calibrate_default(
                     found = nominal_a1_restart(&mut run, problem, preset, settings, &posed, found)?;
                 }
                 if let (Some(pass), true) = (preset.blur_pass, preset.fit_blur) {
-                    if pass.model != problem.model() {
+                    if pass.model != problem.model()
+                        && !pass.reconstructs_with_pass(texture_blur_sigma_px)
+                    {
                         model_blur_sigma_px = Some(found.0.blur_sigma_px);
                     }
                     let (sigma, max_steps) = pass.start.plan(

@@ -49,7 +49,7 @@ use serde::{Deserialize, Serialize};
 pub use adam::AdamSettings;
 pub use band_shifts::{BandShiftFit, BandShifts, band_shift_scores, fit_band_shifts};
 pub use blur_bootstrap::BlurBootstrap;
-pub use blur_pass::{BlurPass, BlurPassStart};
+pub use blur_pass::{BlurPass, BlurPassStart, ReconstructionSigma, TEXTURE_START_MAX_PX};
 pub use default::{
     BLUR_BOOTSTRAP_STAGE, BLUR_PASS_STAGE, DETAIL_PASS_STAGE, DefaultPreset,
     NOMINAL_A1_RESTART_PREFIX, NOMINAL_A1_RESTART_STAGE, NOMINAL_START_STAGE, RIDGE_PROBES_STAGE,
@@ -171,12 +171,14 @@ pub struct Calibration {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub ridge_probes: Option<RidgeProbeReport>,
     /// σ as `model` itself fits it, where the stage that set
-    /// `parameters.blur_sigma_px` read it on another model: the default's
-    /// blur pass reads the instrument's blur on the crisp-cell model, while
-    /// the dispersed-mask model's operator reconstructs best with its own
-    /// fit's σ (GAP-TV recovery ρ ≥ 95 % in 45 of 45 tuning cases with it,
-    /// 44 with the pass's; README: the blur pass). `None`: reconstruct with
-    /// `parameters` as they are. See [`Calibration::reconstruction_parameters`].
+    /// `parameters.blur_sigma_px` read it on another model and the
+    /// calibration reconstructs with the model's own: the default's blur
+    /// pass reads the instrument's blur on the crisp-cell model; from stop
+    /// 44 to 62 the dispersed-mask model reconstructed with its own fit's
+    /// σ, since stop 63 with the pass's, except where the pass runs as
+    /// before stop 62 (the real snapshots; [`ReconstructionSigma`]).
+    /// `None`: reconstruct with `parameters` as they are. See
+    /// [`Calibration::reconstruction_parameters`].
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub model_blur_sigma_px: Option<f64>,
     /// Set where this calibration combines several snapshots' of one

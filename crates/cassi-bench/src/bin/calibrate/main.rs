@@ -68,7 +68,7 @@
 //! [--no-inverse-crime] [--model rounded|subpixel|dispersed-mask|crisp-cells] [--preset NAME | --preset-file PATH]
 //! [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start | [--nominal-start-gap G] [--nominal-start-ridge BAND]] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene]
 //! [--fine-pass-free pose-and-slope|geometry|all|geometry-and-curvature] [--scene-cell PX] [--scene-nodes N]
-//! [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv ITERATIONS] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N] [--blur-pass-start scene-fit|texture-fit] [--blur-pass-gap-blur PX] [--blur-pass-pre-smooth PX]]
+//! [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv ITERATIONS] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N] [--blur-pass-start scene-fit|texture-fit] [--blur-pass-reconstructs model-fit|blur-pass] [--blur-pass-gap-blur PX] [--blur-pass-pre-smooth PX]]
 //! [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX | --limits-tv-scene WEIGHT | --limits-spectral-scene NODES | --limits-placed-spectral-scene NODES] [--out PATH] [--scene-transform none|flip-cols|flip-rows|transpose|coarse|real-band-light|smooth-PX] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--model-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--detail-cold-above PX|none] [--blur-bootstrap crisp-cells|dispersed-mask [--blur-bootstrap-noise] [--blur-bootstrap-residual] [--blur-bootstrap-min PX]] [--snapshots N [--joint [--joint-model MODEL]]] [--verbose]`
 //! (`--no-texture`: the default preset without its texture fit, as it was
 //! before issue #14 — the "before" row; `--no-scene-fit`: without its
@@ -112,6 +112,8 @@
 //! adopted (`bench/results/default_stop60/`); `--blur-pass-start
 //! scene-fit`: the blur pass's σ from the scene fit's (`BlurPass::start`,
 //! the default before stop 62; with `--blur-pass-steps 2`, stop 61's pass);
+//! `--blur-pass-reconstructs model-fit`: III with the calibrated model's own
+//! σ (`BlurPass::reconstruct_with`, the default from stop 44 to 62);
 //! `--no-on-grid-nodes`: never run again so (`FinePass::on_grid` off, the
 //! default before stop 59);
 //! `--preset-file PATH`: a whole preset as the records' `preset` holds it
@@ -177,8 +179,8 @@ use cassi_bench::{
 use cassi_core::calib::{
     BlurBootstrap, BlurPass, BlurPassStart, Calibration, CalibrationProblem, CombineParams,
     DefaultPreset, DetailPass, DetailSource, FinePass, FinePassFree, PRESET_NAMES, Preset,
-    ResidualWeighting, SCENE_FIT_STAGE, SceneFitSettings, calibrate, grid_phase, interval_95_floor,
-    model_error_floor,
+    ReconstructionSigma, ResidualWeighting, SCENE_FIT_STAGE, SceneFitSettings, calibrate,
+    grid_phase, interval_95_floor, model_error_floor,
 };
 use cassi_core::metrics::psnr;
 use cassi_core::optics::blur::GaussianBlur;
@@ -543,7 +545,7 @@ impl SceneTransform {
 
 const USAGE: &str = "calibrate [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] \
                      [--no-aligned] [--no-inverse-crime] [--no-wide-blur] [--model rounded|subpixel|dispersed-mask|crisp-cells] \
-                     [--preset NAME | --preset-file PATH] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start | [--nominal-start-gap G] [--nominal-start-ridge BAND]] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all|geometry-and-curvature] [--scene-cell PX] [--scene-nodes N] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv N] [--detail-pre-smooth PX] [--search-rows N] [--fine-pass-detail] [--fine-pass-weighted WINDOW_PX,FLOOR_QUANTILE] [--fine-pass-nodes N] [--fine-pass-high-pass PX] [--fine-pass-principal-spectra N] [--no-on-grid-nodes | --on-grid-from-answer] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N] [--blur-pass-start scene-fit|texture-fit] [--blur-pass-gap-blur PX] [--blur-pass-pre-smooth PX]] [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX | --limits-tv-scene WEIGHT | --limits-spectral-scene NODES | --limits-placed-spectral-scene NODES] [--out PATH] \
+                     [--preset NAME | --preset-file PATH] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start | [--nominal-start-gap G] [--nominal-start-ridge BAND]] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all|geometry-and-curvature] [--scene-cell PX] [--scene-nodes N] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv N] [--detail-pre-smooth PX] [--search-rows N] [--fine-pass-detail] [--fine-pass-weighted WINDOW_PX,FLOOR_QUANTILE] [--fine-pass-nodes N] [--fine-pass-high-pass PX] [--fine-pass-principal-spectra N] [--no-on-grid-nodes | --on-grid-from-answer] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N] [--blur-pass-start scene-fit|texture-fit] [--blur-pass-reconstructs model-fit|blur-pass] [--blur-pass-gap-blur PX] [--blur-pass-pre-smooth PX]] [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX | --limits-tv-scene WEIGHT | --limits-spectral-scene NODES | --limits-placed-spectral-scene NODES] [--out PATH] \
                      [--scene-transform none|flip-cols|flip-rows|transpose|coarse|real-band-light|smooth-PX] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--snapshots N [--joint [--joint-model MODEL]]] [--verbose]";
 
 fn parse_args(argv: &[String]) -> Result<Args> {
@@ -602,6 +604,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
     let mut blur_pass_share: Option<Option<f64>> = None;
     let mut blur_pass_steps: Option<usize> = None;
     let mut blur_pass_start: Option<BlurPassStart> = None;
+    let mut blur_pass_reconstructs: Option<ReconstructionSigma> = None;
     let mut blur_pass_gap_blur: Option<f64> = None;
     let mut blur_pass_pre_smooth: Option<f64> = None;
     let mut blur_bootstrap_noise = false;
@@ -725,6 +728,13 @@ fn parse_args(argv: &[String]) -> Result<Args> {
                     value()?
                         .parse()
                         .map_err(|e: String| anyhow!("--blur-pass-start {e}"))?,
+                );
+            }
+            "--blur-pass-reconstructs" => {
+                blur_pass_reconstructs = Some(
+                    value()?
+                        .parse()
+                        .map_err(|e: String| anyhow!("--blur-pass-reconstructs {e}"))?,
                 );
             }
             "--blur-pass-share" => {
@@ -1190,6 +1200,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
         || blur_pass_share.is_some()
         || blur_pass_steps.is_some()
         || blur_pass_start.is_some()
+        || blur_pass_reconstructs.is_some()
         || blur_pass_gap_blur.is_some()
         || blur_pass_pre_smooth.is_some();
     if no_blur_pass {
@@ -1214,6 +1225,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
             window_share,
             max_steps: blur_pass_steps.or(pass.max_steps),
             start: blur_pass_start.unwrap_or(pass.start),
+            reconstruct_with: blur_pass_reconstructs.unwrap_or(pass.reconstruct_with),
             gap_blur_px: blur_pass_gap_blur,
             pre_smooth_px: blur_pass_pre_smooth,
             ..pass
@@ -1235,6 +1247,9 @@ fn parse_args(argv: &[String]) -> Result<Args> {
         }
         if let Some(start) = blur_pass_start {
             preset_name += &format!(" (σ from the {} σ)", start.key());
+        }
+        if let Some(with) = blur_pass_reconstructs {
+            preset_name += &format!(" (reconstructing with the {} σ)", with.key());
         }
     }
     if let Some(through) = blur_bootstrap {

@@ -101,7 +101,7 @@ pub fn read_model_file(path: &Path) -> anyhow::Result<ModelFile> {
             let field = "\"parameters\"";
             let m = named_at(&v["parameters"], field)?;
             let cal = file.parse::<Calibration>()?.record;
-            // σ the model's own fit where the calibration has one
+            // σ the model's own fit where the calibration kept one
             let m = Mismatch {
                 blur_sigma_px: cal.reconstruction_parameters().blur_sigma_px,
                 ..m
