@@ -75,7 +75,7 @@ pub fn mismatch(
                 }
             };
         } else if let Ok(cal) = obj.cast::<PyCalibration>() {
-            // the calibrated model's operator: σ its own fit where it has one
+            // the calibrated model's operator: its reconstruction parameters
             m = cal.get().inner.reconstruction_parameters();
         } else if let Ok(map) = obj.cast::<PyMapping>() {
             for item in map.items()?.iter() {

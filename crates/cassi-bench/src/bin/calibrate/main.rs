@@ -1910,7 +1910,8 @@ fn run_case(
         let t = Instant::now();
         // II, III and IV in the calibrated model's family
         let ii = recon_psnr(&y, &problem.nominal, scene, &Mismatch::nominal(STRIDE))?;
-        // the calibrated model's operator: σ its own fit where it has one
+        // the calibrated model's operator at its reconstruction parameters (σ the
+        // reported one, or the model's own fit where the calibration kept it)
         let iii = recon_psnr(
             &y,
             &problem.nominal,
