@@ -940,33 +940,47 @@ fn scene_fit_stage(
                 stage.count(refined.evaluations);
                 Ok((fine, refined))
             };
-            let (fine, refined) = refit(&pass)?;
-            // on the pixel grid, again on the on-grid spectral nodes from
-            // the same start ([`OnGridNodes`](super::OnGridNodes): judged at
-            // this answer, where aligned and posed masks lie apart)
             let (rows, cols) = problem.nominal_mask().shape();
-            let phase = grid_phase(rows, cols, problem.bands(), &refined.best.psi);
-            let (on_grid, (fine, refined)) = match pass.again_at(phase) {
-                Some(again) if pass.on_grid.is_some_and(|g| g.from_first_answer) => {
-                    problem.check_cancelled()?;
-                    // the same objective, from where the first run ended
-                    let (again_fit, _) = again.scene_fit(
-                        problem,
-                        settings,
-                        (&fit, &found.best),
-                        fine_detail.clone(),
-                    )?;
-                    let scene = again_fit.coefficients_from(&fine, &refined.best.z);
-                    let second =
-                        fit_scene_from(&again_fit, &refined.best.psi, Some(&scene), &moved)?;
-                    stage.count(second.evaluations);
-                    (again.spectral_nodes, (again_fit, second))
+            let start_phase = grid_phase(rows, cols, problem.bands(), &found.best.psi);
+            let (on_grid, (fine, refined)) = match pass.again_from_start(start_phase) {
+                // on the grid at the start already: the run on the first
+                // pass's nodes would only judge the phase
+                // ([`OnGridNodes::judged_at_start_below`](super::OnGridNodes::judged_at_start_below))
+                Some(again) => (again.spectral_nodes, refit(&again)?),
+                None => {
+                    let (fine, refined) = refit(&pass)?;
+                    // on the pixel grid, again on the on-grid spectral nodes
+                    // from the same start ([`OnGridNodes`](super::OnGridNodes):
+                    // judged at this answer, where aligned and posed masks
+                    // lie apart)
+                    let phase = grid_phase(rows, cols, problem.bands(), &refined.best.psi);
+                    match pass.again_at(phase) {
+                        Some(again) if pass.on_grid.is_some_and(|g| g.from_first_answer) => {
+                            problem.check_cancelled()?;
+                            // the same objective, from where the first run ended
+                            let (again_fit, _) = again.scene_fit(
+                                problem,
+                                settings,
+                                (&fit, &found.best),
+                                fine_detail.clone(),
+                            )?;
+                            let scene = again_fit.coefficients_from(&fine, &refined.best.z);
+                            let second = fit_scene_from(
+                                &again_fit,
+                                &refined.best.psi,
+                                Some(&scene),
+                                &moved,
+                            )?;
+                            stage.count(second.evaluations);
+                            (again.spectral_nodes, (again_fit, second))
+                        }
+                        Some(again) => {
+                            problem.check_cancelled()?;
+                            (again.spectral_nodes, refit(&again)?)
+                        }
+                        None => (None, (fine, refined)),
+                    }
                 }
-                Some(again) => {
-                    problem.check_cancelled()?;
-                    (again.spectral_nodes, refit(&again)?)
-                }
-                None => (None, (fine, refined)),
             };
             let floors = match pass.free {
                 _ if detailed.is_some() => Fit::SceneDetailPass,

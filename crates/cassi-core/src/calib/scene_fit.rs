@@ -205,6 +205,20 @@ pub struct OnGridNodes {
     /// first run's minimum, dx +0.100 px; `bench/results/default_stop60/`).
     #[serde(default)]
     pub from_first_answer: bool,
+    /// Where the pass's start (the detail pass's answer) already lies below
+    /// this grid phase, the run on the first pass's nodes — whose answer
+    /// here only judges the phase — is left out and the on-grid run goes
+    /// straight from the start: the same answer wherever that run would
+    /// have ended below [`Self::below_phase`] too. `None` (settings written
+    /// before the field, and with [`Self::from_first_answer`]): judged at
+    /// the answer always. Why: the judging run is a third of an aligned
+    /// instrument's fine pass. Chosen on the tuning half (stop 63,
+    /// `bench/results/default_stop63/phase_at_start/`): its aligned
+    /// instruments start at phase 0.06–0.98 (8 of 15 below 0.5) and end at
+    /// 0.01–0.28; its random poses start at 0.86–1.30 — 0.5 leaves 0.35 to
+    /// the nearest.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub judged_at_start_below: Option<f64>,
 }
 
 impl Default for OnGridNodes {
@@ -213,6 +227,7 @@ impl Default for OnGridNodes {
             spectral_nodes: 10,
             below_phase: 0.5,
             from_first_answer: false,
+            judged_at_start_below: Some(0.5),
         }
     }
 }
@@ -405,6 +420,21 @@ impl FinePass {
             spectral_nodes: Some(on_grid.spectral_nodes),
             ..*self
         })
+    }
+
+    /// The pass to run in place of this one where its start lies at grid
+    /// phase `start_phase`, if any: the on-grid run, below
+    /// [`OnGridNodes::judged_at_start_below`] (never with
+    /// [`OnGridNodes::from_first_answer`], which starts from this run's
+    /// answer).
+    pub(crate) fn again_from_start(&self, start_phase: f64) -> Option<Self> {
+        let on_grid = self.on_grid?;
+        let below = on_grid.judged_at_start_below?;
+        (self.spectral_nodes.is_none() && !on_grid.from_first_answer && start_phase < below)
+            .then_some(Self {
+                spectral_nodes: Some(on_grid.spectral_nodes),
+                ..*self
+            })
     }
 
     /// The pass's scene fit (`settings` with its nodes, first solve and
@@ -1385,10 +1415,17 @@ pub(crate) mod tests {
         before.remove("on_grid");
         let read: FinePass = serde_json::from_value(before.into()).unwrap();
         assert_eq!(read.on_grid, None);
-        // on-grid settings written before `from_first_answer`: from the start
+        // on-grid settings written before `from_first_answer` and
+        // `judged_at_start_below`: from the start, judged at the answer
         let old_on_grid: OnGridNodes =
             serde_json::from_str(r#"{"spectral_nodes":10,"below_phase":0.5}"#).unwrap();
-        assert_eq!(old_on_grid, OnGridNodes::default());
+        assert_eq!(
+            old_on_grid,
+            OnGridNodes {
+                judged_at_start_below: None,
+                ..OnGridNodes::default()
+            }
+        );
     }
 
     /// With principal spectra the fine pass's scene lives on them: as many
@@ -1427,7 +1464,8 @@ pub(crate) mod tests {
     }
 
     /// The fine pass takes its on-grid nodes below their phase only, and
-    /// never over nodes set outright (a probe's) or with the option off.
+    /// never over nodes set outright (a probe's) or with the option off;
+    /// from a start below its bound it takes them without the judging run.
     #[test]
     fn the_fine_pass_takes_more_spectral_nodes_on_the_pixel_grid_only() {
         let pass = FinePass::default();
@@ -1454,6 +1492,33 @@ pub(crate) mod tests {
             ..pass
         };
         assert_eq!(off.again_at(0.0), None);
+        // a start already on the grid goes straight to the on-grid run (the
+        // same pass `again_at` gives), judged at the start below its bound
+        let below = on_grid.judged_at_start_below.expect("judged at the start");
+        assert_eq!(pass.again_from_start(below - 0.01), Some(near));
+        for phase in [below, 0.86, f64::NAN] {
+            assert_eq!(pass.again_from_start(phase), None, "phase {phase}");
+        }
+        assert_eq!(probe.again_from_start(0.0), None);
+        assert_eq!(off.again_from_start(0.0), None);
+        for on_grid in [
+            // settings written before the bound: judged at the answer
+            OnGridNodes {
+                judged_at_start_below: None,
+                ..on_grid
+            },
+            // from the first run's answer: that run is needed
+            OnGridNodes {
+                from_first_answer: true,
+                ..on_grid
+            },
+        ] {
+            let pass = FinePass {
+                on_grid: Some(on_grid),
+                ..pass
+            };
+            assert_eq!(pass.again_from_start(0.0), None, "{on_grid:?}");
+        }
     }
 
     /// Settings written before the detail pass read back without one; with
