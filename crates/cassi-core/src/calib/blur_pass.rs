@@ -472,15 +472,32 @@ mod tests {
         assert!(json.contains("\"start\":\"texture-fit\""), "{json}");
         assert_eq!(serde_json::from_str::<BlurPass>(&json).unwrap(), pass);
         // a settings file from before the field
-        let mut older: serde_json::Value = serde_json::from_str(&json).unwrap();
-        older.as_object_mut().unwrap().remove("start");
-        let older: BlurPass = serde_json::from_value(older).unwrap();
-        assert_eq!(older.start, BlurPassStart::SceneFit);
-        for start in BlurPassStart::ALL {
-            assert_eq!(start.key().parse::<BlurPassStart>(), Ok(start));
+        assert_eq!(
+            written_before(&pass, "start").start,
+            BlurPassStart::SceneFit
+        );
+        keys_round_trip(&BlurPassStart::ALL, BlurPassStart::key, "texture");
+    }
+
+    /// Each of `all` parses back from its key; `bad` is refused with an
+    /// error naming them all.
+    fn keys_round_trip<T>(all: &[T], key: fn(T) -> &'static str, bad: &str)
+    where
+        T: Copy + PartialEq + std::fmt::Debug + std::str::FromStr<Err = String>,
+    {
+        for &a in all {
+            assert_eq!(key(a).parse::<T>(), Ok(a));
         }
-        let e = "texture".parse::<BlurPassStart>().unwrap_err();
-        assert!(e.contains("scene-fit, texture-fit"), "{e}");
+        let e = bad.parse::<T>().unwrap_err();
+        let keys: Vec<&str> = all.iter().map(|&a| key(a)).collect();
+        assert!(e.contains(&keys.join(", ")), "{e}");
+    }
+
+    /// `pass` as a settings file written before `field` existed reads it.
+    fn written_before(pass: &BlurPass, field: &str) -> BlurPass {
+        let mut older = serde_json::to_value(pass).unwrap();
+        older.as_object_mut().unwrap().remove(field);
+        serde_json::from_value(older).unwrap()
     }
 
     /// The calibrated model reconstructs with the pass's σ by default, with
@@ -511,15 +528,11 @@ mod tests {
             json.contains("\"reconstruct_with\":\"blur-pass\""),
             "{json}"
         );
-        let mut older: serde_json::Value = serde_json::from_str(&json).unwrap();
-        older.as_object_mut().unwrap().remove("reconstruct_with");
-        let older: BlurPass = serde_json::from_value(older).unwrap();
-        assert_eq!(older.reconstruct_with, ReconstructionSigma::ModelFit);
-        for with in ReconstructionSigma::ALL {
-            assert_eq!(with.key().parse::<ReconstructionSigma>(), Ok(with));
-        }
-        let e = "pass".parse::<ReconstructionSigma>().unwrap_err();
-        assert!(e.contains("model-fit, blur-pass"), "{e}");
+        assert_eq!(
+            written_before(&pass, "reconstruct_with").reconstruct_with,
+            ReconstructionSigma::ModelFit
+        );
+        keys_round_trip(&ReconstructionSigma::ALL, ReconstructionSigma::key, "pass");
     }
 
     /// A physical-simulator measurement (4× oversampled, crisp cells, blur,
