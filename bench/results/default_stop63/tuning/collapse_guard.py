@@ -56,3 +56,14 @@ for name, files in (("tuning half", TUNING), ("rounds 36-41 (held out)", HELD_OU
             guarded = count(rows, lambda t, p: t if (p < c1 and t > c2) else p)
             print(f"  pass < {c1} px and texture > {c2} px → the texture's σ: "
                   f"σ within {guarded[0]}, all six {guarded[1]}")
+
+# The small-blur poses on their own (rounds 36-42 held out, for the notebook's description):
+# how many of the random poses with σ < 0.2 px the pass puts within, and what the texture fit
+# reads on the sharpest (σ <= 0.025 px).
+SMALL = HELD_OUT + ["bench/results/default_stop63/held_out/round42.json"]
+rows = [r for r in cases(SMALL) if r[0] < 0.2]
+# cases() yields aligned instruments too; they have σ >= 0.3, so rows are random poses
+within = sum(abs(passed - truth) <= tol for truth, _, passed, _, tol in rows)
+sharp = [texture for truth, texture, *_ in rows if truth <= 0.025]
+print(f"rounds 36-42, random poses with σ < 0.2 px: {len(rows)}, σ within {within}; "
+      f"the texture fit at σ <= 0.025 px reads {min(sharp):.3f}-{max(sharp):.3f} px ({len(sharp)} poses)")
