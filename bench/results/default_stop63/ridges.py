@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""The random poses' errors along the two ridges, pooled over rounds 36-45 (stop 62's estimates;
+"""The random poses' errors along the two ridges, pooled over rounds 36-46 (stop 62's estimates;
 36-40 re-run at stop 62): the least-squares slope and correlation of dx's error on a1's and of
 dy's on α's, leaving out the ridge slides beyond 0.5 px in dx (one here: peppers 52501, −1.53 px). Run from the
 repository root:
