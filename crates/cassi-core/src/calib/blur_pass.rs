@@ -167,9 +167,8 @@ impl BlurPass {
     /// start falls back to the pass before stop 62
     /// ([`BlurPassStart::plan`]), which reconstructed with it.
     pub(crate) fn reconstructs_with_pass(&self, texture_fit_px: f64) -> bool {
-        let falls_back =
-            self.start == BlurPassStart::TextureFit && texture_fit_px > TEXTURE_START_MAX_PX;
-        self.reconstruct_with == ReconstructionSigma::BlurPass && !falls_back
+        self.reconstruct_with == ReconstructionSigma::BlurPass
+            && !self.start.falls_back(texture_fit_px)
     }
 }
 
@@ -212,6 +211,15 @@ impl BlurPassStart {
         BlurPassStart::SceneFit
     }
 
+    /// Whether the pass runs as before stop 62 (the scene fit's σ, at most
+    /// [`SCENE_FIT_START_STEPS`] steps) because the texture fit read
+    /// `texture_fit_px`, beyond [`TEXTURE_START_MAX_PX`].
+    fn falls_back(self, texture_fit_px: f64) -> bool {
+        // a σ that is no number is not trusted either
+        self == BlurPassStart::TextureFit
+            && (texture_fit_px.is_nan() || texture_fit_px > TEXTURE_START_MAX_PX)
+    }
+
     /// The pass's start σ of the two fits' and its step cap: the texture
     /// fit's σ with `max_steps` up to [`TEXTURE_START_MAX_PX`]; beyond it
     /// the pass before stop 62 (the scene fit's σ, at most
@@ -224,10 +232,8 @@ impl BlurPassStart {
         max_steps: Option<usize>,
     ) -> (f64, Option<usize>) {
         match self {
-            BlurPassStart::TextureFit if texture_fit_px <= TEXTURE_START_MAX_PX => {
-                (texture_fit_px, max_steps)
-            }
-            BlurPassStart::TextureFit => (scene_fit_px, Some(SCENE_FIT_START_STEPS)),
+            _ if self.falls_back(texture_fit_px) => (scene_fit_px, Some(SCENE_FIT_START_STEPS)),
+            BlurPassStart::TextureFit => (texture_fit_px, max_steps),
             BlurPassStart::SceneFit => (scene_fit_px, max_steps),
         }
     }

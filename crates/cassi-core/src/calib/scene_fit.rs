@@ -416,7 +416,15 @@ impl FinePass {
     /// spectral nodes below their phase.
     pub(crate) fn again_at(&self, phase: f64) -> Option<Self> {
         let on_grid = self.on_grid?;
-        (self.spectral_nodes.is_none() && phase < on_grid.below_phase).then_some(Self {
+        (phase < on_grid.below_phase)
+            .then(|| self.on_grid_run(on_grid))
+            .flatten()
+    }
+
+    /// This pass on `on_grid`'s spectral nodes, unless its own nodes are
+    /// set outright (a probe's, which win).
+    fn on_grid_run(&self, on_grid: OnGridNodes) -> Option<Self> {
+        self.spectral_nodes.is_none().then_some(Self {
             spectral_nodes: Some(on_grid.spectral_nodes),
             ..*self
         })
@@ -430,11 +438,9 @@ impl FinePass {
     pub(crate) fn again_from_start(&self, start_phase: f64) -> Option<Self> {
         let on_grid = self.on_grid?;
         let below = on_grid.judged_at_start_below?;
-        (self.spectral_nodes.is_none() && !on_grid.from_first_answer && start_phase < below)
-            .then_some(Self {
-                spectral_nodes: Some(on_grid.spectral_nodes),
-                ..*self
-            })
+        (!on_grid.from_first_answer && start_phase < below)
+            .then(|| self.on_grid_run(on_grid))
+            .flatten()
     }
 
     /// The pass's scene fit (`settings` with its nodes, first solve and
