@@ -99,9 +99,9 @@ fn expand_cells<const C: usize>(line: &[f32], row: &mut [f32]) {
 #[inline]
 fn expand_row(simd: Simd, cell: usize, fractions: &[f32], line: &[f32], row: &mut [f32]) {
     #[cfg(target_arch = "x86_64")]
-    if simd.avx && (cell == 4 || cell == 8) {
-        // SAFETY: `simd.avx` is true only when `Simd::detect` found AVX at
-        // run time (tests pass detect's answer or false).
+    if simd.has_avx() && (cell == 4 || cell == 8) {
+        // SAFETY: `Simd::detect` answers a copy with AVX only when it found
+        // AVX at run time (tests pass the copies `Simd::available` lists).
         unsafe {
             if cell == 4 {
                 expand_cells_avx::<4>(line, row)
@@ -716,11 +716,11 @@ mod tests {
         }
     }
 
-    /// The AVX copies of the row kernels give the portable copies' bits,
+    /// Every compiled copy of the row kernels (AVX, AVX-512) gives the portable copies' bits,
     /// forward and adjoint, with and without a detail map, for the fixed
     /// cell widths and another, on rows that are not whole vectors.
     #[test]
-    fn the_avx_copy_gives_the_same_bits_as_the_portable_one() {
+    fn every_compiled_copy_gives_the_portable_ones_bits() {
         let mut rng = crate::Rng::new(12);
         for (bands, rows, cols, cell, nodes) in [
             (6, 13, 37, 4, 3),
@@ -737,9 +737,8 @@ mod tests {
                 .map(|_| rng.uniform() as f32 - 0.4)
                 .collect();
             for with_detail in [false, true] {
-                let run = |avx: bool| {
-                    let mut u =
-                        CoarseScene::new(bands, rows, cols, cell, nodes).with_simd(Simd { avx });
+                let run = |simd: Simd| {
+                    let mut u = CoarseScene::new(bands, rows, cols, cell, nodes).with_simd(simd);
                     if with_detail {
                         u = u.with_detail(detail.clone());
                     }
@@ -749,11 +748,16 @@ mod tests {
                     u.adjoint(&y, &mut back);
                     (cube, back)
                 };
-                let (port, avx) = (run(false), run(Simd::detect(false).avx));
+                let port = run(Simd::Portable);
                 let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
-                let case = format!("{bands}×{rows}×{cols} cell {cell}, detail {with_detail}");
-                assert_eq!(bits(&port.0), bits(&avx.0), "forward, {case}");
-                assert_eq!(bits(&port.1), bits(&avx.1), "adjoint, {case}");
+                for simd in Simd::available() {
+                    let wide = run(simd);
+                    let case = format!(
+                        "{bands}×{rows}×{cols} cell {cell}, detail {with_detail}, {simd:?}"
+                    );
+                    assert_eq!(bits(&port.0), bits(&wide.0), "forward, {case}");
+                    assert_eq!(bits(&port.1), bits(&wide.1), "adjoint, {case}");
+                }
             }
         }
     }
@@ -799,9 +803,9 @@ mod tests {
         {
             let plane = rows * cols;
             let detail: Vec<f32> = (0..plane).map(|_| rng.uniform() as f32 + 0.5).collect();
-            for avx in [false, Simd::detect(false).avx] {
+            for simd in Simd::available() {
                 let u = CoarseScene::new(bands, rows, cols, cell, 2)
-                    .with_simd(Simd { avx })
+                    .with_simd(simd)
                     .with_detail(detail.clone());
                 let (mut got, mut want) = (vec![0.0f32; u.plane()], vec![0.0f32; u.plane()]);
                 let mut line = Vec::new();
@@ -814,7 +818,7 @@ mod tests {
                 assert_eq!(
                     bits(&got),
                     bits(&want),
-                    "{cols} cols, cell {cell}, avx {avx}"
+                    "{cols} cols, cell {cell}, {simd:?}"
                 );
             }
         }

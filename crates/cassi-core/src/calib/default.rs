@@ -1384,6 +1384,55 @@ mod tests {
     /// rounded model's sharp candidates find the basin; a spread smears
     /// their rounding patterns); the final score — and every stage after
     /// the search — keeps the spread.
+    /// Every compiled copy of the kernels this CPU runs (the baseline's,
+    /// AVX, AVX-512: `Simd::available`) calibrates the 4× simulator's noisy
+    /// instrument to the same bits — every estimate, stated error, 95 %
+    /// half-width, score and stage evaluation count — and GAP-TV
+    /// reconstructs the same cube with the answer: the copies differ in
+    /// vector width only, and no result may depend on the CPU.
+    #[test]
+    fn every_compiled_simd_copy_calibrates_and_reconstructs_to_the_same_bits() {
+        use crate::optics::PhysicalSpec;
+        use crate::simd::{Simd, forced::Forced};
+        let (y, mask) = measured_physical(&truth(), true, 3, PhysicalSpec::default());
+        let problem =
+            CalibrationProblem::nominal(&y, &mask, BANDS, 2.0, DispersionModel::DispersedMask)
+                .unwrap();
+        let run = |simd: Simd| {
+            let _forced = Forced::new(simd);
+            assert_eq!(Simd::detect(false), simd, "the copy is forced");
+            let mut evaluations = Vec::new();
+            let calibration = calibrate_default(&problem, &DefaultPreset::default(), &mut |s| {
+                evaluations.push(s.evaluations)
+            })
+            .unwrap();
+            let at = calibration.reconstruction_parameters();
+            let cube = crate::calib::gap_tv_reconstruction(&problem, &at, 20).unwrap();
+            // everything but the clock
+            fn untimed(v: &mut serde_json::Value) {
+                match v {
+                    serde_json::Value::Object(o) => {
+                        o.remove("seconds");
+                        o.values_mut().for_each(untimed);
+                    }
+                    serde_json::Value::Array(a) => a.iter_mut().for_each(untimed),
+                    _ => {}
+                }
+            }
+            let mut record = serde_json::to_value(&calibration).unwrap();
+            untimed(&mut record);
+            let bits: Vec<u32> = cube.as_slice().iter().map(|v| v.to_bits()).collect();
+            (record, evaluations, bits)
+        };
+        let portable = run(Simd::Portable);
+        for simd in Simd::available() {
+            let wide = run(simd);
+            assert_eq!(wide.0, portable.0, "{simd:?}: the calibration");
+            assert_eq!(wide.1, portable.1, "{simd:?}: evaluations per stage");
+            assert!(wide.2 == portable.2, "{simd:?}: the reconstruction");
+        }
+    }
+
     #[test]
     fn the_search_scores_point_bands_and_the_final_score_the_spread() {
         use crate::optics::PhysicalSpec;

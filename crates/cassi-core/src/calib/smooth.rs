@@ -342,7 +342,7 @@ mod tests {
     }
 
     #[test]
-    fn the_avx_copy_gives_the_same_bits_as_the_portable_one() {
+    fn every_compiled_copy_gives_the_portable_ones_bits() {
         let mut rng = crate::Rng::new(4);
         let (rows, cols) = (13, 37);
         let x: Vec<f32> = (0..rows * cols).map(|_| rng.uniform() as f32).collect();
@@ -350,9 +350,8 @@ mod tests {
             .map(|_| rng.uniform() as f32 - 0.5)
             .collect();
         let taps = gaussian_taps(1.0);
-        let run = |avx: bool| {
+        let run = |simd: Simd| {
             let mut b = x.clone();
-            let simd = Simd { avx };
             smooth_band(
                 simd,
                 &mut b,
@@ -367,7 +366,9 @@ mod tests {
             );
             b
         };
-        assert_eq!(run(false), run(Simd::detect(false).avx));
+        for simd in Simd::available() {
+            assert_eq!(run(Simd::Portable), run(simd), "{simd:?}");
+        }
     }
 
     /// The fused step gives the bits of the adjoint followed by the smoothing,

@@ -226,7 +226,7 @@ pub(crate) fn unpickle(bytes: &[u8]) -> Result<Value, String> {
         }
     }
     fn set_items(stack: &mut [Value], items: Vec<Value>, pos: usize) -> Result<(), String> {
-        if items.len() % 2 != 0 {
+        if !items.len().is_multiple_of(2) {
             return err(pos, "odd number of dict items");
         }
         check_nesting(&items, pos)?;

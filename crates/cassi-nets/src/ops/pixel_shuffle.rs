@@ -6,7 +6,7 @@ use crate::fmap::FeatureMap;
 /// u[4c + 2a + e, i, j] = x[c, 2i + a, 2j + e]; rows and cols must be even.
 pub(crate) fn pixel_unshuffle2(x: &FeatureMap) -> FeatureMap {
     assert!(
-        x.h % 2 == 0 && x.w % 2 == 0,
+        x.h.is_multiple_of(2) && x.w.is_multiple_of(2),
         "pixel unshuffle needs even sizes"
     );
     let (h2, w2) = (x.h / 2, x.w / 2);
@@ -28,7 +28,10 @@ pub(crate) fn pixel_unshuffle2(x: &FeatureMap) -> FeatureMap {
 
 /// out[c, 2i + a, 2j + e] = t[4c + 2a + e, i, j]; the inverse of [`pixel_unshuffle2`].
 pub(crate) fn pixel_shuffle2(t: &FeatureMap) -> FeatureMap {
-    assert!(t.c % 4 == 0, "pixel shuffle needs a multiple of 4 channels");
+    assert!(
+        t.c.is_multiple_of(4),
+        "pixel shuffle needs a multiple of 4 channels"
+    );
     let (h, w) = (2 * t.h, 2 * t.w);
     let mut out = FeatureMap::for_overwrite(t.c / 4, h, w);
     for c in 0..t.c / 4 {
