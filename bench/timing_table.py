@@ -58,10 +58,12 @@ def cases_table(base_path, new_path):
         ali = [c["seconds"] for c in cases if c["kind"] != "random"]
         within = sum(c["all_within_tolerance"] for c in cases)
         machine = record.get("machine", {})
+        # records before stop 64's machine field do not say which copy ran
+        kernels = machine.get("kernels", "not recorded")
         return (
             f"| {name} | `{os.path.basename(path)}` | {median(secs):.2f} s | "
             f"{median(rnd):.2f} / {median(ali):.2f} s | {sum(secs):.1f} s | "
-            f"{within} of {len(cases)} | {machine.get('cpu', '?')}, {machine.get('threads', '?')} threads |"
+            f"{within} of {len(cases)} | {machine.get('cpu', '?')}, {machine.get('threads', '?')} threads, kernels {kernels} |"
         )
 
     print("| build | record | median per case | random / aligned median | total | all six within tolerance | machine |")

@@ -36,3 +36,4 @@ pub use linop::{
 };
 pub use params::{DispersionParams, MaskPose, Mismatch, Parameter};
 pub use rng::Rng;
+pub use simd::kernel_copy;

@@ -14,9 +14,10 @@ pub(crate) enum Simd {
     /// AVX: 8 lanes of f32.
     #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
     Avx,
-    /// AVX-512 (F, BW, DQ, VL): 16 lanes of f32. The 2-core AMD EPYC VM
-    /// runs the calibration benchmark's cases about 5 % faster with it
-    /// than with AVX, every answer bitwise the same
+    /// AVX-512 (F, BW, DQ, VL): 16 lanes of f32. On the 2-core AMD EPYC
+    /// VM the calibration benchmark's 256² cases take 0.88–0.95 of their
+    /// time with AVX (per-case ratio, two sittings), the real 660×714
+    /// snapshots 0.89–0.92, every answer bitwise the same
     /// (`bench/results/calibrate_physical_timing_stop64/`).
     #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
     Avx512,
@@ -53,6 +54,15 @@ impl Simd {
         Simd::Portable
     }
 
+    /// The copy's name in records: `portable`, `avx`, `avx512`.
+    pub(crate) fn name(self) -> &'static str {
+        match self {
+            Simd::Portable => "portable",
+            Simd::Avx => "avx",
+            Simd::Avx512 => "avx512",
+        }
+    }
+
     /// Whether AVX's instructions may run (the AVX and AVX-512 copies): for
     /// hand-written AVX kernels.
     #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
@@ -70,6 +80,12 @@ impl Simd {
             Simd::Avx512 => vec![Simd::Portable, Simd::Avx, Simd::Avx512],
         }
     }
+}
+
+/// Which compiled copy of the kernels this CPU runs (`portable`, `avx`,
+/// `avx512`): for benchmark records, whose times depend on it.
+pub fn kernel_copy() -> &'static str {
+    Simd::detect(false).name()
 }
 
 /// Compiles a row kernel three times — baseline, AVX and AVX-512 — behind

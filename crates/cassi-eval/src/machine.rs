@@ -8,6 +8,12 @@ pub struct Machine {
     pub cpu: String,
     pub threads: usize,
     pub os: String,
+    /// Which compiled copy of cassi-core's kernels ran (`portable`, `avx`,
+    /// `avx512`; [`cassi_core::kernel_copy`]): the same answers, not the
+    /// same times. Absent in records made before the field (stop 64): up
+    /// to d42cc36 they ran `avx` on x86-64 CPUs with AVX.
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub kernels: String,
 }
 
 impl Machine {
@@ -25,6 +31,7 @@ impl Machine {
             cpu,
             threads: std::thread::available_parallelism().map_or(1, |n| n.get()),
             os: std::env::consts::OS.to_string(),
+            kernels: cassi_core::kernel_copy().to_string(),
         }
     }
 }
