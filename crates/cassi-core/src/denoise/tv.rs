@@ -66,9 +66,9 @@
 //! both energy terms. The first iteration (p = 0) only computes the gradient
 //! of the input; the last only forms `out`, in place. Inner loops run over
 //! contiguous rows in blocks of 8 lanes (auto-vectorised, no bounds checks);
-//! each row kernel is compiled twice, for baseline x86-64 (SSE2) and for AVX,
-//! and the AVX copy is used when the CPU has it (runtime detection; no FMA,
-//! so both copies give bit-identical results). 2-D bands run in parallel
+//! each row kernel is compiled three times, for baseline x86-64 (SSE2), AVX
+//! and AVX-512 (`crate::simd`), and the widest copy the CPU has is used
+//! (runtime detection; no FMA, so every copy gives bit-identical results). 2-D bands run in parallel
 //! (rayon), a contiguous run of bands per worker, each worker with its own
 //! scratch (`out`, `p_row`, `p_col`: 3 band-sized buffers) so a band's whole
 //! working set (with the band itself, 4 × rows × cols f32) stays in L2 across
