@@ -22,6 +22,7 @@ mod joint_fit;
 pub(crate) mod nelder_mead;
 mod nominal_start;
 mod objective;
+mod on_pool;
 mod paper;
 mod quasi_newton;
 mod residual_weights;
@@ -527,7 +528,8 @@ impl Preset {
     }
 }
 
-/// Runs `preset` on `problem`; `on_stage` sees each stage as it finishes.
+/// Runs `preset` on `problem`; `on_stage` sees each stage as it finishes,
+/// on the calling thread (the work itself runs on a rayon worker: `on_pool.rs`).
 pub fn calibrate(
     problem: &CalibrationProblem<'_>,
     preset: &Preset,
@@ -537,8 +539,12 @@ pub fn calibrate(
         preset.check_band_offsets()?;
     }
     preset.check_band_spread(problem.band_spread())?;
-    match preset {
-        Preset::Default(p) => calibrate_default(problem, p, on_stage),
-        Preset::Paper(p) => calibrate_paper(problem, p, on_stage),
-    }
+    // on a rayon worker: see `on_pool.rs`
+    on_pool::on_pool(
+        |on_stage| match preset {
+            Preset::Default(p) => calibrate_default(problem, p, on_stage),
+            Preset::Paper(p) => calibrate_paper(problem, p, on_stage),
+        },
+        on_stage,
+    )
 }
