@@ -9,8 +9,9 @@
 //! worker the loop splits in place and the worker never sleeps. The answers
 //! do not depend on which thread runs what (every parallel loop writes
 //! disjoint rows or bands; nothing sums across threads), so they are
-//! bitwise the same; the benchmark's 256² cases take about 0.95 of their
-//! time on the 2-core EPYC VM (`bench/results/calibrate_physical_timing_stop64/`).
+//! bitwise the same; the benchmark's 256² cases take 0.92 of their time on
+//! the 2-core EPYC VM (per-case ratio, two sittings;
+//! `bench/results/calibrate_physical_timing_stop64/`).
 //!
 //! The caller's `on_stage` stays on the caller's thread (it need not be
 //! `Send`: a command line's progress display, a Python callback): the
