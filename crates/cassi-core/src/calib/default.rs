@@ -1380,10 +1380,6 @@ mod tests {
         }
     }
 
-    /// The search stages score point bands whatever the model spreads (the
-    /// rounded model's sharp candidates find the basin; a spread smears
-    /// their rounding patterns); the final score — and every stage after
-    /// the search — keeps the spread.
     /// Every compiled copy of the kernels this CPU runs (the baseline's,
     /// AVX, AVX-512: `Simd::available`) calibrates the 4× simulator's noisy
     /// instrument to the same bits — every estimate, stated error, 95 %
@@ -1433,6 +1429,10 @@ mod tests {
         }
     }
 
+    /// The search stages score point bands whatever the model spreads (the
+    /// rounded model's sharp candidates find the basin; a spread smears
+    /// their rounding patterns); the final score — and every stage after
+    /// the search — keeps the spread.
     #[test]
     fn the_search_scores_point_bands_and_the_final_score_the_spread() {
         use crate::optics::PhysicalSpec;
