@@ -69,7 +69,7 @@
 //! [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start | [--nominal-start-gap G] [--nominal-start-ridge BAND]] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene]
 //! [--fine-pass-free pose-and-slope|geometry|all|geometry-and-curvature] [--scene-cell PX] [--scene-nodes N]
 //! [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv ITERATIONS] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N] [--blur-pass-start scene-fit|texture-fit] [--blur-pass-reconstructs model-fit|blur-pass] [--blur-pass-gap-blur PX] [--blur-pass-pre-smooth PX]]
-//! [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX | --limits-tv-scene WEIGHT | --limits-spectral-scene NODES | --limits-placed-spectral-scene NODES] [--out PATH] [--scene-transform none|flip-cols|flip-rows|transpose|coarse|real-band-light|smooth-PX] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--model-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--detail-cold-above PX|none] [--blur-bootstrap crisp-cells|dispersed-mask [--blur-bootstrap-noise] [--blur-bootstrap-residual] [--blur-bootstrap-min PX]] [--snapshots N [--joint [--joint-model MODEL]]] [--verbose]`
+//! [--no-recon] [--rho-sensitivity] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX | --limits-tv-scene WEIGHT | --limits-spectral-scene NODES | --limits-placed-spectral-scene NODES] [--out PATH] [--scene-transform none|flip-cols|flip-rows|transpose|coarse|real-band-light|smooth-PX] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--model-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--detail-cold-above PX|none] [--blur-bootstrap crisp-cells|dispersed-mask [--blur-bootstrap-noise] [--blur-bootstrap-residual] [--blur-bootstrap-min PX]] [--snapshots N [--joint [--joint-model MODEL]]] [--verbose]`
 //! (`--no-texture`: the default preset without its texture fit, as it was
 //! before issue #14 — the "before" row; `--no-scene-fit`: without its
 //! scene fit, ending in the texture fit as the records `*_texture.json`
@@ -195,6 +195,7 @@ use cassi_eval::machine::Machine;
 use serde_json::{Value, json};
 
 mod limits;
+mod rho_sensitivity;
 mod snapshots;
 
 /// Scenes (sorted by name) in the tuning half; the rest are held out.
@@ -275,6 +276,9 @@ struct Args {
     preset_name: String,
     preset: Preset,
     recon: bool,
+    /// `--rho-sensitivity`: with the reconstructions, ρ with the true ψ
+    /// but one parameter moved ([`rho_sensitivity`]).
+    rho_sensitivity: bool,
     limits: bool,
     /// `--limits-gap-tv FAMILY`: with `--limits`, the scene-known fit in
     /// FAMILY on GAP-TV's scene ([`limits::gap_tv_scene_fits`]).
@@ -545,7 +549,7 @@ impl SceneTransform {
 
 const USAGE: &str = "calibrate [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] \
                      [--no-aligned] [--no-inverse-crime] [--no-wide-blur] [--model rounded|subpixel|dispersed-mask|crisp-cells] \
-                     [--preset NAME | --preset-file PATH] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start | [--nominal-start-gap G] [--nominal-start-ridge BAND]] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all|geometry-and-curvature] [--scene-cell PX] [--scene-nodes N] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv N] [--detail-pre-smooth PX] [--search-rows N] [--fine-pass-detail] [--fine-pass-weighted WINDOW_PX,FLOOR_QUANTILE] [--fine-pass-nodes N] [--fine-pass-high-pass PX] [--fine-pass-principal-spectra N] [--no-on-grid-nodes | --on-grid-from-answer] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N] [--blur-pass-start scene-fit|texture-fit] [--blur-pass-reconstructs model-fit|blur-pass] [--blur-pass-gap-blur PX] [--blur-pass-pre-smooth PX]] [--no-recon] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX | --limits-tv-scene WEIGHT | --limits-spectral-scene NODES | --limits-placed-spectral-scene NODES] [--out PATH] \
+                     [--preset NAME | --preset-file PATH] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start | [--nominal-start-gap G] [--nominal-start-ridge BAND]] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all|geometry-and-curvature] [--scene-cell PX] [--scene-nodes N] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv N] [--detail-pre-smooth PX] [--search-rows N] [--fine-pass-detail] [--fine-pass-weighted WINDOW_PX,FLOOR_QUANTILE] [--fine-pass-nodes N] [--fine-pass-high-pass PX] [--fine-pass-principal-spectra N] [--no-on-grid-nodes | --on-grid-from-answer] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N] [--blur-pass-start scene-fit|texture-fit] [--blur-pass-reconstructs model-fit|blur-pass] [--blur-pass-gap-blur PX] [--blur-pass-pre-smooth PX]] [--no-recon] [--rho-sensitivity] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX | --limits-tv-scene WEIGHT | --limits-spectral-scene NODES | --limits-placed-spectral-scene NODES] [--out PATH] \
                      [--scene-transform none|flip-cols|flip-rows|transpose|coarse|real-band-light|smooth-PX] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--snapshots N [--joint [--joint-model MODEL]]] [--verbose]";
 
 fn parse_args(argv: &[String]) -> Result<Args> {
@@ -554,6 +558,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
     let mut seed_round = 0u64;
     let (mut aligned, mut inverse_crime, mut recon, mut verbose) = (true, true, true, false);
     let mut wide_blur = true;
+    let mut rho_sensitivity = false;
     let mut limits = true;
     let mut limits_gap_tv: Option<DispersionModel> = None;
     let mut limits_told_scene: Option<limits::KnownScene> = None;
@@ -970,6 +975,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
             }
             "--recon" => recon = true,
             "--no-recon" => recon = false,
+            "--rho-sensitivity" => rho_sensitivity = true,
             "--limits" => limits = true,
             "--limits-gap-tv" => {
                 limits_gap_tv = Some(
@@ -1452,6 +1458,10 @@ fn parse_args(argv: &[String]) -> Result<Args> {
         joint || joint_model.is_none(),
         "--joint-model needs --joint"
     );
+    ensure!(
+        recon || !rho_sensitivity,
+        "--rho-sensitivity needs the reconstructions: drop --no-recon"
+    );
     Ok(Args {
         halves,
         half_name,
@@ -1466,6 +1476,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
         preset_name,
         preset,
         recon,
+        rho_sensitivity,
         limits,
         limits_gap_tv,
         limits_told_scene,
@@ -1933,6 +1944,14 @@ fn run_case(
             let db = recon_psnr(&y, &problem.nominal, scene, &est)?;
             eprintln!("  GAP-TV PSNR with the blur pass's σ {db:.2} dB");
             record["psnr_db"]["III_blur_pass_sigma"] = json!(db);
+        }
+        if args.rho_sensitivity {
+            record["rho_sensitivity"] = rho_sensitivity::measure(
+                &instrument,
+                tolerance,
+                |psi| recon_psnr(&y, &problem.nominal, scene, psi),
+                |db| self::rho(ii, db, iv),
+            )?;
         }
         // with a captured mask IV holds σ's reference: the instrument's own σ
         // beside it
