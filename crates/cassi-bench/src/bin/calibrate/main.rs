@@ -69,7 +69,7 @@
 //! [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start | [--nominal-start-gap G] [--nominal-start-ridge BAND]] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene]
 //! [--fine-pass-free pose-and-slope|geometry|all|geometry-and-curvature] [--scene-cell PX] [--scene-nodes N]
 //! [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv ITERATIONS] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N] [--blur-pass-start scene-fit|texture-fit] [--blur-pass-reconstructs model-fit|blur-pass] [--blur-pass-gap-blur PX] [--blur-pass-pre-smooth PX]]
-//! [--no-recon] [--rho-sensitivity] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX | --limits-tv-scene WEIGHT | --limits-spectral-scene NODES | --limits-placed-spectral-scene NODES] [--out PATH] [--scene-transform none|flip-cols|flip-rows|transpose|coarse|real-band-light|smooth-PX] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--model-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--detail-cold-above PX|none] [--blur-bootstrap crisp-cells|dispersed-mask [--blur-bootstrap-noise] [--blur-bootstrap-residual] [--blur-bootstrap-min PX]] [--snapshots N [--joint [--joint-model MODEL]]] [--verbose]`
+//! [--no-recon] [--rho-sensitivity] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX | --limits-tv-scene WEIGHT | --limits-spectral-scene NODES | --limits-placed-spectral-scene NODES] [--out PATH] [--scene-transform none|flip-cols|flip-rows|transpose|coarse|real-band-light|flip-bands|smooth-PX] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--model-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--detail-cold-above PX|none] [--blur-bootstrap crisp-cells|dispersed-mask [--blur-bootstrap-noise] [--blur-bootstrap-residual] [--blur-bootstrap-min PX]] [--snapshots N [--joint [--joint-model MODEL]]] [--verbose]`
 //! (`--no-texture`: the default preset without its texture fit, as it was
 //! before issue #14 — the "before" row; `--no-scene-fit`: without its
 //! scene fit, ending in the texture fit as the records `*_texture.json`
@@ -434,6 +434,11 @@ enum SceneTransform {
     /// their blue end's), where the CAVE scenes are sampled at the band
     /// centres — a diagnosis of why the real ridges are flat (stop 53).
     RealBandLight,
+    /// The bands in reverse order (band k takes band B − 1 − k's image):
+    /// the scene's bright spectral end moved to the other end of the
+    /// dispersion — a diagnosis of where the blind dx–a1 errors pivot
+    /// (stop 65).
+    FlipBands,
 }
 
 /// Per-band light of the five real TSA snapshots, relative to band 27:
@@ -457,6 +462,7 @@ impl SceneTransform {
             Self::Coarse => "coarse".into(),
             Self::Smooth(px) => format!("smooth-{px}"),
             Self::RealBandLight => "real-band-light".into(),
+            Self::FlipBands => "flip-bands".into(),
         }
     }
 
@@ -476,12 +482,13 @@ impl SceneTransform {
             Self::Transpose,
             Self::Coarse,
             Self::RealBandLight,
+            Self::FlipBands,
         ]
         .into_iter()
         .find(|t| t.name() == v)
         .ok_or_else(|| {
             anyhow!(
-                "--scene-transform {v}: expected none, flip-cols, flip-rows, transpose, coarse, real-band-light or smooth-PX"
+                "--scene-transform {v}: expected none, flip-cols, flip-rows, transpose, coarse, real-band-light, flip-bands or smooth-PX"
             )
         })
     }
@@ -507,6 +514,16 @@ impl SceneTransform {
                     .zip(&REAL_BAND_LIGHT)
                 {
                     band.iter_mut().for_each(|v| *v *= gain);
+                }
+                return Ok(out);
+            }
+            Self::FlipBands => {
+                let mut out = Cube::zeros(bands, rows, cols);
+                for (k, band) in out.as_mut_slice().chunks_exact_mut(rows * cols).enumerate() {
+                    let from = bands - 1 - k;
+                    band.copy_from_slice(
+                        &scene.as_slice()[from * rows * cols..(from + 1) * rows * cols],
+                    );
                 }
                 return Ok(out);
             }
@@ -550,7 +567,7 @@ impl SceneTransform {
 const USAGE: &str = "calibrate [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] \
                      [--no-aligned] [--no-inverse-crime] [--no-wide-blur] [--model rounded|subpixel|dispersed-mask|crisp-cells] \
                      [--preset NAME | --preset-file PATH] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start | [--nominal-start-gap G] [--nominal-start-ridge BAND]] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all|geometry-and-curvature] [--scene-cell PX] [--scene-nodes N] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv N] [--detail-pre-smooth PX] [--search-rows N] [--fine-pass-detail] [--fine-pass-weighted WINDOW_PX,FLOOR_QUANTILE] [--fine-pass-nodes N] [--fine-pass-high-pass PX] [--fine-pass-principal-spectra N] [--no-on-grid-nodes | --on-grid-from-answer] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N] [--blur-pass-start scene-fit|texture-fit] [--blur-pass-reconstructs model-fit|blur-pass] [--blur-pass-gap-blur PX] [--blur-pass-pre-smooth PX]] [--no-recon] [--rho-sensitivity] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX | --limits-tv-scene WEIGHT | --limits-spectral-scene NODES | --limits-placed-spectral-scene NODES] [--out PATH] \
-                     [--scene-transform none|flip-cols|flip-rows|transpose|coarse|real-band-light|smooth-PX] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--snapshots N [--joint [--joint-model MODEL]]] [--verbose]";
+                     [--scene-transform none|flip-cols|flip-rows|transpose|coarse|real-band-light|flip-bands|smooth-PX] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--snapshots N [--joint [--joint-model MODEL]]] [--verbose]";
 
 fn parse_args(argv: &[String]) -> Result<Args> {
     let mut half_name = "held-out".to_string();
@@ -2460,6 +2477,40 @@ fn main() -> Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Every transform's name parses back to it; flip-bands gives band k
+    /// band B − 1 − k's image, and twice is the scene again.
+    #[test]
+    fn scene_transforms_parse_their_names_and_flip_bands_reverses_the_bands() {
+        for t in [
+            SceneTransform::None,
+            SceneTransform::FlipCols,
+            SceneTransform::FlipRows,
+            SceneTransform::Transpose,
+            SceneTransform::Coarse,
+            SceneTransform::RealBandLight,
+            SceneTransform::FlipBands,
+            SceneTransform::Smooth(1.5),
+        ] {
+            assert_eq!(SceneTransform::parse(&t.name()).unwrap(), t);
+        }
+        assert!(SceneTransform::parse("flip-spectrum").is_err());
+        let (bands, rows, cols) = (5, 3, 4);
+        let mut scene = Cube::zeros(bands, rows, cols);
+        for (i, v) in scene.as_mut_slice().iter_mut().enumerate() {
+            *v = i as f32 / 100.0;
+        }
+        let flipped = SceneTransform::FlipBands.apply(scene.clone()).unwrap();
+        for k in 0..bands {
+            for r in 0..rows {
+                for c in 0..cols {
+                    assert_eq!(flipped.get(k, r, c), scene.get(bands - 1 - k, r, c));
+                }
+            }
+        }
+        let back = SceneTransform::FlipBands.apply(flipped).unwrap();
+        assert_eq!(back.as_slice(), scene.as_slice());
+    }
 
     /// Lag-1 autocorrelation along the rows.
     fn lag1(m: &Mask) -> f64 {
