@@ -816,7 +816,15 @@ fn scene_fit_stage(
         .into_iter()
         .filter(|&p| preset.fit_blur || p != BlurSigmaPx)
         .collect();
-    let found = fit_scene(&fit, start, &free)?;
+    let found = match settings.first_pass_ridge {
+        Some(ridge) => {
+            let held = fit.solve(start, None)?;
+            stage.count(1);
+            let ridged = SceneFit::new(problem, settings)?.with_ridge(ridge, Some(held.z));
+            fit_scene(&ridged, start, &free)?
+        }
+        None => fit_scene(&fit, start, &free)?,
+    };
     stage.count(found.evaluations);
     let scored = |found: &SceneFitResult| Scored {
         parameters: found.best.psi,

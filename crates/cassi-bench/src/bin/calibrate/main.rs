@@ -67,7 +67,7 @@
 //! [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] [--no-aligned]
 //! [--no-inverse-crime] [--model rounded|subpixel|dispersed-mask|crisp-cells] [--preset NAME | --preset-file PATH]
 //! [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start | [--nominal-start-gap G] [--nominal-start-ridge BAND]] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene]
-//! [--fine-pass-free pose-and-slope|geometry|all|geometry-and-curvature] [--scene-cell PX] [--scene-nodes N]
+//! [--fine-pass-free pose-and-slope|geometry|all|geometry-and-curvature] [--scene-cell PX] [--first-pass-ridge R] [--scene-nodes N]
 //! [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv ITERATIONS] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N] [--blur-pass-start scene-fit|texture-fit] [--blur-pass-reconstructs model-fit|blur-pass] [--blur-pass-gap-blur PX] [--blur-pass-pre-smooth PX]]
 //! [--no-recon] [--rho-sensitivity] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX | --limits-tv-scene WEIGHT | --limits-spectral-scene NODES | --limits-placed-spectral-scene NODES] [--out PATH] [--scene-transform none|flip-cols|flip-rows|transpose|coarse|real-band-light|flip-bands|smooth-PX] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--model-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--detail-cold-above PX|none] [--blur-bootstrap crisp-cells|dispersed-mask [--blur-bootstrap-noise] [--blur-bootstrap-residual] [--blur-bootstrap-min PX]] [--snapshots N [--joint [--joint-model MODEL]]] [--verbose]`
 //! (`--no-texture`: the default preset without its texture fit, as it was
@@ -566,7 +566,7 @@ impl SceneTransform {
 
 const USAGE: &str = "calibrate [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] \
                      [--no-aligned] [--no-inverse-crime] [--no-wide-blur] [--model rounded|subpixel|dispersed-mask|crisp-cells] \
-                     [--preset NAME | --preset-file PATH] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start | [--nominal-start-gap G] [--nominal-start-ridge BAND]] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all|geometry-and-curvature] [--scene-cell PX] [--scene-nodes N] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv N] [--detail-pre-smooth PX] [--search-rows N] [--fine-pass-detail] [--fine-pass-weighted WINDOW_PX,FLOOR_QUANTILE] [--fine-pass-nodes N] [--fine-pass-high-pass PX] [--fine-pass-principal-spectra N] [--no-on-grid-nodes | --on-grid-from-answer] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N] [--blur-pass-start scene-fit|texture-fit] [--blur-pass-reconstructs model-fit|blur-pass] [--blur-pass-gap-blur PX] [--blur-pass-pre-smooth PX]] [--no-recon] [--rho-sensitivity] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX | --limits-tv-scene WEIGHT | --limits-spectral-scene NODES | --limits-placed-spectral-scene NODES] [--out PATH] \
+                     [--preset NAME | --preset-file PATH] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start | [--nominal-start-gap G] [--nominal-start-ridge BAND]] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all|geometry-and-curvature] [--scene-cell PX] [--first-pass-ridge R] [--scene-nodes N] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv N] [--detail-pre-smooth PX] [--search-rows N] [--fine-pass-detail] [--fine-pass-weighted WINDOW_PX,FLOOR_QUANTILE] [--fine-pass-nodes N] [--fine-pass-high-pass PX] [--fine-pass-principal-spectra N] [--no-on-grid-nodes | --on-grid-from-answer] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N] [--blur-pass-start scene-fit|texture-fit] [--blur-pass-reconstructs model-fit|blur-pass] [--blur-pass-gap-blur PX] [--blur-pass-pre-smooth PX]] [--no-recon] [--rho-sensitivity] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX | --limits-tv-scene WEIGHT | --limits-spectral-scene NODES | --limits-placed-spectral-scene NODES] [--out PATH] \
                      [--scene-transform none|flip-cols|flip-rows|transpose|coarse|real-band-light|flip-bands|smooth-PX] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--snapshots N [--joint [--joint-model MODEL]]] [--verbose]";
 
 fn parse_args(argv: &[String]) -> Result<Args> {
@@ -591,6 +591,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
     let mut nominal_start_gap: Option<f64> = None;
     let mut nominal_start_ridge: Option<f64> = None;
     let mut scene_cell: Option<usize> = None;
+    let mut first_pass_ridge: Option<f64> = None;
     let mut scene_nodes: Option<usize> = None;
     let mut detail_groups: Option<usize> = None;
     let mut detail_gap_tv: Option<usize> = None;
@@ -955,6 +956,17 @@ fn parse_args(argv: &[String]) -> Result<Args> {
                 let v = value()?;
                 model_a2 = Some(v.parse().with_context(|| format!("--model-a2 {v}"))?);
             }
+            "--first-pass-ridge" => {
+                let v = value()?;
+                let r: f64 = v
+                    .parse()
+                    .with_context(|| format!("--first-pass-ridge {v}"))?;
+                ensure!(
+                    r.is_finite() && r > 0.0,
+                    "--first-pass-ridge {v}: a positive ridge weight"
+                );
+                first_pass_ridge = Some(r);
+            }
             "--scene-cell" => {
                 let v = value()?;
                 let px: usize = v.parse().with_context(|| format!("--scene-cell {v}"))?;
@@ -1156,6 +1168,11 @@ fn parse_args(argv: &[String]) -> Result<Args> {
     if let Some(px) = scene_cell {
         scene_fit_settings(&mut preset, "--scene-cell")?.cell_px = px;
         preset_name += &format!(" (first pass on {px}-px nodes)");
+    }
+    // the first pass's scene held near its start's (a probe, stop 65)
+    if let Some(r) = first_pass_ridge {
+        scene_fit_settings(&mut preset, "--first-pass-ridge")?.first_pass_ridge = Some(r);
+        preset_name += &format!(" (first pass's scene held by a ridge {r} toward its start's)");
     }
     // the coarse scene with another count of spectral nodes (every pass's)
     if let Some(n) = scene_nodes {
