@@ -69,7 +69,7 @@
 //! [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start | [--nominal-start-gap G] [--nominal-start-ridge BAND]] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene]
 //! [--fine-pass-free pose-and-slope|geometry|all|geometry-and-curvature] [--scene-cell PX] [--first-pass-ridge R] [--scene-nodes N]
 //! [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv ITERATIONS] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N] [--blur-pass-start scene-fit|texture-fit] [--blur-pass-reconstructs model-fit|blur-pass] [--blur-pass-gap-blur PX] [--blur-pass-pre-smooth PX]]
-//! [--no-recon] [--rho-sensitivity] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX | --limits-tv-scene WEIGHT | --limits-spectral-scene NODES | --limits-placed-spectral-scene NODES] [--out PATH] [--scene-transform none|flip-cols|flip-rows|transpose|coarse|real-band-light|flip-bands|smooth-PX] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--model-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--detail-cold-above PX|none] [--blur-bootstrap crisp-cells|dispersed-mask [--blur-bootstrap-noise] [--blur-bootstrap-residual] [--blur-bootstrap-min PX]] [--snapshots N [--joint [--joint-model MODEL]]] [--verbose]`
+//! [--no-recon] [--rho-sensitivity] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX | --limits-tv-scene WEIGHT | --limits-spectral-scene NODES | --limits-placed-spectral-scene NODES] [--out PATH] [--scene-transform none|flip-cols|flip-rows|transpose|coarse|real-band-light|flip-bands|dark-right-COLS|dark-left-COLS|smooth-PX] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--model-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--detail-cold-above PX|none] [--blur-bootstrap crisp-cells|dispersed-mask [--blur-bootstrap-noise] [--blur-bootstrap-residual] [--blur-bootstrap-min PX]] [--snapshots N [--joint [--joint-model MODEL]]] [--verbose]`
 //! (`--no-texture`: the default preset without its texture fit, as it was
 //! before issue #14 — the "before" row; `--no-scene-fit`: without its
 //! scene fit, ending in the texture fit as the records `*_texture.json`
@@ -439,6 +439,14 @@ enum SceneTransform {
     /// dispersion — a diagnosis of where the blind dx–a1 errors pivot
     /// (stop 65).
     FlipBands,
+    /// The scene's last (`right`) or first `cols` columns dark in every
+    /// band: the detector's one-sided margin where only the red (right) or
+    /// blue (left) bands land gets no light from them — a diagnosis of
+    /// whether that margin pins the blind fit's dx–a1 pivot (stop 65).
+    DarkEdge {
+        right: bool,
+        cols: usize,
+    },
 }
 
 /// Per-band light of the five real TSA snapshots, relative to band 27:
@@ -463,10 +471,23 @@ impl SceneTransform {
             Self::Smooth(px) => format!("smooth-{px}"),
             Self::RealBandLight => "real-band-light".into(),
             Self::FlipBands => "flip-bands".into(),
+            Self::DarkEdge { right, cols } => {
+                format!("dark-{}-{cols}", if right { "right" } else { "left" })
+            }
         }
     }
 
     fn parse(v: &str) -> Result<Self> {
+        for (prefix, right) in [("dark-right-", true), ("dark-left-", false)] {
+            if let Some(n) = v.strip_prefix(prefix) {
+                return match n.parse::<usize>() {
+                    Ok(cols) if cols > 0 => Ok(Self::DarkEdge { right, cols }),
+                    _ => Err(anyhow!(
+                        "--scene-transform {v}: {prefix}COLS wants a positive column count"
+                    )),
+                };
+            }
+        }
         if let Some(px) = v.strip_prefix("smooth-") {
             return match px.parse::<f64>() {
                 Ok(px) if px > 0.0 && px.is_finite() => Ok(Self::Smooth(px)),
@@ -488,7 +509,7 @@ impl SceneTransform {
         .find(|t| t.name() == v)
         .ok_or_else(|| {
             anyhow!(
-                "--scene-transform {v}: expected none, flip-cols, flip-rows, transpose, coarse, real-band-light, flip-bands or smooth-PX"
+                "--scene-transform {v}: expected none, flip-cols, flip-rows, transpose, coarse, real-band-light, flip-bands, dark-right-COLS, dark-left-COLS or smooth-PX"
             )
         })
     }
@@ -514,6 +535,19 @@ impl SceneTransform {
                     .zip(&REAL_BAND_LIGHT)
                 {
                     band.iter_mut().for_each(|v| *v *= gain);
+                }
+                return Ok(out);
+            }
+            Self::DarkEdge { right, cols: n } => {
+                ensure!(
+                    n < cols,
+                    "--scene-transform {}: the scene has {cols} columns",
+                    self.name()
+                );
+                let mut out = scene;
+                let dark = if right { cols - n..cols } else { 0..n };
+                for row in out.as_mut_slice().chunks_exact_mut(cols) {
+                    row[dark.clone()].fill(0.0);
                 }
                 return Ok(out);
             }
@@ -567,7 +601,7 @@ impl SceneTransform {
 const USAGE: &str = "calibrate [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] \
                      [--no-aligned] [--no-inverse-crime] [--no-wide-blur] [--model rounded|subpixel|dispersed-mask|crisp-cells] \
                      [--preset NAME | --preset-file PATH] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start | [--nominal-start-gap G] [--nominal-start-ridge BAND]] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all|geometry-and-curvature] [--scene-cell PX] [--first-pass-ridge R] [--scene-nodes N] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv N] [--detail-pre-smooth PX] [--search-rows N] [--fine-pass-detail] [--fine-pass-weighted WINDOW_PX,FLOOR_QUANTILE] [--fine-pass-nodes N] [--fine-pass-high-pass PX] [--fine-pass-principal-spectra N] [--no-on-grid-nodes | --on-grid-from-answer] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N] [--blur-pass-start scene-fit|texture-fit] [--blur-pass-reconstructs model-fit|blur-pass] [--blur-pass-gap-blur PX] [--blur-pass-pre-smooth PX]] [--no-recon] [--rho-sensitivity] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX | --limits-tv-scene WEIGHT | --limits-spectral-scene NODES | --limits-placed-spectral-scene NODES] [--out PATH] \
-                     [--scene-transform none|flip-cols|flip-rows|transpose|coarse|real-band-light|flip-bands|smooth-PX] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--snapshots N [--joint [--joint-model MODEL]]] [--verbose]";
+                     [--scene-transform none|flip-cols|flip-rows|transpose|coarse|real-band-light|flip-bands|dark-right-COLS|dark-left-COLS|smooth-PX] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--snapshots N [--joint [--joint-model MODEL]]] [--verbose]";
 
 fn parse_args(argv: &[String]) -> Result<Args> {
     let mut half_name = "held-out".to_string();
@@ -2496,9 +2530,10 @@ mod tests {
     use super::*;
 
     /// Every transform's name parses back to it; flip-bands gives band k
-    /// band B − 1 − k's image, and twice is the scene again.
+    /// band B − 1 − k's image, and twice is the scene again; a dark edge
+    /// zeroes its columns alone.
     #[test]
-    fn scene_transforms_parse_their_names_and_flip_bands_reverses_the_bands() {
+    fn scene_transforms_parse_their_names_and_flip_bands_and_dark_edges_do_what_they_say() {
         for t in [
             SceneTransform::None,
             SceneTransform::FlipCols,
@@ -2507,6 +2542,14 @@ mod tests {
             SceneTransform::Coarse,
             SceneTransform::RealBandLight,
             SceneTransform::FlipBands,
+            SceneTransform::DarkEdge {
+                right: true,
+                cols: 60,
+            },
+            SceneTransform::DarkEdge {
+                right: false,
+                cols: 3,
+            },
             SceneTransform::Smooth(1.5),
         ] {
             assert_eq!(SceneTransform::parse(&t.name()).unwrap(), t);
@@ -2527,6 +2570,27 @@ mod tests {
         }
         let back = SceneTransform::FlipBands.apply(flipped).unwrap();
         assert_eq!(back.as_slice(), scene.as_slice());
+        // dark-right-1: every band's last column 0, the rest untouched
+        let dark = SceneTransform::DarkEdge {
+            right: true,
+            cols: 1,
+        }
+        .apply(scene.clone())
+        .unwrap();
+        for k in 0..bands {
+            for r in 0..rows {
+                for c in 0..cols {
+                    let want = if c == cols - 1 {
+                        0.0
+                    } else {
+                        scene.get(k, r, c)
+                    };
+                    assert_eq!(dark.get(k, r, c), want);
+                }
+            }
+        }
+        let all = SceneTransform::DarkEdge { right: false, cols };
+        assert!(all.apply(scene).is_err(), "the whole scene dark is refused");
     }
 
     /// Lag-1 autocorrelation along the rows.
