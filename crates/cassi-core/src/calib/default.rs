@@ -266,6 +266,9 @@ pub fn calibrate_default(
     if let Some(start) = preset.scene_fit.and_then(|s| s.nominal_start) {
         start.check(problem.bands())?;
     }
+    if let Some(settings) = preset.scene_fit {
+        settings.check_first_pass_ridge()?;
+    }
     if let Some(pass) = preset.blur_pass {
         pass.check()?;
     }

@@ -401,6 +401,23 @@ impl Default for FinePass {
     }
 }
 
+impl SceneFitSettings {
+    /// Its first pass's ridge (a settings file's, say), named when not a
+    /// positive finite weight: before any stage runs.
+    pub(crate) fn check_first_pass_ridge(&self) -> Result<()> {
+        match self.first_pass_ridge {
+            Some(r) if !(r.is_finite() && r > 0.0) => {
+                Err(crate::error::CassiError::InvalidParameter {
+                    name: "scene_fit.first_pass_ridge",
+                    value: r,
+                    reason: "the first pass's ridge weight: positive and finite".into(),
+                })
+            }
+            _ => Ok(()),
+        }
+    }
+}
+
 impl FinePass {
     /// Its probes' settings for a cube of `bands` bands, named when out of
     /// range (a settings file's, say): before any stage runs.
@@ -1349,7 +1366,8 @@ pub(crate) mod tests {
     }
 
     /// The first pass's ridge (a probe) is off by default and absent from
-    /// the default's settings; set, it round-trips.
+    /// the default's settings; set, it round-trips; a weight that is not
+    /// positive and finite is named.
     #[test]
     fn the_first_pass_ridge_is_off_by_default_and_round_trips() {
         let default = SceneFitSettings::default();
@@ -1360,6 +1378,17 @@ pub(crate) mod tests {
             first_pass_ridge: Some(0.01),
             ..default
         };
+        assert!(with.check_first_pass_ridge().is_ok());
+        for bad in [0.0, -0.01, f64::NAN, f64::INFINITY] {
+            let e = SceneFitSettings {
+                first_pass_ridge: Some(bad),
+                ..default
+            }
+            .check_first_pass_ridge()
+            .unwrap_err()
+            .to_string();
+            assert!(e.contains("first_pass_ridge"), "{e}");
+        }
         let json = serde_json::to_string(&with).unwrap();
         assert!(json.contains("\"first_pass_ridge\":0.01"), "{json}");
         assert_eq!(
