@@ -95,18 +95,18 @@ def main(paths):
         group = cases if scene == "(all)" else by[scene]
         x = [c["error"]["dx"] for c in group]
         y = [c["error"]["a1"] for c in group]
-        k = -pivot(x, y)
+        p = pivot(x, y)
         mx, my = sum(x) / len(x), sum(y) / len(y)
         sxy = sum((a - mx) * (b - my) for a, b in zip(x, y))
         corr = sxy / math.sqrt(sum((a - mx) ** 2 for a in x) * sum((b - my) ** 2 for b in y))
-        off = rms([a - k * b for a, b in zip(x, y)])
+        off = rms([a + p * b for a, b in zip(x, y)])
         rmse = rms(y)
         cube = os.path.join(data, "scenes", f"{scene}.npy")
         light = texture = ""
         if scene != "(all)" and os.path.exists(cube):
             m, g = centroids(cube)
             light, texture = f"{m:7.1f}", f"{g:8.1f}"
-        print(f"{scene:<28}{len(group):>4}{-k:>7.1f}{corr:>7.3f}{rmse:>9.4f}{off:>12.3f}{light:>7}{texture:>8}")
+        print(f"{scene:<28}{len(group):>4}{p:>7.1f}{corr:>7.3f}{rmse:>9.4f}{off:>12.3f}{light:>7}{texture:>8}")
     stages(cases)
     print("\nwhere a band lands, dx_err + k·a1_err (all scenes):")
     for k in (0.0, 13.5, 27.0):

@@ -1998,14 +1998,14 @@ fn run_case(
             &cal.reconstruction_parameters(),
         )?;
         let iv = recon_psnr(&y, &problem.nominal, scene, &instrument)?;
-        let rho = rho(ii, iii, iv);
+        let recovered = rho(ii, iii, iv);
         eprintln!(
             "  GAP-TV PSNR: II nominal {ii:.2}  III calibrated {iii:.2}  IV true {iv:.2} dB  ρ {}  ({:.1} s)",
-            rho.map_or("n/a".into(), |r| format!("{r:.3}")),
+            recovered.map_or("n/a".into(), |r| format!("{r:.3}")),
             t.elapsed().as_secs_f64()
         );
         record["psnr_db"] = json!({ "II_nominal": ii, "III_calibrated": iii, "IV_true": iv });
-        record["rho"] = json!(rho);
+        record["rho"] = json!(recovered);
         // the reported σ where the operator's differs (the blur pass's, read
         // on the crisp-cell model): what reconstructing with it would give
         if cal.model_blur_sigma_px.is_some() {
@@ -2018,7 +2018,7 @@ fn run_case(
                 &instrument,
                 tolerance,
                 |psi| recon_psnr(&y, &problem.nominal, scene, psi),
-                |db| self::rho(ii, db, iv),
+                |db| rho(ii, db, iv),
             )?;
         }
         // with a captured mask IV holds σ's reference: the instrument's own σ
