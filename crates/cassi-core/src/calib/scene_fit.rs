@@ -165,6 +165,13 @@ pub struct FinePass {
     /// (`bench/results/default_band_spread_stop58/`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub spectral_nodes: Option<usize>,
+    /// Its scene's spectral nodes where the on-grid run
+    /// ([`Self::on_grid`]) does not take its place, which keeps its own;
+    /// `None` (the default, and settings written before the field): the
+    /// first pass's. [`Self::spectral_nodes`], when set, wins. A probe
+    /// (stop 66): the first and detail passes on fewer nodes than this one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub off_grid_nodes: Option<usize>,
     /// The pass again on more spectral nodes where it ends with the mask on
     /// the pixel grid ([`OnGridNodes`]); `None` (settings written before
     /// the field): never. [`Self::spectral_nodes`], when set, wins.
@@ -394,6 +401,7 @@ impl Default for FinePass {
             carries_detail: false,
             weighting: None,
             spectral_nodes: None,
+            off_grid_nodes: None,
             on_grid: Some(OnGridNodes::default()),
             high_pass_px: None,
             spectral_basis: None,
@@ -472,6 +480,13 @@ impl FinePass {
             .flatten()
     }
 
+    /// Its scene's spectral nodes after a first pass on `first_pass_nodes`.
+    fn nodes_after(&self, first_pass_nodes: usize) -> usize {
+        self.spectral_nodes
+            .or(self.off_grid_nodes)
+            .unwrap_or(first_pass_nodes)
+    }
+
     /// The pass's scene fit (`settings` with its nodes, first solve and
     /// steps), started from `first`, a solve of the first pass's fit
     /// `coarse`: that scene refined onto the pass's nodes (returned with
@@ -487,7 +502,7 @@ impl FinePass {
     ) -> Result<(SceneFit<'a>, Vec<f32>)> {
         let fine_settings = SceneFitSettings {
             cell_px: self.cell_px,
-            spectral_nodes: self.spectral_nodes.unwrap_or(settings.spectral_nodes),
+            spectral_nodes: self.nodes_after(settings.spectral_nodes),
             high_pass_px: self.high_pass_px.unwrap_or(settings.high_pass_px),
             cold_solve: self.first_solve,
             max_steps: self.max_steps,
@@ -1555,6 +1570,16 @@ pub(crate) mod tests {
             ..pass
         };
         assert_eq!(probe.again_at(0.0), None);
+        // its own nodes off the grid give way to the on-grid run's on it
+        let off_grid = FinePass {
+            off_grid_nodes: Some(6),
+            ..pass
+        };
+        assert_eq!(pass.nodes_after(4), 4);
+        assert_eq!(off_grid.nodes_after(4), 6);
+        let again = off_grid.again_at(0.2).expect("run again on the grid");
+        assert_eq!(again.nodes_after(4), on_grid.spectral_nodes);
+        assert_eq!(probe.nodes_after(4), 8);
         let off = FinePass {
             on_grid: None,
             ..pass

@@ -101,6 +101,8 @@
 //! `--fine-pass-nodes N`: the fine pass's scene on N spectral nodes
 //! (`FinePass::spectral_nodes`; the first pass's by default, the pass run
 //! again on 10 where its answer lands on the pixel grid since stop 59);
+//! `--fine-pass-off-grid-nodes N`: the same but the on-grid run kept
+//! (`FinePass::off_grid_nodes`; with `--scene-nodes`, a probe of stop 66);
 //! `--fine-pass-high-pass PX`: the fine pass's high-pass σ
 //! (`FinePass::high_pass_px`); `--fine-pass-principal-spectra N`: its scene
 //! on the N principal spectra of GAP-TV's reconstruction (50 iterations)
@@ -600,7 +602,7 @@ impl SceneTransform {
 
 const USAGE: &str = "calibrate [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] \
                      [--no-aligned] [--no-inverse-crime] [--no-wide-blur] [--model rounded|subpixel|dispersed-mask|crisp-cells] \
-                     [--preset NAME | --preset-file PATH] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start | [--nominal-start-gap G] [--nominal-start-ridge BAND]] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all|geometry-and-curvature] [--scene-cell PX] [--first-pass-ridge R] [--scene-nodes N] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv N] [--detail-pre-smooth PX] [--search-rows N] [--fine-pass-detail] [--fine-pass-weighted WINDOW_PX,FLOOR_QUANTILE] [--fine-pass-nodes N] [--fine-pass-high-pass PX] [--fine-pass-principal-spectra N] [--no-on-grid-nodes | --on-grid-from-answer] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N] [--blur-pass-start scene-fit|texture-fit] [--blur-pass-reconstructs model-fit|blur-pass] [--blur-pass-gap-blur PX] [--blur-pass-pre-smooth PX]] [--no-recon] [--rho-sensitivity] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX | --limits-tv-scene WEIGHT | --limits-spectral-scene NODES | --limits-placed-spectral-scene NODES] [--out PATH] \
+                     [--preset NAME | --preset-file PATH] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start | [--nominal-start-gap G] [--nominal-start-ridge BAND]] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all|geometry-and-curvature] [--scene-cell PX] [--first-pass-ridge R] [--scene-nodes N] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv N] [--detail-pre-smooth PX] [--search-rows N] [--fine-pass-detail] [--fine-pass-weighted WINDOW_PX,FLOOR_QUANTILE] [--fine-pass-nodes N] [--fine-pass-off-grid-nodes N] [--fine-pass-high-pass PX] [--fine-pass-principal-spectra N] [--no-on-grid-nodes | --on-grid-from-answer] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N] [--blur-pass-start scene-fit|texture-fit] [--blur-pass-reconstructs model-fit|blur-pass] [--blur-pass-gap-blur PX] [--blur-pass-pre-smooth PX]] [--no-recon] [--rho-sensitivity] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX | --limits-tv-scene WEIGHT | --limits-spectral-scene NODES | --limits-placed-spectral-scene NODES] [--out PATH] \
                      [--scene-transform none|flip-cols|flip-rows|transpose|coarse|real-band-light|flip-bands|dark-right-COLS|dark-left-COLS|smooth-PX] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--snapshots N [--joint [--joint-model MODEL]]] [--verbose]";
 
 fn parse_args(argv: &[String]) -> Result<Args> {
@@ -649,6 +651,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
     let mut preset_file: Option<PathBuf> = None;
     let mut fine_pass_detail = false;
     let mut fine_pass_nodes: Option<usize> = None;
+    let mut fine_pass_off_grid_nodes: Option<usize> = None;
     let mut fine_pass_high_pass: Option<f64> = None;
     let mut fine_pass_spectra: Option<usize> = None;
     let mut on_grid_from_answer = false;
@@ -852,6 +855,17 @@ fn parse_args(argv: &[String]) -> Result<Args> {
                     .with_context(|| format!("--fine-pass-nodes {v}"))?;
                 ensure!(n >= 2, "--fine-pass-nodes {v}: at least 2 spectral nodes");
                 fine_pass_nodes = Some(n);
+            }
+            "--fine-pass-off-grid-nodes" => {
+                let v = value()?;
+                let n: usize = v
+                    .parse()
+                    .with_context(|| format!("--fine-pass-off-grid-nodes {v}"))?;
+                ensure!(
+                    n >= 2,
+                    "--fine-pass-off-grid-nodes {v}: at least 2 spectral nodes"
+                );
+                fine_pass_off_grid_nodes = Some(n);
             }
             "--no-on-grid-nodes" => no_on_grid_nodes = true,
             "--on-grid-from-answer" => on_grid_from_answer = true,
@@ -1399,6 +1413,14 @@ fn parse_args(argv: &[String]) -> Result<Args> {
         };
         pass.spectral_nodes = Some(n);
         preset_name += &format!(" (fine pass on {n} spectral nodes)");
+    }
+    if let Some(n) = fine_pass_off_grid_nodes {
+        let settings = scene_fit_settings(&mut preset, "--fine-pass-off-grid-nodes")?;
+        let Some(pass) = settings.fine_pass.as_mut() else {
+            bail!("--fine-pass-off-grid-nodes: the fine pass is off");
+        };
+        pass.off_grid_nodes = Some(n);
+        preset_name += &format!(" (fine pass on {n} spectral nodes off the pixel grid)");
     }
     if let Some(components) = fine_pass_spectra {
         let settings = scene_fit_settings(&mut preset, "--fine-pass-principal-spectra")?;
