@@ -25,6 +25,9 @@ one-sided Clopper–Pearson lower bound on the coverage, at confidence C (defaul
 reach the target; where even k = n cannot (95 % on a few dozen cases), every case must
 be covered. The floors are then copied into `calib/uncertainty.rs` by hand, rounded up;
 coverage is reported on the held-out half, never here.
+Since stop 66 σ's sharp floors of the default's fit (`SCENE_DETAIL_PASS`) are variances, derived
+by `bench/sigma_variance.py --floor` (σ errs by a size in σ², not in σ); its table entries for σ
+stay, for the trade-offs and the wide blur.
 
 Several tuning runs are pooled (the scene fit's: the tuning half as it is and
 `--scene-transform flip-cols / flip-rows / transpose`, each with its own seed round). A run

@@ -315,6 +315,8 @@ pub fn calibrate_default(
                 if preset.dispersion_a2 != 0.0 {
                     found = nominal_a1_restart(&mut run, problem, preset, settings, &posed, found)?;
                 }
+                // σ's stated errors hold floors taken at this σ̂ (uncertainty::SigmaVarianceFloors)
+                let stated_at_blur = found.0.blur_sigma_px;
                 if let (Some(pass), true) = (preset.blur_pass, preset.fit_blur) {
                     if pass.model != problem.model()
                         && !pass.reconstructs_with_pass(texture_blur_sigma_px)
@@ -340,7 +342,9 @@ pub fn calibrate_default(
                         blur_bootstrap_stage(&mut run, problem, settings, bootstrap, found.0)?;
                 }
                 best = found.0;
-                found.1
+                found
+                    .1
+                    .with_blur_floors_at(problem.model(), stated_at_blur, best.blur_sigma_px)
             }
             _ => u,
         }
