@@ -1305,10 +1305,12 @@ mod tests {
     #[test]
     fn the_floors_are_the_sharp_ones_up_to_0_8_px_and_the_wide_ones_from_1_px() {
         type Floor = fn(DispersionModel, Fit, Parameter, f64) -> f64;
+        // a level's floor function, its sharp and wide tables, σ's variance
+        type Tables<'a> = (Floor, &'a [f64; FLOORED], &'a [f64; FLOORED], Option<f64>);
         for (model, fit) in FITS {
             let f = Floors::of(model, fit);
             let variance = f.sigma_variance.map(|v| (v.standard, v.interval_95));
-            let sets: [(Floor, &[f64; FLOORED], &[f64; FLOORED], Option<f64>); 2] = [
+            let sets: [Tables; 2] = [
                 (model_error_floor, &f.sharp, &f.wide, variance.map(|v| v.0)),
                 (
                     interval_95_floor,
