@@ -35,13 +35,14 @@ import math
 import statistics
 import sys
 
-from uncertainty_floors import needed
+from uncertainty_floors import needed, smallest
 
 
 GEOMETRY = ("dx", "dy", "theta_deg", "a1", "alpha_deg")
 KINDS = ("random", "aligned_blur")
 BINS = [(k / 10, (k + 1) / 10) for k in range(8)]
 DELTAS = (0.0, 0.004, 0.008, 0.012)
+TINY = 1e-6  # where the search for a variance floor starts, px²
 
 
 def groups(args):
@@ -124,14 +125,6 @@ def covers(rs, v, k, target):
                for reg in {r[3] for r in rs})
 
 
-def smallest(ok):
-    lo, hi = 0.0, 1.0
-    while hi - lo > 1e-5:
-        mid = 0.5 * (lo + hi)
-        lo, hi = (lo, mid) if ok(mid) else (mid, hi)
-    return hi
-
-
 def scene_growth(t, k, target):
     """The smallest κ ≥ 1 such that κ·f(σ̂; V) with V derived without a scene configuration (a
     tuning scene on one instrument) covers that configuration's cases, pooled over every one,
@@ -139,7 +132,7 @@ def scene_growth(t, k, target):
     factor; a scene's seeds share its errors, so its cases are not independent draws)."""
     held = []
     for scene in sorted({r[4] for r in t}):
-        v = smallest(lambda v: covers([r for r in t if r[4] != scene], v, k, target))
+        v = smallest(lambda v: covers([r for r in t if r[4] != scene], v, k, target), TINY)
         held += [(r, v) for r in t if r[4] == scene]
 
     def ok(kappa):
@@ -149,19 +142,13 @@ def scene_growth(t, k, target):
         return all(sum(h for h, (r, _) in zip(hits, held) if r[3] == reg)
                    >= target * sum(r[3] == reg for r, _ in held) for reg in {r[3] for r, _ in held})
 
-    lo, hi = 1.0, 1.0
-    while not ok(hi):
-        lo, hi = hi, hi * 1.25
-    while hi - lo > 1e-3:
-        mid = 0.5 * (lo + hi)
-        lo, hi = (lo, mid) if ok(mid) else (mid, hi)
-    return hi
+    return smallest(ok, 1.0)
 
 
 def floor_report(tuning, held_out):
     t, h = rows(tuning), rows(held_out)
-    v1 = smallest(lambda v: covers(t, v, 1.0, 0.68))
-    v95 = smallest(lambda v: covers(t, v, 2.0, 0.95))
+    v1 = smallest(lambda v: covers(t, v, 1.0, 0.68), TINY)
+    v95 = smallest(lambda v: covers(t, v, 2.0, 0.95), TINY)
     kappa = scene_growth(t, 1.0, 0.68)
     # κ·f(σ̂; V) ≤ f(σ̂; κ²V) at every σ̂ (equal at 0): the standard error's V grown by κ²
     print(f"tuning ({len(t)} cases, regimes {sorted({r[3] for r in t})}): V {v1:.4f} px², V95 {v95:.4f} px²;"

@@ -152,12 +152,15 @@ enum Level {
 
 /// Whether σ's sharp floor is taken in variance where the fit's floors say
 /// so ([`SigmaVarianceFloors`]) or as the tables' constant.
-#[derive(Clone, Copy, PartialEq)]
+#[derive(Clone, Copy)]
 enum InVariance {
     Yes,
     No,
 }
 
+/// `fit`'s floor for `p` at a fitted blur of `blur_sigma_px`: the sharp
+/// table's (or σ's variance floor) up to [`SHARP_BLUR_PX`], the wide one
+/// from [`WIDE_BLUR_PX`], linear between; a fitted curvature's own.
 fn floor(
     model: DispersionModel,
     fit: Fit,
@@ -277,7 +280,7 @@ struct Floors {
 /// factor (κ 1.37, as κ²V: κ·f at σ̂ = 0, wider above) as the other
 /// floors are, both rounded up. The trade-offs keep the tables' constants
 /// ([`trade_off_floor`]): their correlations were measured with them.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Clone, Copy)]
 struct SigmaVarianceFloors {
     standard: f64,
     interval_95: f64,
@@ -285,7 +288,7 @@ struct SigmaVarianceFloors {
 
 /// The σ floor at σ̂ of a variance floor `v`: the upper side of the σ
 /// interval that σ̂² ± v maps to (monotone, √v at σ̂ = 0).
-pub fn sigma_floor_in_variance(blur_sigma_px: f64, v: f64) -> f64 {
+fn sigma_floor_in_variance(blur_sigma_px: f64, v: f64) -> f64 {
     let s = blur_sigma_px.abs();
     (s * s + v).sqrt() - s
 }
