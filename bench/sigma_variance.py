@@ -35,7 +35,7 @@ import math
 import statistics
 import sys
 
-from uncertainty_floors import needed, smallest
+from uncertainty_floors import needed, smallest, spread_part
 
 
 GEOMETRY = ("dx", "dy", "theta_deg", "a1", "alpha_deg")
@@ -110,8 +110,7 @@ def rows(cases):
     """(|error|, sandwich part, σ̂, regime) of σ per case; the regime names the instrument."""
     out = []
     for c in cases:
-        u, f = c["uncertainty"]["blur_sigma_px"], c["uncertainty_floor"]["blur_sigma_px"]
-        out.append((abs(c["error"]["blur_sigma_px"]), math.sqrt(max(u * u - f * f, 0.0)),
+        out.append((abs(c["error"]["blur_sigma_px"]), spread_part(c, "blur_sigma_px"),
                     c["estimate"]["blur_sigma_px"], c["kind"] + c.get("instrument", ""),
                     c["scene"] + c.get("instrument", "")))
     return out

@@ -2,13 +2,14 @@
 """Re-derive the calibration's model-error floors from a tuning-half run.
 
     python3 bench/uncertainty_floors.py TUNING.json [MORE_TUNING.json …] [--confidence C]
-        [--by-scene] [--check RUN.json]
+        [--by-scene] [--check RUN.json …]
 
 TUNING.json: `cargo run --release -p cassi-bench --bin calibrate -- --half tuning
 --cases 6 --no-recon --no-limits --no-inverse-crime` (random, aligned-blur and wide-blur rows),
 which records per case and parameter the stated standard error `uncertainty` and the
-floor inside it, `uncertainty_floor`. The block-sandwich part is
-s = sqrt(uncertainty² − floor²). The stated error is hypot(s, F(σ̂)) with
+floor inside it, `uncertainty_floor` (and since stop 67 the share of the spread it took,
+`uncertainty_spread_scale`). The fit's spread (block sandwich and disagreement) is
+s = sqrt(uncertainty² − floor²) / share. The stated error is hypot(c·s, F(σ̂)) with
 F(σ̂) = sharp + t(σ̂)·(wide − sharp), t rising linearly from 0 at σ̂ = 0.8 px to 1 at
 1.0 px (`calib/uncertainty.rs`). Printed: per parameter and level (the standard
 error: 68 % within hypot(s, F); the 95 % half-width: 95 % within hypot(2s, F95)) the
@@ -40,8 +41,18 @@ and its scene configurations are their own; σ's floors ignore it unless its rec
 smallest factor that makes floors derived without each scene configuration (a tuning scene
 in one orientation) cover that configuration's cases (leave one out; `scene_inflation`). The 95 % floors already demand every tuning
 case; κ is printed for them but not applied, and a 95 % floor below its grown
-standard-error floor is raised to it (an interval is never narrower than one standard error). --check RUN.json prints, beside each floor, its
-coverage per regime on another run (a held-out or fresh-seed record: the check, not a choice).
+standard-error floor is raised to it (an interval is never narrower than one standard error).
+
+The spread's share c (stop 67, `SpreadShare` in calib/uncertainty.rs): for each parameter's
+standard error the floors are derived (and grown) with each share in SHARES, and the share
+whose stated errors have the smallest median over the tuning cases is printed with its floor
+— the narrowest bars that still cover as above (σ's share stays 1: its floors are
+variances; the 95 % half-width takes the whole spread). The default's fit states dx and a1
+so; where the share printed is 1 the floor is the table's.
+
+--check RUN.json (repeatable, pooled) prints, beside each floor, its coverage per regime on
+other runs and the median error it would have stated there (held-out or fresh-seed records:
+the check, not a choice; exact, since the floors enter in quadrature).
 """
 
 import functools
@@ -53,9 +64,11 @@ SHARP_BLUR_PX, WIDE_BLUR_PX = 0.8, 1.0
 HEADLINE = ("random", "aligned_blur")
 WIDE = ("wide_blur",)
 STEP = 1.002  # relative precision of the floor search
+# the shares of the fit's spread searched for the standard error (`spread_scale`)
+SHARES = (0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0)
 # what each floor is for: (multiple of the sandwich part, target coverage); only the
 # standard error's floors are grown by --by-scene
-STANDARD_ERROR = "standard error (floor_sharp / floor_wide): 68 % within hypot(s, F)"
+STANDARD_ERROR = "standard error (floor_sharp / floor_wide): 68 % within hypot(c·s, F)"
 LEVELS = {
     STANDARD_ERROR: (1.0, 0.68),
     "95 % half-width (floor95_sharp / floor95_wide): 95 % within hypot(2s, F)": (2.0, 0.95),
@@ -90,6 +103,23 @@ def sigma_without_truth(run):
                                       if c["kind"] in HEADLINE + WIDE)
 
 
+def spread_part(case, p):
+    """The fit's whole spread in `p`'s stated standard error: √(u² − floor²) / c, c the
+    share of it the standard error took (`uncertainty_spread_scale`; 1 in records made
+    before stop 67, when it took the whole). None where the case states no error."""
+    u, f = case["uncertainty"].get(p), case.get("uncertainty_floor", {}).get(p)
+    if u is None or f is None:
+        return None
+    c = (case.get("uncertainty_spread_scale") or {}).get(p) or 1.0
+    return math.sqrt(max(u * u - f * f, 0.0)) / c
+
+
+def scale_at(c, blur):
+    """The spread's share c at a fitted blur: c up to SHARP_BLUR_PX, 1 from WIDE_BLUR_PX
+    (the wide floors were set with the whole spread), linear between (`spread_scale`)."""
+    return c + ramp(blur) * (1.0 - c)
+
+
 def cases(run, kinds, p):
     """(|error|, sandwich part, fitted blur, regime, scene configuration) of the cases of
     `kinds` with a stated σ; the configuration is the scene and its `--scene-transform`."""
@@ -106,9 +136,8 @@ def cases(run, kinds, p):
         instrument = ", captured mask"
     out = []
     for c in run["cases"]:
-        u, f = c["uncertainty"].get(p), c.get("uncertainty_floor", {}).get(p)
-        if c["kind"] in kinds and u is not None and f is not None:
-            s = math.sqrt(max(u * u - f * f, 0.0))
+        s = spread_part(c, p)
+        if c["kind"] in kinds and s is not None:
             out.append(
                 (
                     abs(c["error"][p]),
@@ -121,11 +150,11 @@ def cases(run, kinds, p):
     return out
 
 
-def covered(rows, sharp, wide, k):
-    """Share of `rows` with |error| ≤ hypot(k·s, F(σ̂))."""
+def covered(rows, sharp, wide, k, c=1.0):
+    """Share of `rows` with |error| ≤ hypot(k·c(σ̂)·s, F(σ̂)), c(σ̂) the spread's share."""
     hits = 0
     for e, s, blur, *_ in rows:
-        hits += e <= math.hypot(k * s, sharp + ramp(blur) * max(wide - sharp, 0.0))
+        hits += e <= math.hypot(k * scale_at(c, blur) * s, sharp + ramp(blur) * max(wide - sharp, 0.0))
     return hits / len(rows)
 
 
@@ -154,15 +183,15 @@ def needed(n, target, confidence):
     return next((k for k in range(n + 1) if lower_bound(n, k, confidence) >= target), n)
 
 
-def covers(rows, sharp, wide, level, confidence):
+def covers(rows, sharp, wide, level, confidence, c=1.0):
     """The margin on all `rows`, and the target itself in each regime among them."""
     k, target = level
-    hits = round(covered(rows, sharp, wide, k) * len(rows))
+    hits = round(covered(rows, sharp, wide, k, c) * len(rows))
     if hits < needed(len(rows), target, confidence):
         return False
     for r in {row[3] for row in rows}:
         part = [row for row in rows if row[3] == r]
-        if covered(part, sharp, wide, k) < target:
+        if covered(part, sharp, wide, k, c) < target:
             return False
     return True
 
@@ -184,18 +213,19 @@ def smallest(ok, start):
     return hi
 
 
-def derive(head, wide_rows, level, confidence):
-    """The smallest (sharp, wide) floors that cover `head` and `wide_rows` at `level`."""
+def derive(head, wide_rows, level, confidence, c=1.0):
+    """The smallest (sharp, wide) floors that cover `head` and `wide_rows` at `level`
+    with the spread's share c."""
     tiny = 1e-6
     sharp, wide = tiny, tiny
     for _ in range(3):  # the two floors meet in the ramp: settle both
-        sharp = smallest(lambda v: covers(head, v, max(wide, v), level, confidence), tiny)
+        sharp = smallest(lambda v: covers(head, v, max(wide, v), level, confidence, c), tiny)
         if wide_rows:
-            wide = smallest(lambda v: covers(wide_rows, sharp, v, level, confidence), sharp)
+            wide = smallest(lambda v: covers(wide_rows, sharp, v, level, confidence, c), sharp)
     return sharp, wide
 
 
-def scene_inflation(head, wide_rows, level, confidence):
+def scene_inflation(head, wide_rows, level, confidence, c=1.0):
     """The smallest κ ≥ 1 such that floors κ·F₋ₛ derived without scene s cover
     scene s's cases as `covers` demands, pooled over every s (leave one scene out).
 
@@ -212,13 +242,14 @@ def scene_inflation(head, wide_rows, level, confidence):
             [r for r in wide_rows if r[4] != sc],
             level,
             confidence,
+            c,
         )
         held += [(r, fs) for r in head + wide_rows if r[4] == sc]
 
     def ok(kappa, rows):
         k, target = level
         hits = [
-            r[0] <= math.hypot(k * r[1], kappa * (sh + ramp(r[2]) * max(wd - sh, 0.0)))
+            r[0] <= math.hypot(k * scale_at(c, r[2]) * r[1], kappa * (sh + ramp(r[2]) * max(wd - sh, 0.0)))
             for r, (sh, wd) in rows
         ]
         if sum(hits) < target * len(hits):
@@ -242,12 +273,12 @@ def main():
     confidence = 0.8
     by_scene = "--by-scene" in args
     args = [a for a in args if a != "--by-scene"]
-    check = None
-    if "--check" in args:
+    check = []  # every --check RUN.json, pooled
+    while "--check" in args:
         i = args.index("--check")
         if i + 1 >= len(args):
             sys.exit(__doc__)
-        check = json.load(open(args[i + 1]))
+        check.append(json.load(open(args[i + 1])))
         args = args[:i] + args[i + 2 :]
     if "--confidence" in args:
         i = args.index("--confidence")
@@ -263,40 +294,65 @@ def main():
     for name, level in LEVELS.items():
         print(f"\n{name}  (confidence {confidence})")
         print(
-            f"{'parameter':<14} {'sharp':>9} {'covers (n)':>14} {'wide':>9} {'covers (n)':>14}"
+            f"{'parameter':<14} {'share':>5} {'sharp':>9} {'covers (n)':>14} {'wide':>9} {'covers (n)':>14}"
             + (f" {'κ':>6}" if by_scene else "")
         )
         for p in params:
             head, wide_rows = cases(run, HEADLINE, p), cases(run, WIDE, p)
             if not head:
                 continue
-            sharp, wide = derive(head, wide_rows, level, confidence)
-            kappa = scene_inflation(head, wide_rows, level, confidence) if by_scene else 1.0
-            if name == STANDARD_ERROR:
-                sharp, wide = kappa * sharp, kappa * wide
+            standard = name == STANDARD_ERROR
+            # the spread's share: searched for the standard error (σ's stays whole: its
+            # floors are variances, bench/sigma_variance.py); the 95 % takes it whole
+            shares = SHARES if standard and p != "blur_sigma_px" else (1.0,)
+            best = None
+            for c in shares:
+                sharp, wide = derive(head, wide_rows, level, confidence, c)
+                kappa = scene_inflation(head, wide_rows, level, confidence, c) if by_scene else 1.0
+                if standard:
+                    sharp, wide = kappa * sharp, kappa * wide
+                width = median_stated(head + wide_rows, sharp, wide, level[0], c)
+                if best is None or width < best[0]:
+                    best = (width, c, sharp, wide, kappa)
+            _, c, sharp, wide, kappa = best
+            if standard:
                 grown[p] = (sharp, wide)
             elif p in grown:
                 sharp, wide = max(sharp, grown[p][0]), max(wide, grown[p][1])
-            h = covered(head, sharp, wide, level[0])
-            line = f"{p:<14} {sharp:9.4g} {100 * h:9.0f} % ({len(head)})"
+            h = covered(head, sharp, wide, level[0], c)
+            line = f"{p:<14} {c:5.2f} {sharp:9.4g} {100 * h:9.0f} % ({len(head)})"
             if wide_rows:
-                w = covered(wide_rows, sharp, wide, level[0])
+                w = covered(wide_rows, sharp, wide, level[0], c)
                 line += f" {wide:9.4g} {100 * w:9.0f} % ({len(wide_rows)})"
             if by_scene:
-                line += f" {kappa:6.3f}" + ("" if name == STANDARD_ERROR else " (not applied)")
-            if check is not None:
-                line += "   check:" + check_coverage(check, p, sharp, wide, level[0])
+                line += f" {kappa:6.3f}" + ("" if standard else " (not applied)")
+            if check:
+                line += "   check:" + check_coverage(check, p, sharp, wide, level[0], c)
             print(line)
     error_correlation(run)
 
 
-def check_coverage(run, p, sharp, wide, k):
-    """Coverage of these floors on another run's cases (its sandwich parts), per regime."""
+def median_stated(rows, sharp, wide, k, c):
+    """The median stated error hypot(k·c(σ̂)·s, F(σ̂)) over `rows`: what a user reads."""
+    widths = sorted(
+        math.hypot(k * scale_at(c, blur) * s, sharp + ramp(blur) * max(wide - sharp, 0.0))
+        for _, s, blur, *_ in rows
+    )
+    return widths[len(widths) // 2]
+
+
+def check_coverage(runs, p, sharp, wide, k, c):
+    """Coverage of these floors on other runs' cases (their spreads), per regime, with the
+    median stated error: what the calibration would have stated there (exact: the floors
+    enter in quadrature)."""
     out = []
-    rows = cases(run, HEADLINE + WIDE, p)
+    rows = cases(runs, HEADLINE + WIDE, p)
     for reg in sorted({r[3] for r in rows}):
         part = [r for r in rows if r[3] == reg]
-        out.append(f" {reg.replace('wide_blur ', 'w-')} {100 * covered(part, sharp, wide, k):.0f}%")
+        out.append(
+            f" {reg.replace('wide_blur ', 'w-')} {100 * covered(part, sharp, wide, k, c):.0f}%"
+            f" ±{median_stated(part, sharp, wide, k, c):.3g}"
+        )
     return "".join(out)
 
 

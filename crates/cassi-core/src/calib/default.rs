@@ -1063,7 +1063,7 @@ fn ridge_probe_stage(
     let probed = probes.run(fit, answer, free, fit.problem().bands())?;
     stage.count(probed.evaluations);
     let far = farthest_alternative(&answer.psi, &probed.report.ends);
-    let mut u = with_restart_disagreement(u, &answer.psi, &far);
+    let mut u = with_restart_disagreement(fit.model(), u, &answer.psi, &far);
     let kept = Scored {
         parameters: answer.psi,
         score: probed.answer_score,
@@ -1148,7 +1148,10 @@ fn nominal_a1_restart(
         score,
     };
     run.finish_choosing(stage, NOMINAL_A1_RESTART_STAGE, scored, passed_over);
-    Ok((chosen, with_restart_disagreement(stated, &chosen, &passed)))
+    Ok((
+        chosen,
+        with_restart_disagreement(problem.model(), stated, &chosen, &passed),
+    ))
 }
 
 /// The blur corrected by its bootstrap bias ([`BlurBootstrap`]): σ̂ −

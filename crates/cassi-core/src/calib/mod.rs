@@ -42,7 +42,7 @@ mod uncertainty;
 pub use uncertainty::{
     A1_SHORT_TILT_DEG, CURVATURE_FLOOR, CURVATURE_FLOOR_95, Fit, SHARP_BLUR_PX,
     TRADE_OFF_CORRELATION, TradeOff, WIDE_BLUR_PX, grid_phase, interval_95_floor,
-    model_error_floor,
+    model_error_floor, spread_scale,
 };
 
 use serde::{Deserialize, Serialize};

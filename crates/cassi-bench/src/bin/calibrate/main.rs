@@ -182,7 +182,7 @@ use cassi_core::calib::{
     BlurBootstrap, BlurPass, BlurPassStart, Calibration, CalibrationProblem, CombineParams,
     DefaultPreset, DetailPass, DetailSource, FinePass, FinePassFree, PRESET_NAMES, Preset,
     ReconstructionSigma, ResidualWeighting, SCENE_FIT_STAGE, SceneFitSettings, calibrate,
-    grid_phase, interval_95_floor, model_error_floor,
+    grid_phase, interval_95_floor, model_error_floor, spread_scale,
 };
 use cassi_core::metrics::psnr;
 use cassi_core::optics::blur::GaussianBlur;
@@ -1951,6 +1951,11 @@ fn run_case(
         // (bench/uncertainty_floors.py re-derives the floors from these)
         "uncertainty_floor": per_parameter(|p| {
             json!(cal.uncertainty_fit.map(|fit| model_error_floor(args.model, fit, p, est.blur_sigma_px)))
+        }),
+        // the share of the fit's own spread in each standard error (its
+        // `spread_scale`): the scripts divide by it to recover the whole spread
+        "uncertainty_spread_scale": per_parameter(|p| {
+            json!(cal.uncertainty_fit.map(|fit| spread_scale(args.model, fit, p, est.blur_sigma_px)))
         }),
         // how far the estimate's mask lands from whole pixels (0: on them),
         // which weighs the fits' disagreement in the default's errors
