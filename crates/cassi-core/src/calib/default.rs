@@ -893,7 +893,7 @@ fn scene_fit_stage(
     // the detail pass, when on, stands in for the first pass from here
     // (its fit for the uncertainty; the fine pass's scene still starts from
     // the smooth factor, in the first pass's basis)
-    let (detailed, fine_detail, found, pending) = match settings.detail_pass {
+    let (detailed, smooth_factor, fine_detail, found, pending) = match settings.detail_pass {
         Some(pass) if !moved_by(pass.free).is_empty() => {
             pending.finish(run);
             problem.check_cancelled()?;
@@ -904,14 +904,31 @@ fn scene_fit_stage(
                 .fine_pass
                 .filter(|f| f.carries_detail)
                 .map(|_| detail.clone());
-            let detailed = SceneFit::new(problem, settings)?.with_detail(detail);
             // the first pass's coefficients start it: d is about one on
-            // average, so they already hold the scene's smooth factor
+            // average, so they already hold the scene's smooth factor (on
+            // the pass's own nodes, a probe's, carried over to them)
+            let (detailed, smooth_factor, start_z) = match pass.spectral_nodes {
+                Some(nodes) if nodes != settings.spectral_nodes => {
+                    let own = SceneFitSettings {
+                        spectral_nodes: nodes,
+                        ..settings
+                    };
+                    let plain = SceneFit::new(problem, own)?;
+                    let z = plain.coefficients_from(&fit, &found.best.z);
+                    let detailed = SceneFit::new(problem, own)?.with_detail(detail);
+                    (detailed, Some(plain), z)
+                }
+                _ => (
+                    SceneFit::new(problem, settings)?.with_detail(detail),
+                    None,
+                    found.best.z.clone(),
+                ),
+            };
             let cold = pass.starts_cold(found.best.psi.blur_sigma_px);
             let mut refit = fit_scene_from(
                 &detailed,
                 &found.best.psi,
-                (!cold).then_some(found.best.z.as_slice()),
+                (!cold).then_some(start_z.as_slice()),
                 &moved_by(pass.free),
             )?;
             stage.count(refit.evaluations);
@@ -923,11 +940,14 @@ fn scene_fit_stage(
                 best: scored(&refit),
                 passed_over: None,
             };
-            (Some(detailed), fine_detail, refit, pending)
+            (Some(detailed), smooth_factor, fine_detail, refit, pending)
         }
-        _ => (None, None, found, pending),
+        _ => (None, None, None, found, pending),
     };
     let first_fit = detailed.as_ref().unwrap_or(&fit);
+    // the plain basis the found coefficients are in (the fine pass's
+    // scene starts from their smooth factor)
+    let coarse = smooth_factor.as_ref().unwrap_or(&fit);
     match settings.fine_pass {
         Some(pass) if pass.free.parameters().iter().any(moves) => {
             pending.finish(run);
@@ -935,8 +955,12 @@ fn scene_fit_stage(
             let stage = run.start();
             let moved = moved_by(pass.free);
             let refit = |pass: &FinePass| -> Result<(SceneFit<'_>, SceneFitResult)> {
-                let (fine, scene) =
-                    pass.scene_fit(problem, settings, (&fit, &found.best), fine_detail.clone())?;
+                let (fine, scene) = pass.scene_fit(
+                    problem,
+                    settings,
+                    (coarse, &found.best),
+                    fine_detail.clone(),
+                )?;
                 let refined = if moved.contains(&A2) {
                     // the curvature from the straight pass's answer, its
                     // scene warm: the curved answer never scores above the
@@ -976,7 +1000,7 @@ fn scene_fit_stage(
                             let (again_fit, _) = again.scene_fit(
                                 problem,
                                 settings,
-                                (&fit, &found.best),
+                                (coarse, &found.best),
                                 fine_detail.clone(),
                             )?;
                             let scene = again_fit.coefficients_from(&fine, &refined.best.z);

@@ -93,6 +93,15 @@ pub struct DetailPass {
     /// written before it: the proxy's.
     #[serde(default, skip_serializing_if = "DetailSource::is_proxy")]
     pub source: DetailSource,
+    /// The pass's scene on this many spectral nodes instead of the first
+    /// pass's (its coefficients carried over by least squares); `None`: the
+    /// first pass's, as settings written before it ran, and by default. A
+    /// probe of stop 67 (bench `--detail-pass-nodes N`): stop 65 saw the
+    /// blind errors' pivot walk from the red end toward the scene-known
+    /// fit's middle band in a detail and fine pass on 4 nodes, but a first
+    /// pass on 4 biased the aligned instruments' a1.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub spectral_nodes: Option<usize>,
 }
 
 /// Where the detail maps' luminance comes from.
@@ -127,6 +136,7 @@ impl Default for DetailPass {
             spectral_groups: 1,
             cold_above_blur_px: Some(0.85),
             source: DetailSource::Proxy,
+            spectral_nodes: None,
         }
     }
 }
@@ -204,6 +214,15 @@ impl DetailPass {
                 name: "detail_pass.source.gap_tv.iterations",
                 value: 0.0,
                 reason: "GAP-TV's iterations for the detail maps: 1 or more".into(),
+            });
+        }
+        if let Some(n) = self.spectral_nodes
+            && !(2..=bands).contains(&n)
+        {
+            return Err(CassiError::InvalidParameter {
+                name: "detail_pass.spectral_nodes",
+                value: n as f64,
+                reason: format!("spectral nodes: 2 to the cube's {bands} bands"),
             });
         }
         if let Some(px) = self.cold_above_blur_px
@@ -357,6 +376,25 @@ mod tests {
                 .contains("pre_smooth_px")
         );
         assert!(DetailPass::default().check(28).is_ok());
+        for nodes in [1, 29] {
+            let pass = DetailPass {
+                spectral_nodes: Some(nodes),
+                ..DetailPass::default()
+            };
+            let e = pass.check(28).unwrap_err().to_string();
+            assert!(e.contains("detail_pass.spectral_nodes"), "{e}");
+        }
+        let own = DetailPass {
+            spectral_nodes: Some(4),
+            ..DetailPass::default()
+        };
+        assert!(own.check(28).is_ok());
+        // settings without the field read as the first pass's nodes, and
+        // the default writes none
+        let json = serde_json::to_string(&DetailPass::default()).unwrap();
+        assert!(!json.contains("spectral_nodes"), "{json}");
+        let read: DetailPass = serde_json::from_str(&serde_json::to_string(&own).unwrap()).unwrap();
+        assert_eq!(read, own);
     }
 
     /// Groups are consecutive bands, as the coarse scene assigns the maps:

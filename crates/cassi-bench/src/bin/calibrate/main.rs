@@ -94,6 +94,8 @@
 //! scene solved from zero where the first pass's σ exceeds PX px (the
 //! default 0.85), or never (as the records before it were made),
 //! `--detail-pre-smooth PX` its luminance smoothed by PX px first (default 1),
+//! `--detail-pass-nodes N` its scene on N spectral nodes (`DetailPass::spectral_nodes`,
+//! a probe of stop 67; the first pass's by default),
 //! `--no-detail-pass` without it; `--fine-pass-detail`: the fine pass's
 //! scene times the detail pass's map too (`FinePass::carries_detail`);
 //! `--fine-pass-weighted WINDOW_PX,FLOOR_QUANTILE`: the fine pass's residual
@@ -602,7 +604,7 @@ impl SceneTransform {
 
 const USAGE: &str = "calibrate [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] \
                      [--no-aligned] [--no-inverse-crime] [--no-wide-blur] [--model rounded|subpixel|dispersed-mask|crisp-cells] \
-                     [--preset NAME | --preset-file PATH] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start | [--nominal-start-gap G] [--nominal-start-ridge BAND]] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all|geometry-and-curvature] [--scene-cell PX] [--first-pass-ridge R] [--scene-nodes N] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv N] [--detail-pre-smooth PX] [--search-rows N] [--fine-pass-detail] [--fine-pass-weighted WINDOW_PX,FLOOR_QUANTILE] [--fine-pass-nodes N] [--fine-pass-off-grid-nodes N] [--fine-pass-high-pass PX] [--fine-pass-principal-spectra N] [--no-on-grid-nodes | --on-grid-from-answer] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N] [--blur-pass-start scene-fit|texture-fit] [--blur-pass-reconstructs model-fit|blur-pass] [--blur-pass-gap-blur PX] [--blur-pass-pre-smooth PX]] [--no-recon] [--rho-sensitivity] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX | --limits-tv-scene WEIGHT | --limits-spectral-scene NODES | --limits-placed-spectral-scene NODES] [--out PATH] \
+                     [--preset NAME | --preset-file PATH] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start | [--nominal-start-gap G] [--nominal-start-ridge BAND]] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all|geometry-and-curvature] [--scene-cell PX] [--first-pass-ridge R] [--scene-nodes N] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv N] [--detail-pre-smooth PX] [--detail-pass-nodes N] [--search-rows N] [--fine-pass-detail] [--fine-pass-weighted WINDOW_PX,FLOOR_QUANTILE] [--fine-pass-nodes N] [--fine-pass-off-grid-nodes N] [--fine-pass-high-pass PX] [--fine-pass-principal-spectra N] [--no-on-grid-nodes | --on-grid-from-answer] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N] [--blur-pass-start scene-fit|texture-fit] [--blur-pass-reconstructs model-fit|blur-pass] [--blur-pass-gap-blur PX] [--blur-pass-pre-smooth PX]] [--no-recon] [--rho-sensitivity] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX | --limits-tv-scene WEIGHT | --limits-spectral-scene NODES | --limits-placed-spectral-scene NODES] [--out PATH] \
                      [--scene-transform none|flip-cols|flip-rows|transpose|coarse|real-band-light|flip-bands|dark-right-COLS|dark-left-COLS|smooth-PX] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--snapshots N [--joint [--joint-model MODEL]]] [--verbose]";
 
 fn parse_args(argv: &[String]) -> Result<Args> {
@@ -647,6 +649,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
     let mut model_a2: Option<f64> = None;
     let mut detail_cold_above: Option<Option<f64>> = None;
     let mut detail_pre_smooth: Option<f64> = None;
+    let mut detail_pass_nodes: Option<usize> = None;
     let mut search_rows: Option<usize> = None;
     let mut preset_file: Option<PathBuf> = None;
     let mut fine_pass_detail = false;
@@ -840,6 +843,14 @@ fn parse_args(argv: &[String]) -> Result<Args> {
                     "--detail-pre-smooth {v}: a Gaussian width of 0 to {most} px"
                 );
                 detail_pre_smooth = Some(px);
+            }
+            "--detail-pass-nodes" => {
+                let v = value()?;
+                let n: usize = v
+                    .parse()
+                    .with_context(|| format!("--detail-pass-nodes {v}"))?;
+                ensure!(n >= 2, "--detail-pass-nodes {v}: at least 2 spectral nodes");
+                detail_pass_nodes = Some(n);
             }
             "--search-rows" => {
                 let v = value()?;
@@ -1264,6 +1275,14 @@ fn parse_args(argv: &[String]) -> Result<Args> {
         };
         pass.pre_smooth_px = px;
         preset_name += &format!(" (detail maps pre-smoothed {px} px)");
+    }
+    if let Some(n) = detail_pass_nodes {
+        let settings = scene_fit_settings(&mut preset, "--detail-pass-nodes")?;
+        let Some(pass) = settings.detail_pass.as_mut() else {
+            bail!("--detail-pass-nodes: the detail pass is off (--no-detail-pass)");
+        };
+        pass.spectral_nodes = Some(n);
+        preset_name += &format!(" (detail pass on {n} spectral nodes)");
     }
     if let Some(groups) = detail_groups {
         let settings = scene_fit_settings(&mut preset, "--detail-groups")?;
