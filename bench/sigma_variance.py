@@ -27,8 +27,8 @@ which is κ·f at σ̂ = 0 and wider above); the 95 % one already asks every tun
 margin's few. Printed: V, V₉₅, κ, and on the held-out records
 the coverage and median stated error by σ̂, beside the records' own (the constant floor's, for
 records made before stop 66). Since stop 66 the default's fit states σ with these floors
-(`SigmaVarianceFloors` in calib/uncertainty.rs: V 0.048, V₉₅ 0.080 px², this derivation rounded
-up).
+(`SigmaVarianceFloors` in calib/uncertainty.rs: V 0.067, V₉₅ 0.080 px², this derivation with V
+grown by κ², rounded up).
 """
 import json
 import math

@@ -157,11 +157,7 @@ pub fn spread_scale(model: DispersionModel, fit: Fit, p: Parameter, blur_sigma_p
     if p == Parameter::A2 {
         return 1.0;
     }
-    let share = Floors::of(model, fit)
-        .spread_shares
-        .get(p.index())
-        .copied()
-        .flatten();
+    let share = Floors::of(model, fit).share(p);
     ramped(share.map_or(1.0, |s| s.share), 1.0, blur_sigma_px)
 }
 
@@ -206,8 +202,7 @@ fn floor(
         Level::Standard => (&f.sharp, &f.wide),
         Level::Interval95 => (&f.sharp_95, &f.wide_95),
     };
-    let share = f.spread_shares.get(p.index()).copied().flatten();
-    let sharp = match (p, f.sigma_variance, share, level, reading) {
+    let sharp = match (p, f.sigma_variance, f.share(p), level, reading) {
         (Parameter::BlurSigmaPx, Some(v), _, _, Reading::Stated) => {
             let v = match level {
                 Level::Standard => v.standard,
@@ -368,6 +363,11 @@ pub enum Fit {
 }
 
 impl Floors {
+    /// `p`'s spread share, where its standard error takes one.
+    fn share(&self, p: Parameter) -> Option<SpreadShare> {
+        self.spread_shares.get(p.index()).copied().flatten()
+    }
+
     /// The scene fit runs for the dispersed-mask model only (the preset),
     /// so its three fits' floors are that model's whatever `model` says.
     fn of(model: DispersionModel, fit: Fit) -> &'static Floors {
