@@ -892,8 +892,8 @@ fn scene_fit_stage(
     };
     // the detail pass, when on, stands in for the first pass from here
     // (its fit for the uncertainty; the fine pass's scene still starts from
-    // the smooth factor, in the first pass's basis)
-    let (detailed, smooth_factor, fine_detail, found, pending) = match settings.detail_pass {
+    // a smooth factor in the first pass's basis)
+    let (detailed, fine_start, fine_detail, found, pending) = match settings.detail_pass {
         Some(pass) if !moved_by(pass.free).is_empty() => {
             pending.finish(run);
             problem.check_cancelled()?;
@@ -907,16 +907,16 @@ fn scene_fit_stage(
             // the first pass's coefficients start it: d is about one on
             // average, so they already hold the scene's smooth factor (on
             // the pass's own nodes, a probe's, carried over to them)
-            let (detailed, smooth_factor, start_z) = match pass.spectral_nodes {
+            let (detailed, on_first_nodes, start_z) = match pass.spectral_nodes {
                 Some(nodes) if nodes != settings.spectral_nodes => {
                     let own = SceneFitSettings {
                         spectral_nodes: nodes,
                         ..settings
                     };
-                    let plain = SceneFit::new(problem, own)?;
-                    let z = plain.coefficients_from(&fit, &found.best.z);
+                    let z = SceneFit::new(problem, own)?.coefficients_from(&fit, &found.best.z);
+                    let first_nodes = SceneFit::new(problem, settings)?.with_detail(detail.clone());
                     let detailed = SceneFit::new(problem, own)?.with_detail(detail);
-                    (detailed, Some(plain), z)
+                    (detailed, Some(first_nodes), z)
                 }
                 _ => (
                     SceneFit::new(problem, settings)?.with_detail(detail),
@@ -934,20 +934,35 @@ fn scene_fit_stage(
             stage.count(refit.evaluations);
             refit.jacobian = detailed.jacobian(&refit.best, &free)?;
             stage.count(free.len());
+            // on its own nodes, the fine pass starts from (and anchors its
+            // ridge on) the detailed scene on the first pass's nodes solved
+            // at this answer, warm from the first pass. Why: from the
+            // 4-node smooth factor, two captured-mask aligned instruments'
+            // fine passes ended 0.06-0.08 px off
+            // (bench/results/default_stop67/tuning_rounds/d4_mask_capture)
+            let fine_start = match on_first_nodes {
+                Some(first_nodes) => {
+                    let solved = first_nodes.solve(&refit.best.psi, Some(&found.best.z))?;
+                    stage.count(1);
+                    Some(solved)
+                }
+                None => None,
+            };
             let pending = PendingStage {
                 stage,
                 name: DETAIL_PASS_STAGE,
                 best: scored(&refit),
                 passed_over: None,
             };
-            (Some(detailed), smooth_factor, fine_detail, refit, pending)
+            (Some(detailed), fine_start, fine_detail, refit, pending)
         }
         _ => (None, None, None, found, pending),
     };
     let first_fit = detailed.as_ref().unwrap_or(&fit);
-    // the plain basis the found coefficients are in (the fine pass's
-    // scene starts from their smooth factor)
-    let coarse = smooth_factor.as_ref().unwrap_or(&fit);
+    // the fine pass's scene starts from a smooth factor in the first pass's
+    // basis, `fit`'s
+    let coarse = &fit;
+    let fine_from = fine_start.as_ref().unwrap_or(&found.best);
     match settings.fine_pass {
         Some(pass) if pass.free.parameters().iter().any(moves) => {
             pending.finish(run);
@@ -955,12 +970,8 @@ fn scene_fit_stage(
             let stage = run.start();
             let moved = moved_by(pass.free);
             let refit = |pass: &FinePass| -> Result<(SceneFit<'_>, SceneFitResult)> {
-                let (fine, scene) = pass.scene_fit(
-                    problem,
-                    settings,
-                    (coarse, &found.best),
-                    fine_detail.clone(),
-                )?;
+                let (fine, scene) =
+                    pass.scene_fit(problem, settings, (coarse, fine_from), fine_detail.clone())?;
                 let refined = if moved.contains(&A2) {
                     // the curvature from the straight pass's answer, its
                     // scene warm: the curved answer never scores above the
@@ -1000,7 +1011,7 @@ fn scene_fit_stage(
                             let (again_fit, _) = again.scene_fit(
                                 problem,
                                 settings,
-                                (coarse, &found.best),
+                                (coarse, fine_from),
                                 fine_detail.clone(),
                             )?;
                             let scene = again_fit.coefficients_from(&fine, &refined.best.z);
