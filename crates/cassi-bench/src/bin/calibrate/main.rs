@@ -69,7 +69,7 @@
 //! [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start | [--nominal-start-gap G] [--nominal-start-ridge BAND]] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene]
 //! [--fine-pass-free pose-and-slope|geometry|all|geometry-and-curvature] [--scene-cell PX] [--first-pass-ridge R] [--scene-nodes N]
 //! [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv ITERATIONS] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N] [--blur-pass-start scene-fit|texture-fit] [--blur-pass-reconstructs model-fit|blur-pass] [--blur-pass-gap-blur PX] [--blur-pass-pre-smooth PX]]
-//! [--no-recon] [--rho-sensitivity] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX | --limits-tv-scene WEIGHT | --limits-spectral-scene NODES | --limits-placed-spectral-scene NODES] [--out PATH] [--scene-transform none|flip-cols|flip-rows|transpose|coarse|real-band-light|flip-bands|dark-right-COLS|dark-left-COLS|smooth-PX] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--model-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--detail-cold-above PX|none] [--blur-bootstrap crisp-cells|dispersed-mask [--blur-bootstrap-noise] [--blur-bootstrap-residual] [--blur-bootstrap-min PX]] [--snapshots N [--joint [--joint-model MODEL]]] [--verbose]`
+//! [--no-recon] [--rho-sensitivity] [--recon-sigma-margins D,…] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX | --limits-tv-scene WEIGHT | --limits-spectral-scene NODES | --limits-placed-spectral-scene NODES] [--out PATH] [--scene-transform none|flip-cols|flip-rows|transpose|coarse|real-band-light|flip-bands|dark-right-COLS|dark-left-COLS|smooth-PX] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--model-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--detail-cold-above PX|none] [--blur-bootstrap crisp-cells|dispersed-mask [--blur-bootstrap-noise] [--blur-bootstrap-residual] [--blur-bootstrap-min PX]] [--snapshots N [--joint [--joint-model MODEL]]] [--verbose]`
 //! (`--no-texture`: the default preset without its texture fit, as it was
 //! before issue #14 — the "before" row; `--no-scene-fit`: without its
 //! scene fit, ending in the texture fit as the records `*_texture.json`
@@ -283,6 +283,11 @@ struct Args {
     /// `--rho-sensitivity`: with the reconstructions, ρ with the true ψ
     /// but one parameter moved ([`rho_sensitivity`]).
     rho_sensitivity: bool,
+    /// `--recon-sigma-margins D,…`: with the reconstructions, III again
+    /// with σ moved by each D px from the one the calibration reconstructs
+    /// with (`psnr_db.III_sigma_margin`): how GAP-TV's PSNR follows σ
+    /// around the blind estimate.
+    recon_sigma_margins: Vec<f64>,
     limits: bool,
     /// `--limits-gap-tv FAMILY`: with `--limits`, the scene-known fit in
     /// FAMILY on GAP-TV's scene ([`limits::gap_tv_scene_fits`]).
@@ -604,7 +609,7 @@ impl SceneTransform {
 
 const USAGE: &str = "calibrate [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] \
                      [--no-aligned] [--no-inverse-crime] [--no-wide-blur] [--model rounded|subpixel|dispersed-mask|crisp-cells] \
-                     [--preset NAME | --preset-file PATH] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start | [--nominal-start-gap G] [--nominal-start-ridge BAND]] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all|geometry-and-curvature] [--scene-cell PX] [--first-pass-ridge R] [--scene-nodes N] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv N] [--detail-pre-smooth PX] [--detail-pass-nodes N] [--search-rows N] [--fine-pass-detail] [--fine-pass-weighted WINDOW_PX,FLOOR_QUANTILE] [--fine-pass-nodes N] [--fine-pass-off-grid-nodes N] [--fine-pass-high-pass PX] [--fine-pass-principal-spectra N] [--no-on-grid-nodes | --on-grid-from-answer] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N] [--blur-pass-start scene-fit|texture-fit] [--blur-pass-reconstructs model-fit|blur-pass] [--blur-pass-gap-blur PX] [--blur-pass-pre-smooth PX]] [--no-recon] [--rho-sensitivity] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX | --limits-tv-scene WEIGHT | --limits-spectral-scene NODES | --limits-placed-spectral-scene NODES] [--out PATH] \
+                     [--preset NAME | --preset-file PATH] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start | [--nominal-start-gap G] [--nominal-start-ridge BAND]] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all|geometry-and-curvature] [--scene-cell PX] [--first-pass-ridge R] [--scene-nodes N] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv N] [--detail-pre-smooth PX] [--detail-pass-nodes N] [--search-rows N] [--fine-pass-detail] [--fine-pass-weighted WINDOW_PX,FLOOR_QUANTILE] [--fine-pass-nodes N] [--fine-pass-off-grid-nodes N] [--fine-pass-high-pass PX] [--fine-pass-principal-spectra N] [--no-on-grid-nodes | --on-grid-from-answer] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N] [--blur-pass-start scene-fit|texture-fit] [--blur-pass-reconstructs model-fit|blur-pass] [--blur-pass-gap-blur PX] [--blur-pass-pre-smooth PX]] [--no-recon] [--rho-sensitivity] [--recon-sigma-margins D,…] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX | --limits-tv-scene WEIGHT | --limits-spectral-scene NODES | --limits-placed-spectral-scene NODES] [--out PATH] \
                      [--scene-transform none|flip-cols|flip-rows|transpose|coarse|real-band-light|flip-bands|dark-right-COLS|dark-left-COLS|smooth-PX] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--snapshots N [--joint [--joint-model MODEL]]] [--verbose]";
 
 fn parse_args(argv: &[String]) -> Result<Args> {
@@ -614,6 +619,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
     let (mut aligned, mut inverse_crime, mut recon, mut verbose) = (true, true, true, false);
     let mut wide_blur = true;
     let mut rho_sensitivity = false;
+    let mut recon_sigma_margins = Vec::new();
     let mut limits = true;
     let mut limits_gap_tv: Option<DispersionModel> = None;
     let mut limits_told_scene: Option<limits::KnownScene> = None;
@@ -1064,6 +1070,18 @@ fn parse_args(argv: &[String]) -> Result<Args> {
             "--recon" => recon = true,
             "--no-recon" => recon = false,
             "--rho-sensitivity" => rho_sensitivity = true,
+            "--recon-sigma-margins" => {
+                let v = value()?;
+                recon_sigma_margins = v
+                    .split(',')
+                    .map(|x| x.trim().parse::<f64>())
+                    .collect::<std::result::Result<_, _>>()
+                    .with_context(|| format!("--recon-sigma-margins {v}: D,… in px"))?;
+                ensure!(
+                    recon_sigma_margins.iter().all(|d| d.is_finite()),
+                    "--recon-sigma-margins {v}: finite numbers"
+                );
+            }
             "--limits" => limits = true,
             "--limits-gap-tv" => {
                 limits_gap_tv = Some(
@@ -1571,6 +1589,10 @@ fn parse_args(argv: &[String]) -> Result<Args> {
         recon || !rho_sensitivity,
         "--rho-sensitivity needs the reconstructions: drop --no-recon"
     );
+    ensure!(
+        recon || recon_sigma_margins.is_empty(),
+        "--recon-sigma-margins needs the reconstructions: drop --no-recon"
+    );
     Ok(Args {
         halves,
         half_name,
@@ -1586,6 +1608,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
         preset,
         recon,
         rho_sensitivity,
+        recon_sigma_margins,
         limits,
         limits_gap_tv,
         limits_told_scene,
@@ -2058,6 +2081,19 @@ fn run_case(
             let db = recon_psnr(&y, &problem.nominal, scene, &est)?;
             eprintln!("  GAP-TV PSNR with the blur pass's σ {db:.2} dB");
             record["psnr_db"]["III_blur_pass_sigma"] = json!(db);
+        }
+        if !args.recon_sigma_margins.is_empty() {
+            let at = cal.reconstruction_parameters();
+            let mut by_margin = serde_json::Map::new();
+            for &d in &args.recon_sigma_margins {
+                let moved = Mismatch {
+                    blur_sigma_px: (at.blur_sigma_px + d).max(0.0),
+                    ..at
+                };
+                let db = recon_psnr(&y, &problem.nominal, scene, &moved)?;
+                by_margin.insert(format!("{d}"), json!(db));
+            }
+            record["psnr_db"]["III_sigma_margin"] = Value::Object(by_margin);
         }
         if args.rho_sensitivity {
             record["rho_sensitivity"] = rho_sensitivity::measure(
