@@ -3,8 +3,8 @@
 
 use cassi_core::calib::{
     BLUR_BOOTSTRAP_STAGE, BLUR_PASS_STAGE, BlurBootstrap, BlurPass, Calibration,
-    CalibrationProblem, DETAIL_PASS_STAGE, DefaultPreset, Fit, NOMINAL_START_STAGE, ProxyParams,
-    ReconstructionSigma, TEXTURE_START_MAX_PX, calibrate_default,
+    CalibrationProblem, DETAIL_PASS_STAGE, DefaultPreset, Fit, NOMINAL_START_STAGE,
+    ON_GRID_MARGIN_PX, ProxyParams, ReconstructionSigma, TEXTURE_START_MAX_PX, calibrate_default,
 };
 use cassi_core::optics::{DispersionModel, SimulationSpec, simulate};
 use cassi_core::synth::{SceneSpec, random_binary_mask, synthetic_scene};
@@ -684,6 +684,40 @@ fn the_blur_pass_moves_the_blur_alone() {
     let e = calibrate_default(&p, &empty, &mut |_| stages += 1).unwrap_err();
     assert!(e.to_string().contains("blur_pass.gap_iterations"), "{e}");
     assert_eq!(stages, 0);
+}
+
+/// An aligned instrument (its mask on the pixel grid): the calibrated
+/// model reconstructs with the reported σ plus the on-grid margin, every
+/// reported estimate as without it; with the margin off, with the reported σ.
+#[test]
+fn an_aligned_instrument_reconstructs_with_the_on_grid_margin() {
+    let truth = Mismatch {
+        blur_sigma_px: 0.5,
+        ..Mismatch::nominal(2.0)
+    };
+    let (y, mask) = setup(96, 8, truth, DispersionModel::CrispCells);
+    let p = CalibrationProblem::nominal(&y, &mask, 8, 2.0, DispersionModel::DispersedMask).unwrap();
+    let cal = calibrate_default(&p, &DefaultPreset::default(), &mut |_| {}).unwrap();
+    let sigma = cal.parameters.blur_sigma_px;
+    assert_eq!(cal.model_blur_sigma_px, Some(sigma + ON_GRID_MARGIN_PX));
+    assert_eq!(
+        cal.reconstruction_parameters(),
+        Mismatch {
+            blur_sigma_px: sigma + ON_GRID_MARGIN_PX,
+            ..cal.parameters
+        }
+    );
+    let off = DefaultPreset {
+        blur_pass: Some(BlurPass {
+            on_grid_margin: None,
+            ..BlurPass::default()
+        }),
+        ..DefaultPreset::default()
+    };
+    let without = calibrate_default(&p, &off, &mut |_| {}).unwrap();
+    assert_eq!(without.parameters, cal.parameters);
+    assert_eq!(without.model_blur_sigma_px, None);
+    assert_eq!(without.reconstruction_parameters(), cal.parameters);
 }
 
 /// The texture fit's Nelder–Mead stops at `texture_evaluations` (its σ grid

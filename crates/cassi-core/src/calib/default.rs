@@ -342,6 +342,17 @@ pub fn calibrate_default(
                         blur_bootstrap_stage(&mut run, problem, settings, bootstrap, found.0)?;
                 }
                 best = found.0;
+                // on the pixel grid the model reconstructs with a margin (OnGridMargin)
+                if let (Some(pass), true) = (preset.blur_pass, preset.fit_blur)
+                    && pass.reconstructs_with_pass(texture_blur_sigma_px)
+                    && let Some(margin) = pass.on_grid_margin
+                {
+                    let (rows, cols) = problem.nominal_mask().shape();
+                    let phase = grid_phase(rows, cols, problem.bands(), &best);
+                    if let Some(sigma) = margin.sigma_at(&best, phase) {
+                        model_blur_sigma_px = Some(sigma);
+                    }
+                }
                 found
                     .1
                     .with_blur_floors_at(problem.model(), stated_at_blur, best.blur_sigma_px)

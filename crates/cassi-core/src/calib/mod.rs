@@ -50,7 +50,10 @@ use serde::{Deserialize, Serialize};
 pub use adam::AdamSettings;
 pub use band_shifts::{BandShiftFit, BandShifts, band_shift_scores, fit_band_shifts};
 pub use blur_bootstrap::BlurBootstrap;
-pub use blur_pass::{BlurPass, BlurPassStart, ReconstructionSigma, TEXTURE_START_MAX_PX};
+pub use blur_pass::{
+    BlurPass, BlurPassStart, ON_GRID_MARGIN_PX, OnGridMargin, ReconstructionSigma,
+    TEXTURE_START_MAX_PX,
+};
 pub use default::{
     BLUR_BOOTSTRAP_STAGE, BLUR_PASS_STAGE, DETAIL_PASS_STAGE, DefaultPreset,
     NOMINAL_A1_RESTART_PREFIX, NOMINAL_A1_RESTART_STAGE, NOMINAL_START_STAGE, RIDGE_PROBES_STAGE,

@@ -68,7 +68,7 @@
 //! [--no-inverse-crime] [--model rounded|subpixel|dispersed-mask|crisp-cells] [--preset NAME | --preset-file PATH]
 //! [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start | [--nominal-start-gap G] [--nominal-start-ridge BAND]] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene]
 //! [--fine-pass-free pose-and-slope|geometry|all|geometry-and-curvature] [--scene-cell PX] [--first-pass-ridge R] [--scene-nodes N]
-//! [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv ITERATIONS] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N] [--blur-pass-start scene-fit|texture-fit] [--blur-pass-reconstructs model-fit|blur-pass] [--blur-pass-gap-blur PX] [--blur-pass-pre-smooth PX]]
+//! [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv ITERATIONS] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N] [--blur-pass-start scene-fit|texture-fit] [--blur-pass-reconstructs model-fit|blur-pass] [--blur-pass-on-grid-margin PX|none] [--blur-pass-gap-blur PX] [--blur-pass-pre-smooth PX]]
 //! [--no-recon] [--rho-sensitivity] [--recon-sigma-margins D,…] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX | --limits-tv-scene WEIGHT | --limits-spectral-scene NODES | --limits-placed-spectral-scene NODES] [--out PATH] [--scene-transform none|flip-cols|flip-rows|transpose|coarse|real-band-light|flip-bands|dark-right-COLS|dark-left-COLS|smooth-PX] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--model-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--detail-cold-above PX|none] [--blur-bootstrap crisp-cells|dispersed-mask [--blur-bootstrap-noise] [--blur-bootstrap-residual] [--blur-bootstrap-min PX]] [--snapshots N [--joint [--joint-model MODEL]]] [--verbose]`
 //! (`--no-texture`: the default preset without its texture fit, as it was
 //! before issue #14 — the "before" row; `--no-scene-fit`: without its
@@ -182,8 +182,8 @@ use cassi_bench::{
 };
 use cassi_core::calib::{
     BlurBootstrap, BlurPass, BlurPassStart, Calibration, CalibrationProblem, CombineParams,
-    DefaultPreset, DetailPass, DetailSource, FinePass, FinePassFree, PRESET_NAMES, Preset,
-    ReconstructionSigma, ResidualWeighting, SCENE_FIT_STAGE, SceneFitSettings, calibrate,
+    DefaultPreset, DetailPass, DetailSource, FinePass, FinePassFree, OnGridMargin, PRESET_NAMES,
+    Preset, ReconstructionSigma, ResidualWeighting, SCENE_FIT_STAGE, SceneFitSettings, calibrate,
     grid_phase, interval_95_floor, model_error_floor, spread_scale,
 };
 use cassi_core::metrics::psnr;
@@ -609,7 +609,7 @@ impl SceneTransform {
 
 const USAGE: &str = "calibrate [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] \
                      [--no-aligned] [--no-inverse-crime] [--no-wide-blur] [--model rounded|subpixel|dispersed-mask|crisp-cells] \
-                     [--preset NAME | --preset-file PATH] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start | [--nominal-start-gap G] [--nominal-start-ridge BAND]] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all|geometry-and-curvature] [--scene-cell PX] [--first-pass-ridge R] [--scene-nodes N] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv N] [--detail-pre-smooth PX] [--detail-pass-nodes N] [--search-rows N] [--fine-pass-detail] [--fine-pass-weighted WINDOW_PX,FLOOR_QUANTILE] [--fine-pass-nodes N] [--fine-pass-off-grid-nodes N] [--fine-pass-high-pass PX] [--fine-pass-principal-spectra N] [--no-on-grid-nodes | --on-grid-from-answer] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N] [--blur-pass-start scene-fit|texture-fit] [--blur-pass-reconstructs model-fit|blur-pass] [--blur-pass-gap-blur PX] [--blur-pass-pre-smooth PX]] [--no-recon] [--rho-sensitivity] [--recon-sigma-margins D,…] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX | --limits-tv-scene WEIGHT | --limits-spectral-scene NODES | --limits-placed-spectral-scene NODES] [--out PATH] \
+                     [--preset NAME | --preset-file PATH] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start | [--nominal-start-gap G] [--nominal-start-ridge BAND]] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all|geometry-and-curvature] [--scene-cell PX] [--first-pass-ridge R] [--scene-nodes N] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv N] [--detail-pre-smooth PX] [--detail-pass-nodes N] [--search-rows N] [--fine-pass-detail] [--fine-pass-weighted WINDOW_PX,FLOOR_QUANTILE] [--fine-pass-nodes N] [--fine-pass-off-grid-nodes N] [--fine-pass-high-pass PX] [--fine-pass-principal-spectra N] [--no-on-grid-nodes | --on-grid-from-answer] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N] [--blur-pass-start scene-fit|texture-fit] [--blur-pass-reconstructs model-fit|blur-pass] [--blur-pass-on-grid-margin PX|none] [--blur-pass-gap-blur PX] [--blur-pass-pre-smooth PX]] [--no-recon] [--rho-sensitivity] [--recon-sigma-margins D,…] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX | --limits-tv-scene WEIGHT | --limits-spectral-scene NODES | --limits-placed-spectral-scene NODES] [--out PATH] \
                      [--scene-transform none|flip-cols|flip-rows|transpose|coarse|real-band-light|flip-bands|dark-right-COLS|dark-left-COLS|smooth-PX] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--snapshots N [--joint [--joint-model MODEL]]] [--verbose]";
 
 fn parse_args(argv: &[String]) -> Result<Args> {
@@ -674,6 +674,8 @@ fn parse_args(argv: &[String]) -> Result<Args> {
     let mut blur_pass_steps: Option<usize> = None;
     let mut blur_pass_start: Option<BlurPassStart> = None;
     let mut blur_pass_reconstructs: Option<ReconstructionSigma> = None;
+    // Some(None): --blur-pass-on-grid-margin none
+    let mut blur_pass_on_grid_margin: Option<Option<f64>> = None;
     let mut blur_pass_gap_blur: Option<f64> = None;
     let mut blur_pass_pre_smooth: Option<f64> = None;
     let mut blur_bootstrap_noise = false;
@@ -805,6 +807,17 @@ fn parse_args(argv: &[String]) -> Result<Args> {
                         .parse()
                         .map_err(|e: String| anyhow!("--blur-pass-reconstructs {e}"))?,
                 );
+            }
+            "--blur-pass-on-grid-margin" => {
+                let v = value()?;
+                blur_pass_on_grid_margin =
+                    Some(if v == "none" {
+                        None
+                    } else {
+                        Some(v.parse().with_context(|| {
+                            format!("--blur-pass-on-grid-margin {v}: PX or none")
+                        })?)
+                    });
             }
             "--blur-pass-share" => {
                 let v = value()?;
@@ -1326,6 +1339,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
         || blur_pass_steps.is_some()
         || blur_pass_start.is_some()
         || blur_pass_reconstructs.is_some()
+        || blur_pass_on_grid_margin.is_some()
         || blur_pass_gap_blur.is_some()
         || blur_pass_pre_smooth.is_some();
     if no_blur_pass {
@@ -1351,6 +1365,14 @@ fn parse_args(argv: &[String]) -> Result<Args> {
             max_steps: blur_pass_steps.or(pass.max_steps),
             start: blur_pass_start.unwrap_or(pass.start),
             reconstruct_with: blur_pass_reconstructs.unwrap_or(pass.reconstruct_with),
+            on_grid_margin: match blur_pass_on_grid_margin {
+                None => pass.on_grid_margin,
+                Some(None) => None,
+                Some(Some(margin_px)) => Some(OnGridMargin {
+                    margin_px,
+                    ..OnGridMargin::default()
+                }),
+            },
             gap_blur_px: blur_pass_gap_blur,
             pre_smooth_px: blur_pass_pre_smooth,
             ..pass
@@ -1375,6 +1397,13 @@ fn parse_args(argv: &[String]) -> Result<Args> {
         }
         if let Some(with) = blur_pass_reconstructs {
             preset_name += &format!(" (reconstructing with the {} σ)", with.key());
+        }
+        match blur_pass_on_grid_margin {
+            Some(Some(px)) => {
+                preset_name += &format!(" (on the grid reconstructing with σ + {px} px)")
+            }
+            Some(None) => preset_name += " (no on-grid margin)",
+            None => {}
         }
     }
     if let Some(through) = blur_bootstrap {
