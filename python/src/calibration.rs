@@ -70,7 +70,9 @@ impl PyCalibration {
     /// themselves (since stop 63 the blur pass's σ too), or with
     /// blur_sigma_px the calibrated model's own fit where the calibration
     /// kept it to reconstruct with (the pass run as before stop 62 — the
-    /// real snapshots — or settings that say so).
+    /// real snapshots — or settings that say so); where the answer lies on
+    /// the pixel grid, blur_sigma_px plus the on-grid margin (0.03 px since
+    /// stop 68: GAP-TV reconstructs better there with more blur).
     #[getter]
     fn reconstruction_parameters<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         params::to_dict(py, &self.inner.reconstruction_parameters())

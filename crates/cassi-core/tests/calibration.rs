@@ -699,7 +699,8 @@ fn an_aligned_instrument_reconstructs_with_the_on_grid_margin() {
     let p = CalibrationProblem::nominal(&y, &mask, 8, 2.0, DispersionModel::DispersedMask).unwrap();
     let cal = calibrate_default(&p, &DefaultPreset::default(), &mut |_| {}).unwrap();
     let sigma = cal.parameters.blur_sigma_px;
-    assert_eq!(cal.model_blur_sigma_px, Some(sigma + ON_GRID_MARGIN_PX));
+    assert_eq!(cal.model_blur_sigma_px, None);
+    assert_eq!(cal.on_grid_margin_px, Some(ON_GRID_MARGIN_PX));
     assert_eq!(
         cal.reconstruction_parameters(),
         Mismatch {
@@ -716,7 +717,7 @@ fn an_aligned_instrument_reconstructs_with_the_on_grid_margin() {
     };
     let without = calibrate_default(&p, &off, &mut |_| {}).unwrap();
     assert_eq!(without.parameters, cal.parameters);
-    assert_eq!(without.model_blur_sigma_px, None);
+    assert_eq!(without.on_grid_margin_px, None);
     assert_eq!(without.reconstruction_parameters(), cal.parameters);
 }
 

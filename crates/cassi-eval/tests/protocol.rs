@@ -142,6 +142,7 @@ fn calibration_holding(parameters: Mismatch, spread: BandSpread) -> Calibration 
         uncertainty_fit: None,
         ridge_probes: None,
         model_blur_sigma_px: None,
+        on_grid_margin_px: None,
         snapshots: None,
         band_offsets: None,
         band_spread: spread,

@@ -320,11 +320,20 @@ pub(crate) fn estimate_lines(cal: &Calibration) -> String {
     out + &model_blur_line(cal) + &trade_off_lines(cal) + &ridge_probe_lines(cal)
 }
 
-/// The σ `cassi reconstruct --calibration` uses, where it is the model's own
-/// fit rather than the reported one (the blur pass's, on another model).
+/// The σ `cassi reconstruct --calibration` uses, where it is not the
+/// reported one: the model's own fit (the blur pass's read on another
+/// model), or the reported σ plus the on-grid margin.
 pub(crate) fn model_blur_line(cal: &Calibration) -> String {
     let Some(sigma) = cal.model_blur_sigma_px else {
-        return String::new();
+        return match cal.on_grid_margin_px {
+            Some(margin) => format!(
+                "  blur σ to reconstruct with: {:.3} px, the σ above + {margin:.3} px: on the \
+                 pixel grid GAP-TV reconstructs better with more blur than the estimate (README: \
+                 the on-grid margin)\n",
+                cal.reconstruction_parameters().blur_sigma_px
+            ),
+            None => String::new(),
+        };
     };
     // the two printed alike (the demo's 0.4753 and 0.4751) read as a contradiction
     let pass = if (sigma - cal.parameters.blur_sigma_px).abs() < 5e-4 {
@@ -496,6 +505,7 @@ pub(crate) mod tests {
             uncertainty_fit: Some(Fit::Texture),
             ridge_probes: None,
             model_blur_sigma_px: None,
+            on_grid_margin_px: None,
             snapshots: None,
             band_offsets: None,
             band_spread: BandSpread::Point,
@@ -586,7 +596,8 @@ pub(crate) mod tests {
     }
 
     /// The reconstruction-σ line: absent without a blur pass, naming the
-    /// instrument's σ when the two differ, their agreement when they print alike.
+    /// instrument's σ when the two differ, their agreement when they print
+    /// alike, the margin where the answer is on the pixel grid.
     #[test]
     fn the_reconstruction_blur_line_says_whether_the_pass_moved_sigma() {
         let mut cal = calibration(0.0, 0.4753);
@@ -604,5 +615,13 @@ pub(crate) mod tests {
             "{apart}"
         );
         assert!(!apart.contains("agrees"), "{apart}");
+        // the reported σ plus the on-grid margin
+        cal.model_blur_sigma_px = None;
+        cal.on_grid_margin_px = Some(0.03);
+        let margin = model_blur_line(&cal);
+        assert!(
+            margin.contains("0.505 px") && margin.contains("+ 0.030 px"),
+            "{margin}"
+        );
     }
 }

@@ -148,10 +148,10 @@ impl Default for OnGridMargin {
 pub const ON_GRID_MARGIN_PX: f64 = 0.03;
 
 impl OnGridMargin {
-    /// The σ to reconstruct with where the answer `psi` lies at grid phase
-    /// `phase`: `None` off the grid (the reported σ, then).
-    pub(crate) fn sigma_at(&self, psi: &Mismatch, phase: f64) -> Option<f64> {
-        (phase < self.below_phase).then_some(psi.blur_sigma_px + self.margin_px)
+    /// The margin where the answer lies at grid phase `phase`: `None` off
+    /// the grid.
+    pub(crate) fn at_phase(&self, phase: f64) -> Option<f64> {
+        (phase < self.below_phase).then_some(self.margin_px)
     }
 }
 
@@ -616,13 +616,9 @@ mod tests {
         let pass = BlurPass::default();
         let margin = pass.on_grid_margin.expect("on by default");
         assert_eq!(margin.margin_px, ON_GRID_MARGIN_PX);
-        let psi = Mismatch {
-            blur_sigma_px: 0.27,
-            ..Mismatch::nominal(2.0)
-        };
-        assert_eq!(margin.sigma_at(&psi, 0.03), Some(0.27 + ON_GRID_MARGIN_PX));
-        assert_eq!(margin.sigma_at(&psi, margin.below_phase), None);
-        assert_eq!(margin.sigma_at(&psi, 1.02), None);
+        assert_eq!(margin.at_phase(0.03), Some(ON_GRID_MARGIN_PX));
+        assert_eq!(margin.at_phase(margin.below_phase), None);
+        assert_eq!(margin.at_phase(1.02), None);
         assert_eq!(written_before(&pass, "on_grid_margin").on_grid_margin, None);
         let json = serde_json::to_string(&pass).unwrap();
         assert_eq!(serde_json::from_str::<BlurPass>(&json).unwrap(), pass);

@@ -304,6 +304,7 @@ pub fn calibrate_default(
     // σ as the model itself fits it, where the blur pass reads it on another
     // and the model reconstructs with its own (blur_pass::ReconstructionSigma)
     let mut model_blur_sigma_px = None;
+    let mut on_grid_margin_px = None;
     let u = if texture {
         let estimate = SceneEstimate::Proxy { at: best };
         let (found, u) = texture_stage(&mut run, problem, preset, &best, estimate)?;
@@ -349,9 +350,7 @@ pub fn calibrate_default(
                 {
                     let (rows, cols) = problem.nominal_mask().shape();
                     let phase = grid_phase(rows, cols, problem.bands(), &best);
-                    if let Some(sigma) = margin.sigma_at(&best, phase) {
-                        model_blur_sigma_px = Some(sigma);
-                    }
+                    on_grid_margin_px = margin.at_phase(phase);
                 }
                 found
                     .1
@@ -390,6 +389,7 @@ pub fn calibrate_default(
         uncertainty_fit: u.fit,
         ridge_probes: u.ridge_probes,
         model_blur_sigma_px,
+        on_grid_margin_px,
         snapshots: None,
         band_offsets: problem.band_offsets().cloned(),
         band_spread: problem.band_spread(),

@@ -185,6 +185,11 @@ pub struct Calibration {
     /// [`Calibration::reconstruction_parameters`].
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub model_blur_sigma_px: Option<f64>,
+    /// Where the answer lies on the pixel grid: the σ the calibrated model
+    /// reconstructs with is raised by this much ([`OnGridMargin`]; the
+    /// reported σ stays the instrument's). `None`: no margin.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub on_grid_margin_px: Option<f64>,
     /// Set where this calibration combines several snapshots' of one
     /// instrument ([`combine_snapshots`]): their answers and whether they
     /// agree; `stages` are then the snapshots' answers.
@@ -209,7 +214,8 @@ pub struct Calibration {
 
 impl Calibration {
     /// The parameters `model`'s operator reconstructs with: `parameters`,
-    /// σ the model's own fit where it has one ([`Self::model_blur_sigma_px`]).
+    /// σ the model's own fit where it has one ([`Self::model_blur_sigma_px`])
+    /// plus the on-grid margin where it applies ([`Self::on_grid_margin_px`]).
     /// What `cassi reconstruct --calibration`, the Python `reconstruct` and
     /// the evaluation's corrected scenario use; `parameters` are the
     /// instrument's, as reported.
@@ -217,7 +223,8 @@ impl Calibration {
         Mismatch {
             blur_sigma_px: self
                 .model_blur_sigma_px
-                .unwrap_or(self.parameters.blur_sigma_px),
+                .unwrap_or(self.parameters.blur_sigma_px)
+                + self.on_grid_margin_px.unwrap_or(0.0),
             ..self.parameters
         }
     }

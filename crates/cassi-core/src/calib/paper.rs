@@ -184,6 +184,7 @@ pub fn calibrate_paper(
         uncertainty_fit: None,
         ridge_probes: None,
         model_blur_sigma_px: None,
+        on_grid_margin_px: None,
         snapshots: None,
         band_offsets: None,
         band_spread: BandSpread::Point,

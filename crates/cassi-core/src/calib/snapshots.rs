@@ -217,17 +217,28 @@ pub fn combine_snapshots(
         }
     }
     parameters.blur_sigma_px = parameters.blur_sigma_px.abs();
-    let reconstruction: Vec<f64> = calibrations
+    // the σ each model fits and the margins each centred alike (none
+    // where no snapshot has one)
+    let centred = |values: &[f64]| match params.centre {
+        Centre::Median => median(values),
+        Centre::Mean | Centre::InverseVariance => mean(values),
+    };
+    let model_sigma: Vec<f64> = calibrations
         .iter()
-        .map(|c| c.reconstruction_parameters().blur_sigma_px)
+        .map(|c| c.model_blur_sigma_px.unwrap_or(c.parameters.blur_sigma_px))
         .collect();
     let model_blur_sigma_px = calibrations
         .iter()
         .any(|c| c.model_blur_sigma_px.is_some())
-        .then(|| match params.centre {
-            Centre::Median => median(&reconstruction),
-            Centre::Mean | Centre::InverseVariance => mean(&reconstruction),
-        });
+        .then(|| centred(&model_sigma));
+    let margins: Vec<f64> = calibrations
+        .iter()
+        .map(|c| c.on_grid_margin_px.unwrap_or(0.0))
+        .collect();
+    let on_grid_margin_px = calibrations
+        .iter()
+        .any(|c| c.on_grid_margin_px.is_some())
+        .then(|| centred(&margins));
     let stages = calibrations
         .iter()
         .enumerate()
@@ -257,6 +268,7 @@ pub fn combine_snapshots(
         uncertainty_fit: None,
         ridge_probes: None,
         model_blur_sigma_px,
+        on_grid_margin_px,
         band_offsets: first.band_offsets.clone(),
         band_spread: first.band_spread,
         stages,
@@ -435,6 +447,7 @@ mod tests {
             uncertainty_fit: None,
             ridge_probes: None,
             model_blur_sigma_px: None,
+            on_grid_margin_px: None,
             band_offsets: None,
             band_spread: crate::optics::BandSpread::Point,
             snapshots: None,
@@ -666,8 +679,8 @@ mod tests {
     }
 
     /// The reconstruction σ is the snapshots' centre (two: their mean)
-    /// where any had the model's own; the record reads back as it was
-    /// written.
+    /// where any had the model's own, the on-grid margins' centre added
+    /// where any had one; the record reads back as it was written.
     #[test]
     fn the_combination_is_a_calibration_record() {
         let mut cals: Vec<Calibration> = (0..2).map(|i| snapshot(i as f64, 0.01)).collect();
@@ -676,6 +689,13 @@ mod tests {
         let c = combine_snapshots(&refs, &CombineParams::default()).unwrap();
         assert!((c.model_blur_sigma_px.unwrap() - 0.45).abs() < 1e-12);
         assert!((c.reconstruction_parameters().blur_sigma_px - 0.45).abs() < 1e-12);
+        assert_eq!(c.on_grid_margin_px, None);
+        // one snapshot on the pixel grid: its margin centred with the other's none
+        cals[1].on_grid_margin_px = Some(0.03);
+        let refs: Vec<&Calibration> = cals.iter().collect();
+        let c = combine_snapshots(&refs, &CombineParams::default()).unwrap();
+        assert!((c.on_grid_margin_px.unwrap() - 0.015).abs() < 1e-12);
+        assert!((c.reconstruction_parameters().blur_sigma_px - 0.465).abs() < 1e-12);
         let json = serde_json::to_string(&c).unwrap();
         let back: Calibration = serde_json::from_str(&json).unwrap();
         assert_eq!(serde_json::to_string(&back).unwrap(), json);

@@ -2104,9 +2104,10 @@ fn run_case(
         );
         record["psnr_db"] = json!({ "II_nominal": ii, "III_calibrated": iii, "IV_true": iv });
         record["rho"] = json!(recovered);
-        // the reported σ where the operator's differs (the blur pass's, read
-        // on the crisp-cell model): what reconstructing with it would give
-        if cal.model_blur_sigma_px.is_some() {
+        // the reported σ where the operator's differs (the model's own fit,
+        // or the reported σ plus the on-grid margin): what reconstructing
+        // with it would give
+        if cal.model_blur_sigma_px.is_some() || cal.on_grid_margin_px.is_some() {
             let db = recon_psnr(&y, &problem.nominal, scene, &est)?;
             eprintln!("  GAP-TV PSNR with the blur pass's σ {db:.2} dB");
             record["psnr_db"]["III_blur_pass_sigma"] = json!(db);
