@@ -341,9 +341,14 @@ pub(crate) fn model_blur_line(cal: &Calibration) -> String {
     } else {
         "the σ above is the blur pass's, read on another model: the instrument's"
     };
+    // a combination of snapshots may hold both: the margin on top
+    let margin = cal
+        .on_grid_margin_px
+        .map_or(String::new(), |m| format!(" + {m:.3} px on the pixel grid"));
     format!(
-        "  blur σ to reconstruct with: {sigma:.3} px, the {} model's own fit ({pass}; README: the \
-         blur pass)\n",
+        "  blur σ to reconstruct with: {:.3} px, the {} model's own fit{margin} ({pass}; README: \
+         the blur pass)\n",
+        cal.reconstruction_parameters().blur_sigma_px,
         cal.model.name()
     )
 }
@@ -622,6 +627,13 @@ pub(crate) mod tests {
         assert!(
             margin.contains("0.505 px") && margin.contains("+ 0.030 px"),
             "{margin}"
+        );
+        // both (a combination of snapshots): the σ reconstructed with, the margin named
+        cal.model_blur_sigma_px = Some(0.5);
+        let both = model_blur_line(&cal);
+        assert!(
+            both.contains("0.530 px") && both.contains("+ 0.030 px on the pixel grid"),
+            "{both}"
         );
     }
 }
