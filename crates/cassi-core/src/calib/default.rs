@@ -950,7 +950,8 @@ fn scene_fit_stage(
             // at this answer, warm from the first pass. Why: from the
             // 4-node smooth factor, two captured-mask aligned instruments'
             // fine passes ended 0.06-0.08 px off
-            // (bench/results/default_stop67/tuning_rounds/d4_mask_capture)
+            // (bench/results/default_stop67/tuning_rounds/d4_mask_capture);
+            // from here another does (stop 68: no start lands them all)
             let fine_start = match on_first_nodes {
                 Some(first_nodes) => {
                     let solved = first_nodes.solve(&refit.best.psi, Some(&found.best.z))?;
