@@ -139,7 +139,8 @@ impl Default for OnGridMargin {
     fn default() -> Self {
         Self {
             margin_px: ON_GRID_MARGIN_PX,
-            below_phase: 0.5,
+            // the on-grid run's threshold, read from it rather than written twice
+            below_phase: super::OnGridNodes::default().below_phase,
         }
     }
 }
