@@ -50,12 +50,13 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::detail_pass::{DetailPass, DetailSource};
+use super::detail_pass::{DetailPass, DetailSource, remove_mask_imprint};
 use super::row_window::{RowBand, RowWindow};
 use super::scene_fit::{SceneFit, SceneFitSettings, fit_scene};
 use super::score::{CalibrationProblem, ProxyParams};
 use crate::error::{CassiError, Result};
 use crate::optics::DispersionModel;
+use crate::optics::warp::warp_mask;
 use crate::params::{Mismatch, Parameter};
 
 /// Settings of the blur pass.
@@ -113,6 +114,12 @@ pub struct BlurPass {
     /// before the field): the pass's as it is.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub on_grid_margin: Option<OnGridMargin>,
+    /// The detail maps' imprint of the mask at the pass's pose regressed
+    /// out before σ is fitted (`detail_pass::remove_mask_imprint`). A
+    /// probe (stop 70); false (the default, and settings written before
+    /// the field): the maps as GAP-TV's scene gives them.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub imprint_removed: bool,
 }
 
 /// Where the calibrated answer lies within `below_phase` of the pixel grid
@@ -321,6 +328,7 @@ impl Default for BlurPass {
             start: BlurPassStart::TextureFit,
             reconstruct_with: ReconstructionSigma::BlurPass,
             on_grid_margin: Some(OnGridMargin::default()),
+            imprint_removed: false,
         }
     }
 }
@@ -455,7 +463,19 @@ impl BlurPass {
             blur_sigma_px: self.gap_blur_px.unwrap_or(at.blur_sigma_px),
             ..*at
         };
-        let detail = maps.detail_map(problem, &gap_at, proxy)?;
+        let mut detail = maps.detail_map(problem, &gap_at, proxy)?;
+        if self.imprint_removed {
+            let (rows, cols) = problem.nominal_mask().shape();
+            let code = warp_mask(problem.nominal_mask(), &at.pose());
+            remove_mask_imprint(
+                &mut detail,
+                code.as_slice(),
+                rows,
+                cols,
+                maps.pre_smooth_px,
+                maps.detail_px,
+            )?;
+        }
         let refitted = problem.with_model(self.model);
         let settings = SceneFitSettings {
             max_steps: self.max_steps.unwrap_or(first_pass.max_steps),
@@ -487,6 +507,7 @@ mod tests {
         let default_json = serde_json::to_string(&BlurPass::default()).unwrap();
         assert!(!default_json.contains("gap_blur_px"), "{default_json}");
         assert!(!default_json.contains("pre_smooth_px"), "{default_json}");
+        assert!(!default_json.contains("imprint_removed"), "{default_json}");
         assert_eq!(
             serde_json::from_str::<BlurPass>(&default_json).unwrap(),
             BlurPass::default()
@@ -494,9 +515,11 @@ mod tests {
         let probe = BlurPass {
             gap_blur_px: Some(0.5),
             pre_smooth_px: Some(0.0),
+            imprint_removed: true,
             ..BlurPass::default()
         };
         let json = serde_json::to_string(&probe).unwrap();
+        assert!(json.contains("\"imprint_removed\":true"), "{json}");
         assert_eq!(serde_json::from_str::<BlurPass>(&json).unwrap(), probe);
         // out of range: refused by their own names
         assert!(probe.check().is_ok());

@@ -294,6 +294,39 @@ pub(crate) fn detail_of(
         .collect())
 }
 
+/// `maps` (one detail map per spectral group, each `mask`'s shape) with
+/// their linear imprint of `mask` removed: the reconstruction's texture
+/// regressed on the mask's own detail map (the same pre-smoothing and
+/// width), the fitted share of it taken out. A random code carries no
+/// scene texture, so what a map shares with it is the solver's imprint.
+/// Returns the fitted shares (a probe's record, stop 70).
+pub(crate) fn remove_mask_imprint(
+    maps: &mut [f32],
+    mask: &[f32],
+    rows: usize,
+    cols: usize,
+    pre_smooth_px: f64,
+    detail_px: f64,
+) -> Result<Vec<f64>> {
+    let code = detail_of(mask, rows, cols, pre_smooth_px, detail_px)?;
+    let plane = rows * cols;
+    let mut shares = Vec::new();
+    for map in maps.chunks_exact_mut(plane) {
+        let (mut cross, mut power) = (0.0f64, 0.0f64);
+        for (&d, &m) in map.iter().zip(&code) {
+            let m = m as f64 - 1.0;
+            cross += (d as f64 - 1.0) * m;
+            power += m * m;
+        }
+        let share = if power > 0.0 { cross / power } else { 0.0 };
+        for (d, &m) in map.iter_mut().zip(&code) {
+            *d = (*d - (share as f32) * (m - 1.0)).clamp(DETAIL_RANGE.0, DETAIL_RANGE.1);
+        }
+        shares.push(share);
+    }
+    Ok(shares)
+}
+
 /// The Gaussian-weighted mean of `image` around each pixel over the pixels
 /// inside the frame (the blur of the image over the blur of ones: near the
 /// edges the blur alone, zero outside, would read low).
@@ -312,6 +345,56 @@ fn local_mean(image: &[f32], rows: usize, cols: usize, sigma_px: f64) -> Result<
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A map that is a texture plus a share of the code's own detail gives
+    /// that share back and loses the code: what is left is the texture's
+    /// detail (the code, a random one, shares none of it). A map without
+    /// the code keeps its texture.
+    #[test]
+    fn the_mask_imprint_is_regressed_out_of_a_detail_map() {
+        let (rows, cols) = (128, 160);
+        // a random 0/1 code and a smooth texture
+        let mut state = 12345u64;
+        let code: Vec<f32> = (0..rows * cols)
+            .map(|_| {
+                state = state
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                ((state >> 33) & 1) as f32
+            })
+            .collect();
+        let texture: Vec<f32> = (0..rows * cols)
+            .map(|i| 1.0 + 0.3 * ((i % cols) as f32 * 0.4).sin() * ((i / cols) as f32 * 0.3).cos())
+            .collect();
+        let code_detail = detail_of(&code, rows, cols, 1.0, 4.0).unwrap();
+        let share = -0.25f32;
+        let imprinted: Vec<f32> = texture
+            .iter()
+            .zip(&code_detail)
+            .map(|(&t, &c)| t + share * (c - 1.0))
+            .collect();
+        let mut map = imprinted.clone();
+        let shares = remove_mask_imprint(&mut map, &code, rows, cols, 1.0, 4.0).unwrap();
+        assert_eq!(shares.len(), 1);
+        assert!((shares[0] - share as f64).abs() < 0.03, "{shares:?}");
+        let off = |m: &[f32]| {
+            m.iter()
+                .zip(&texture)
+                .map(|(&a, &b)| ((a - b) as f64).powi(2))
+                .sum::<f64>()
+        };
+        assert!(
+            off(&map) < 0.02 * off(&imprinted),
+            "{} {}",
+            off(&map),
+            off(&imprinted)
+        );
+        // no imprint: the texture stays (within the small share the fit reads)
+        let mut clean = texture.clone();
+        let shares = remove_mask_imprint(&mut clean, &code, rows, cols, 1.0, 4.0).unwrap();
+        assert!(shares[0].abs() < 0.03, "{shares:?}");
+        assert!(off(&clean) < 0.02 * off(&imprinted));
+    }
 
     /// A flat image has no detail; a texture's detail is its ratio to its
     /// average: above 1 on the bright stripes, below on the dark ones, ≈ 1
