@@ -120,6 +120,12 @@ pub struct BlurPass {
     /// the field): the maps as GAP-TV's scene gives them.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub imprint_removed: bool,
+    /// The detail maps per group of consecutive bands
+    /// ([`DetailPass::spectral_groups`]); `None` (the default, and settings
+    /// written before the field): the detail pass's default, one map. A
+    /// probe (stop 70).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub detail_groups: Option<usize>,
 }
 
 /// Where the calibrated answer lies within `below_phase` of the pixel grid
@@ -329,6 +335,7 @@ impl Default for BlurPass {
             reconstruct_with: ReconstructionSigma::BlurPass,
             on_grid_margin: Some(OnGridMargin::default()),
             imprint_removed: false,
+            detail_groups: None,
         }
     }
 }
@@ -457,6 +464,7 @@ impl BlurPass {
                 iterations: self.gap_iterations,
             },
             pre_smooth_px: self.pre_smooth_px.unwrap_or(default.pre_smooth_px),
+            spectral_groups: self.detail_groups.unwrap_or(default.spectral_groups),
             ..default
         };
         let gap_at = Mismatch {
@@ -508,6 +516,7 @@ mod tests {
         assert!(!default_json.contains("gap_blur_px"), "{default_json}");
         assert!(!default_json.contains("pre_smooth_px"), "{default_json}");
         assert!(!default_json.contains("imprint_removed"), "{default_json}");
+        assert!(!default_json.contains("detail_groups"), "{default_json}");
         assert_eq!(
             serde_json::from_str::<BlurPass>(&default_json).unwrap(),
             BlurPass::default()
@@ -516,6 +525,7 @@ mod tests {
             gap_blur_px: Some(0.5),
             pre_smooth_px: Some(0.0),
             imprint_removed: true,
+            detail_groups: Some(4),
             ..BlurPass::default()
         };
         let json = serde_json::to_string(&probe).unwrap();

@@ -68,7 +68,7 @@
 //! [--no-inverse-crime] [--model rounded|subpixel|dispersed-mask|crisp-cells] [--preset NAME | --preset-file PATH]
 //! [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start | [--nominal-start-gap G] [--nominal-start-ridge BAND]] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene]
 //! [--fine-pass-free pose-and-slope|geometry|all|geometry-and-curvature] [--scene-cell PX] [--first-pass-ridge R] [--scene-nodes N]
-//! [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv ITERATIONS] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N] [--blur-pass-start scene-fit|texture-fit] [--blur-pass-reconstructs model-fit|blur-pass] [--blur-pass-on-grid-margin PX|none] [--blur-pass-gap-blur PX|truth] [--blur-pass-imprint-removed] [--blur-pass-pre-smooth PX]]
+//! [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv ITERATIONS] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N] [--blur-pass-start scene-fit|texture-fit] [--blur-pass-reconstructs model-fit|blur-pass] [--blur-pass-on-grid-margin PX|none] [--blur-pass-gap-blur PX|truth] [--blur-pass-imprint-removed] [--blur-pass-detail-groups G] [--blur-pass-pre-smooth PX]]
 //! [--no-recon] [--rho-sensitivity] [--recon-sigma-margins D,…] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX | --limits-tv-scene WEIGHT | --limits-spectral-scene NODES | --limits-placed-spectral-scene NODES] [--out PATH] [--scene-transform none|flip-cols|flip-rows|transpose|coarse|real-band-light|flip-bands|dark-right-COLS|dark-left-COLS|smooth-PX] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--model-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--detail-cold-above PX|none] [--blur-bootstrap crisp-cells|dispersed-mask [--blur-bootstrap-noise] [--blur-bootstrap-residual] [--blur-bootstrap-min PX]] [--snapshots N [--joint [--joint-model MODEL]]] [--verbose]`
 //! (`--no-texture`: the default preset without its texture fit, as it was
 //! before issue #14 — the "before" row; `--no-scene-fit`: without its
@@ -112,7 +112,9 @@
 //! on-grid run from the first run's answer (`OnGridNodes::from_first_answer`);
 //! `--blur-pass-gap-blur PX`: the blur pass's GAP-TV scene made at σ PX
 //! (`BlurPass::gap_blur_px`; `truth`: each case's instrument σ, an oracle
-//! probe, stop 70); `--blur-pass-pre-smooth PX`: its detail maps
+//! probe, stop 70); `--blur-pass-imprint-removed`, `--blur-pass-detail-groups
+//! G`: stop 70's probes (`BlurPass::imprint_removed`, `BlurPass::detail_groups`,
+//! `bench/results/default_stop70/`); `--blur-pass-pre-smooth PX`: its detail maps
 //! pre-smoothed by PX (`BlurPass::pre_smooth_px`) — stop 60's probes, none
 //! adopted (`bench/results/default_stop60/`); `--blur-pass-start
 //! scene-fit`: the blur pass's σ from the scene fit's (`BlurPass::start`,
@@ -613,7 +615,7 @@ impl SceneTransform {
 
 const USAGE: &str = "calibrate [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] \
                      [--no-aligned] [--no-inverse-crime] [--no-wide-blur] [--model rounded|subpixel|dispersed-mask|crisp-cells] \
-                     [--preset NAME | --preset-file PATH] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start | [--nominal-start-gap G] [--nominal-start-ridge BAND]] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all|geometry-and-curvature] [--scene-cell PX] [--first-pass-ridge R] [--scene-nodes N] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv N] [--detail-pre-smooth PX] [--detail-pass-nodes N] [--search-rows N] [--fine-pass-detail] [--fine-pass-weighted WINDOW_PX,FLOOR_QUANTILE] [--fine-pass-nodes N] [--fine-pass-off-grid-nodes N] [--fine-pass-high-pass PX] [--fine-pass-principal-spectra N] [--no-on-grid-nodes | --on-grid-from-answer] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N] [--blur-pass-start scene-fit|texture-fit] [--blur-pass-reconstructs model-fit|blur-pass] [--blur-pass-on-grid-margin PX|none] [--blur-pass-gap-blur PX|truth] [--blur-pass-imprint-removed] [--blur-pass-pre-smooth PX]] [--no-recon] [--rho-sensitivity] [--recon-sigma-margins D,…] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX | --limits-tv-scene WEIGHT | --limits-spectral-scene NODES | --limits-placed-spectral-scene NODES] [--out PATH] \
+                     [--preset NAME | --preset-file PATH] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start | [--nominal-start-gap G] [--nominal-start-ridge BAND]] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all|geometry-and-curvature] [--scene-cell PX] [--first-pass-ridge R] [--scene-nodes N] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv N] [--detail-pre-smooth PX] [--detail-pass-nodes N] [--search-rows N] [--fine-pass-detail] [--fine-pass-weighted WINDOW_PX,FLOOR_QUANTILE] [--fine-pass-nodes N] [--fine-pass-off-grid-nodes N] [--fine-pass-high-pass PX] [--fine-pass-principal-spectra N] [--no-on-grid-nodes | --on-grid-from-answer] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N] [--blur-pass-start scene-fit|texture-fit] [--blur-pass-reconstructs model-fit|blur-pass] [--blur-pass-on-grid-margin PX|none] [--blur-pass-gap-blur PX|truth] [--blur-pass-imprint-removed] [--blur-pass-detail-groups G] [--blur-pass-pre-smooth PX]] [--no-recon] [--rho-sensitivity] [--recon-sigma-margins D,…] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX | --limits-tv-scene WEIGHT | --limits-spectral-scene NODES | --limits-placed-spectral-scene NODES] [--out PATH] \
                      [--scene-transform none|flip-cols|flip-rows|transpose|coarse|real-band-light|flip-bands|dark-right-COLS|dark-left-COLS|smooth-PX] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--snapshots N [--joint [--joint-model MODEL]]] [--verbose]";
 
 fn parse_args(argv: &[String]) -> Result<Args> {
@@ -683,6 +685,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
     let mut blur_pass_gap_blur: Option<f64> = None;
     let mut blur_pass_gap_blur_truth = false;
     let mut blur_pass_imprint_removed = false;
+    let mut blur_pass_detail_groups: Option<usize> = None;
     let mut blur_pass_pre_smooth: Option<f64> = None;
     let mut blur_bootstrap_noise = false;
     let mut blur_bootstrap_residual = false;
@@ -771,6 +774,14 @@ fn parse_args(argv: &[String]) -> Result<Args> {
                 blur_pass_gap = Some(n);
             }
             "--blur-pass-imprint-removed" => blur_pass_imprint_removed = true,
+            "--blur-pass-detail-groups" => {
+                let v = value()?;
+                let g: usize = v
+                    .parse()
+                    .with_context(|| format!("--blur-pass-detail-groups {v}"))?;
+                ensure!(g >= 1, "--blur-pass-detail-groups {v}: one map or more");
+                blur_pass_detail_groups = Some(g);
+            }
             "--blur-pass-gap-blur" => {
                 let v = value()?;
                 if v == "truth" {
@@ -1354,6 +1365,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
         || blur_pass_gap_blur.is_some()
         || blur_pass_gap_blur_truth
         || blur_pass_imprint_removed
+        || blur_pass_detail_groups.is_some()
         || blur_pass_pre_smooth.is_some();
     if no_blur_pass {
         ensure!(
@@ -1389,6 +1401,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
             gap_blur_px: blur_pass_gap_blur,
             pre_smooth_px: blur_pass_pre_smooth,
             imprint_removed: blur_pass_imprint_removed,
+            detail_groups: blur_pass_detail_groups,
             ..pass
         });
         let rows = window_share.map_or(", every row".to_string(), |f| {
@@ -1399,6 +1412,9 @@ fn parse_args(argv: &[String]) -> Result<Args> {
         );
         if let Some(px) = blur_pass_gap_blur {
             preset_name += &format!(" (GAP-TV's detail scene at σ {px} px)");
+        }
+        if let Some(g) = blur_pass_detail_groups {
+            preset_name += &format!(" (its detail maps per {g} groups of bands)");
         }
         if blur_pass_imprint_removed {
             preset_name += " (the detail maps' mask imprint regressed out)";
