@@ -5,13 +5,14 @@ base's. Usage: bench/sigma_probe_compare.py BASE.json PROBE.json"""
 import json,sys
 base=json.load(open(sys.argv[1])); probe=json.load(open(sys.argv[2]))
 B={(c['scene'],c['seed']):c for c in base['cases']}
+tol=base['tolerances']['blur_sigma_px']
 n=0; wb=wp=0; rows=[]
 for c in probe['cases']:
   b=B.get((c['scene'],c['seed']))
   if not b: continue
   s=c['instrument_blur_sigma_px']
   eb=b['error']['blur_sigma_px']; ep=c['error']['blur_sigma_px']
-  wb+=abs(eb)<=0.05; wp+=abs(ep)<=0.05; n+=1
+  wb+=abs(eb)<=tol; wp+=abs(ep)<=tol; n+=1
   tf=[x for x in c['stages'] if x['name'].startswith('texture')][0]['parameters']['blur_sigma_px']
   same_geo=all(abs(b['estimate'][k]-c['estimate'][k])<1e-12 for k in ['dx','dy','theta_deg','a1','alpha_deg'])
   rows.append((s,tf,eb,ep,c['scene'][5:14],c['all_within_tolerance'],b['all_within_tolerance'],same_geo))
