@@ -18,3 +18,5 @@ for c in probe['cases']:
   rows.append((s,tf,eb,ep,c['scene'][5:14],c['all_within_tolerance'],b['all_within_tolerance'],same_geo))
 for r in sorted(rows): print("σ %.3f tf %.3f base err %+.3f probe err %+.3f %s all6 %s→%s geo_same %s"%(r[0],r[1],r[2],r[3],r[4],r[6],r[5],r[7]))
 print(f"σ within base {wb}/{n} probe {wp}/{n}; all six base {sum(r[6] for r in rows)} probe {sum(r[5] for r in rows)}")
+rmse=lambda v: (sum(x*x for x in v)/len(v))**0.5
+print("σ RMSE base %.4f probe %.4f px; mean error base %+.4f probe %+.4f px"%(rmse([r[2] for r in rows]),rmse([r[3] for r in rows]),sum(r[2] for r in rows)/len(rows),sum(r[3] for r in rows)/len(rows)))
