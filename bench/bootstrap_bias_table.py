@@ -4,18 +4,18 @@ fine pass run again on GAP-TV's scene re-imaged at the answer, less the answer; 
 "bootstrap bias" line before the case) against the base record's error; the correlation of the
 two in dx, and the errors of the bootstrap's own answer (the answer plus its bias) — within
 tolerance, RMSE and mean. Usage: bench/bootstrap_bias_table.py PROBE.log BASE.json"""
-import json
 import math
 import re
 import sys
+
+from held_out_pool import cases
 
 GEOMETRY = ["dx", "dy", "theta_deg", "a1", "alpha_deg"]
 
 
 def main(log_path, base_path):
-    base = json.load(open(base_path))
-    tol = base["tolerances"]
-    by_seed = {c["seed"]: c for c in base["cases"] if c["kind"] == "random"}
+    by_seed = {c["seed"]: c for c in cases(base_path).values() if c["kind"] == "random"}
+    tol = next(iter(by_seed.values()))["tolerances"]
     rows, bias = [], None
     for line in open(log_path):
         m = re.match(r"bootstrap bias dx (\S+) dy (\S+) θ (\S+) a1 (\S+) α (\S+)", line)

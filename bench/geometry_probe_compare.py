@@ -1,42 +1,34 @@
 #!/usr/bin/env python3
-"""A probe's calibration record against a base record, case by case (same scene, seed and kind):
-each case's dx, a1, dy, α and σ errors before → after and its all-six verdict; then per parameter
-the cases within tolerance, the geometry (all but σ) and all six within, and the RMSE and mean
-error of dx, a1, dy and α. Usage: bench/geometry_probe_compare.py BASE.json PROBE.json"""
-import json
-import math
+"""A probe's calibration record against a base record of the same cases, case by case: each case's
+dx, a1, dy, α and σ errors before → after and its all-six verdict; then, for each side, what
+`bench/held_out_pool.py --per-parameter` prints (all six within, per parameter within, the
+geometry within, RMSE, mean error). For the three-round tuning judgement use
+`bench/tuning_compare.py`; this is one record against one.
+
+    python3 bench/geometry_probe_compare.py BASE.json PROBE.json
+"""
 import sys
 
-GEOMETRY = ["dx", "dy", "theta_deg", "a1", "alpha_deg"]
+from held_out_pool import cases, per_parameter, summary
 
 
 def main(base_path, probe_path):
-    base = json.load(open(base_path))
-    probe = json.load(open(probe_path))
-    tol = base["tolerances"]
-    by_key = {(c["scene"], c["seed"], c["kind"]): c for c in base["cases"]}
-    pairs = [(by_key[k], c) for c in probe["cases"]
-             if (k := (c["scene"], c["seed"], c["kind"])) in by_key]
-    within = lambda c, ps: all(abs(c["error"][p]) <= tol[p] for p in ps)
-    for b, c in pairs:
-        e = lambda case, p: case["error"][p]
-        print(f"{c['scene'][:28]:28s} {c['seed']:6d} {c['kind']:7s} "
-              f"dx {e(b, 'dx'):+.3f}→{e(c, 'dx'):+.3f}  a1 {e(b, 'a1'):+.4f}→{e(c, 'a1'):+.4f}  "
-              f"dy {e(b, 'dy'):+.3f}→{e(c, 'dy'):+.3f}  α {e(b, 'alpha_deg'):+.3f}→{e(c, 'alpha_deg'):+.3f}  "
-              f"σ {e(b, 'blur_sigma_px'):+.3f}→{e(c, 'blur_sigma_px'):+.3f}  "
+    base = cases(base_path)
+    probe = {k: c for k, c in cases(probe_path).items() if k in base}
+    for key, c in probe.items():
+        b = base[key]
+        pairs = "  ".join(f"{label} {b['error'][p]:+.{digits}f}→{c['error'][p]:+.{digits}f}"
+                          for label, p, digits in [("dx", "dx", 3), ("a1", "a1", 4), ("dy", "dy", 3),
+                                                   ("α", "alpha_deg", 3), ("σ", "blur_sigma_px", 3)])
+        print(f"{c['scene'][:28]:28s} {c['seed']:6d} {c['kind']:12s} {pairs}  "
               f"all six {int(b['all_within_tolerance'])}→{int(c['all_within_tolerance'])}")
-    n = len(pairs)
-    counts = ", ".join(f"{p} {sum(within(b, [p]) for b, _ in pairs)}→{sum(within(c, [p]) for _, c in pairs)}"
-                       for p in tol)
-    print(f"{n} cases; within tolerance base → probe: {counts}; "
-          f"geometry {sum(within(b, GEOMETRY) for b, _ in pairs)}→{sum(within(c, GEOMETRY) for _, c in pairs)}; "
-          f"all six {sum(b['all_within_tolerance'] for b, _ in pairs)}→{sum(c['all_within_tolerance'] for _, c in pairs)}")
-    for p in ["dx", "a1", "dy", "alpha_deg"]:
-        eb = [b["error"][p] for b, _ in pairs]
-        ep = [c["error"][p] for _, c in pairs]
-        rmse = lambda v: math.sqrt(sum(x * x for x in v) / len(v))
-        print(f"{p} RMSE {rmse(eb):.4f}→{rmse(ep):.4f}, mean {sum(eb) / n:+.4f}→{sum(ep) / n:+.4f}")
+    shared = {k: base[k] for k in probe}
+    for side, pool in (("base", shared), ("probe", probe)):
+        print(f"{side}: {summary(pool, coverage=False)}")
+        print(per_parameter(pool))
 
 
 if __name__ == "__main__":
-    main(*sys.argv[1:3])
+    if len(sys.argv) != 3:
+        sys.exit(__doc__)
+    main(sys.argv[1], sys.argv[2])

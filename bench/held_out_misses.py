@@ -7,19 +7,16 @@ the same (scene, seed, kind) in an earlier one, as bench/held_out_pool.py pools 
     python3 bench/held_out_misses.py RECORD.json [RECORD.json ...]
 """
 import collections
-import json
 import sys
+
+from held_out_pool import cases as record_cases
 
 
 def main(paths):
     cases = {}
-    tolerances = None
     for path in paths:
-        record = json.load(open(path))
-        tolerances = tolerances or record["tolerances"]
-        for c in record["cases"]:
-            if c["kind"] == "random":
-                cases[(c["scene"], c["seed"], c["kind"])] = c
+        cases.update({k: c for k, c in record_cases(path).items() if c["kind"] == "random"})
+    tolerances = next(iter(cases.values()))["tolerances"]
     patterns = collections.Counter()
     by_sigma = {"below 0.25 px": [0, 0], "from 0.25 px": [0, 0]}
     for c in cases.values():
