@@ -980,8 +980,9 @@ fn scene_fit_stage(
             pending.finish(run);
             problem.check_cancelled()?;
             let stage = run.start();
-            let moved = moved_by(pass.free);
+            // each run refits its own free set (an off-grid run's may differ)
             let refit = |pass: &FinePass| -> Result<(SceneFit<'_>, SceneFitResult)> {
+                let moved = moved_by(pass.run_free());
                 let (fine, scene) =
                     pass.scene_fit(problem, settings, (coarse, fine_from), fine_detail.clone())?;
                 let refined = if moved.contains(&A2) {
@@ -1004,11 +1005,11 @@ fn scene_fit_stage(
             };
             let (rows, cols) = problem.nominal_mask().shape();
             let start_phase = grid_phase(rows, cols, problem.bands(), &found.best.psi);
-            let (on_grid, (fine, refined)) = match pass.again_from_start(start_phase) {
+            let (on_grid, answering, (fine, refined)) = match pass.again_from_start(start_phase) {
                 // on the grid at the start already: the run on the first
                 // pass's nodes would only judge the phase
                 // ([`OnGridNodes::judged_at_start_below`](super::OnGridNodes::judged_at_start_below))
-                Some(again) => (again.spectral_nodes, refit(&again)?),
+                Some(again) => (again.spectral_nodes, again, refit(&again)?),
                 None => {
                     let (fine, refined) = refit(&pass)?;
                     // on the pixel grid, again on the on-grid spectral nodes
@@ -1031,20 +1032,22 @@ fn scene_fit_stage(
                                 &again_fit,
                                 &refined.best.psi,
                                 Some(&scene),
-                                &moved,
+                                &moved_by(again.run_free()),
                             )?;
                             stage.count(second.evaluations);
-                            (again.spectral_nodes, (again_fit, second))
+                            (again.spectral_nodes, again, (again_fit, second))
                         }
                         Some(again) => {
                             problem.check_cancelled()?;
-                            (again.spectral_nodes, refit(&again)?)
+                            (again.spectral_nodes, again, refit(&again)?)
                         }
-                        None => (None, (fine, refined)),
+                        None => (None, pass, (fine, refined)),
                     }
                 }
             };
-            let floors = match pass.free {
+            // the answering run's free set
+            let moved = moved_by(answering.run_free());
+            let floors = match answering.run_free() {
                 _ if detailed.is_some() => Fit::SceneDetailPass,
                 FinePassFree::Geometry | FinePassFree::All | FinePassFree::GeometryAndCurvature => {
                     Fit::SceneFinePass

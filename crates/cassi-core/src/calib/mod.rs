@@ -72,8 +72,8 @@ pub use ridge_probes::{
     BandEnd, DISTINCT_PX, ProbeEnd, Ridge, RidgeProbeReport, RidgeProbes, RidgeProfile,
 };
 pub use scene_fit::{
-    FinePass, FinePassFree, OnGridNodes, RidgeAnchor, SceneFitSettings, coarse_scene_of,
-    reweighted_scene_fit_scores, scene_fit_score,
+    FinePass, FinePassFree, OffGridRun, OnGridNodes, RidgeAnchor, SceneFitSettings,
+    coarse_scene_of, reweighted_scene_fit_scores, scene_fit_score,
 };
 pub use score::{CalibrationProblem, ProxyParams, gap_tv_reconstruction};
 pub use smooth::{gaussian_taps, smooth_bands};

@@ -194,6 +194,27 @@ pub struct FinePass {
     /// dx within 16 → 16, dx moving both ways (`bench/results/default_stop60/`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub spectral_basis: Option<SpectralBasis>,
+    /// Its run off the pixel grid (the first run, a random pose's answer)
+    /// with scene solves and a free set of its own ([`OffGridRun`]); the
+    /// on-grid run keeps the pass's. `None` (the default, and settings
+    /// written before the field): the pass's own in both runs.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub off_grid_run: Option<OffGridRun>,
+}
+
+/// The fine pass's run off the pixel grid with its own warm solves and free
+/// set. Why a probe: that run's BFGS scores each trial with a warm solve
+/// from the last scene and takes its Jacobian with the scene held, so a
+/// short solve lets the scene lag the pose and holds the answer near the
+/// pass's start (stop 71: 60 iterations instead of 20 halve the tuning
+/// half's random dx RMSE, but free dy and α slide; with them held, all six
+/// 33 → 34 of 90; `bench/results/default_stop71/`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct OffGridRun {
+    /// Every solve after its first, from the last accepted scene.
+    pub warm_solve: CglsParams,
+    /// The parameters it refits.
+    pub free: FinePassFree,
 }
 
 /// The fine pass run again from its start with its scene on
@@ -405,6 +426,7 @@ impl Default for FinePass {
             on_grid: Some(OnGridNodes::default()),
             high_pass_px: None,
             spectral_basis: None,
+            off_grid_run: None,
         }
     }
 }
@@ -463,8 +485,15 @@ impl FinePass {
     fn on_grid_run(&self, on_grid: OnGridNodes) -> Option<Self> {
         self.spectral_nodes.is_none().then_some(Self {
             spectral_nodes: Some(on_grid.spectral_nodes),
+            off_grid_run: None,
             ..*self
         })
+    }
+
+    /// The parameters this run refits: its [`OffGridRun`]'s where it has
+    /// one, the pass's otherwise.
+    pub(crate) fn run_free(&self) -> FinePassFree {
+        self.off_grid_run.map_or(self.free, |run| run.free)
     }
 
     /// The pass to run in place of this one where its start lies at grid
@@ -505,6 +534,9 @@ impl FinePass {
             spectral_nodes: self.nodes_after(settings.spectral_nodes),
             high_pass_px: self.high_pass_px.unwrap_or(settings.high_pass_px),
             cold_solve: self.first_solve,
+            warm_solve: self
+                .off_grid_run
+                .map_or(settings.warm_solve, |run| run.warm_solve),
             max_steps: self.max_steps,
             fine_pass: None,
             ..settings
@@ -1612,6 +1644,54 @@ pub(crate) mod tests {
             };
             assert_eq!(pass.again_from_start(0.0), None, "{on_grid:?}");
         }
+    }
+
+    /// An off-grid run's own warm solves and free set hold in the pass's
+    /// first run only: its scene fit solves with them, and the on-grid run
+    /// (either way it is reached) keeps the pass's; settings without the
+    /// field read back as before it.
+    #[test]
+    fn an_off_grid_runs_solves_and_free_set_stay_off_the_grid() {
+        let warm = CglsParams {
+            iterations: 60,
+            tolerance: 1e-5,
+        };
+        let pass = FinePass {
+            off_grid_run: Some(OffGridRun {
+                warm_solve: warm,
+                free: FinePassFree::PoseAndSlope,
+            }),
+            ..FinePass::default()
+        };
+        assert_eq!(pass.run_free(), FinePassFree::PoseAndSlope);
+        assert_eq!(FinePass::default().run_free(), FinePassFree::Geometry);
+        for again in [pass.again_at(0.2), pass.again_from_start(0.2)] {
+            let again = again.expect("run again on the grid");
+            assert_eq!(again.off_grid_run, None);
+            assert_eq!(again.run_free(), FinePassFree::Geometry);
+        }
+        let truth = truth();
+        let (y, mask) = measured(&truth, false);
+        let problem =
+            CalibrationProblem::nominal(&y, &mask, BANDS, 2.0, DispersionModel::DispersedMask)
+                .unwrap();
+        let settings = SceneFitSettings::default();
+        let coarse = SceneFit::new(&problem, settings.first_pass_only()).unwrap();
+        let first = coarse.solve(&truth, None).unwrap();
+        let warm_of = |pass: &FinePass| {
+            let (fine, _) = pass
+                .scene_fit(&problem, settings, (&coarse, &first), None)
+                .unwrap();
+            fine.settings.warm_solve
+        };
+        assert_eq!(warm_of(&pass), warm);
+        let on_grid = pass.again_at(0.2).unwrap();
+        assert_eq!(warm_of(&on_grid), settings.warm_solve);
+        assert_ne!(warm, settings.warm_solve);
+        let json = serde_json::to_string(&FinePass::default()).unwrap();
+        assert!(!json.contains("off_grid_run"), "{json}");
+        let json = serde_json::to_string(&pass).unwrap();
+        assert_eq!(serde_json::from_str::<FinePass>(&json).unwrap(), pass);
     }
 
     /// Settings written before the detail pass read back without one; with
