@@ -20,7 +20,7 @@ use serde::{Deserialize, Serialize};
 
 use super::CalibrationProblem;
 use super::quasi_newton::{LeastSquares, minimise};
-use super::scene_fit::{BAND_SHIFT_STEP, SceneFit, SceneFitSettings, Solved};
+use super::scene_fit::{BAND_SHIFT_STEP, FinePass, SceneFit, SceneFitSettings, Solved};
 use crate::error::{CassiError, Result};
 use crate::params::Mismatch;
 
@@ -151,6 +151,12 @@ fn objective<'a>(
     };
     let coarse = SceneFit::new(problem, how.settings.first_pass_only())?;
     let first = coarse.solve_cold(at, None)?;
+    // its objective as it was tuned (stop 55): the pass's own warm solves,
+    // not an off-grid run's
+    let pass = FinePass {
+        off_grid_run: None,
+        ..pass
+    };
     let (mut fine, scene) = pass.scene_fit(problem, how.settings, (&coarse, &first), None)?;
     if let Some((start, end)) = how.rows {
         let rows = problem.measurement.rows();

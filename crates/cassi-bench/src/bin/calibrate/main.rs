@@ -105,9 +105,11 @@
 //! again on 10 where its answer lands on the pixel grid since stop 59);
 //! `--fine-pass-off-grid-nodes N`: the same but the on-grid run kept
 //! (`FinePass::off_grid_nodes`; with `--scene-nodes`, a probe of stop 66);
-//! `--fine-pass-off-grid-run ITERATIONS,FREE`: the fine pass's run off the
-//! pixel grid with warm solves of ITERATIONS CGLS iterations and FREE refitted
-//! (`FinePass::off_grid_run`; the on-grid run keeps the pass's; stop 72);
+//! `--fine-pass-off-grid-run ITERATIONS,FREE|none`: the fine pass's run off
+//! the pixel grid with warm solves of ITERATIONS CGLS iterations and FREE
+//! refitted (`FinePass::off_grid_run`; the on-grid run keeps the pass's;
+//! 60,pose-and-slope by default since stop 72), or `none`: the pass's own
+//! (`--fine-pass-free`'s) in both runs, the default before stop 72;
 //! `--fine-pass-high-pass PX`: the fine pass's high-pass σ
 //! (`FinePass::high_pass_px`); `--fine-pass-principal-spectra N`: its scene
 //! on the N principal spectra of GAP-TV's reconstruction (50 iterations)
@@ -618,7 +620,7 @@ impl SceneTransform {
 
 const USAGE: &str = "calibrate [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] \
                      [--no-aligned] [--no-inverse-crime] [--no-wide-blur] [--model rounded|subpixel|dispersed-mask|crisp-cells] \
-                     [--preset NAME | --preset-file PATH] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start | [--nominal-start-gap G] [--nominal-start-ridge BAND]] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all|geometry-and-curvature] [--scene-cell PX] [--first-pass-ridge R] [--scene-nodes N] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv N] [--detail-pre-smooth PX] [--detail-pass-nodes N] [--search-rows N] [--fine-pass-detail] [--fine-pass-weighted WINDOW_PX,FLOOR_QUANTILE] [--fine-pass-nodes N] [--fine-pass-off-grid-nodes N] [--fine-pass-off-grid-run ITERATIONS,FREE] [--fine-pass-high-pass PX] [--fine-pass-principal-spectra N] [--no-on-grid-nodes | --on-grid-from-answer] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N] [--blur-pass-start scene-fit|texture-fit] [--blur-pass-reconstructs model-fit|blur-pass] [--blur-pass-on-grid-margin PX|none] [--blur-pass-gap-blur PX|truth] [--blur-pass-imprint-removed] [--blur-pass-detail-groups G] [--blur-pass-pre-smooth PX]] [--no-recon] [--rho-sensitivity] [--recon-sigma-margins D,…] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX | --limits-tv-scene WEIGHT | --limits-spectral-scene NODES | --limits-placed-spectral-scene NODES] [--out PATH] \
+                     [--preset NAME | --preset-file PATH] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start | [--nominal-start-gap G] [--nominal-start-ridge BAND]] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all|geometry-and-curvature] [--scene-cell PX] [--first-pass-ridge R] [--scene-nodes N] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv N] [--detail-pre-smooth PX] [--detail-pass-nodes N] [--search-rows N] [--fine-pass-detail] [--fine-pass-weighted WINDOW_PX,FLOOR_QUANTILE] [--fine-pass-nodes N] [--fine-pass-off-grid-nodes N] [--fine-pass-off-grid-run ITERATIONS,FREE|none] [--fine-pass-high-pass PX] [--fine-pass-principal-spectra N] [--no-on-grid-nodes | --on-grid-from-answer] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N] [--blur-pass-start scene-fit|texture-fit] [--blur-pass-reconstructs model-fit|blur-pass] [--blur-pass-on-grid-margin PX|none] [--blur-pass-gap-blur PX|truth] [--blur-pass-imprint-removed] [--blur-pass-detail-groups G] [--blur-pass-pre-smooth PX]] [--no-recon] [--rho-sensitivity] [--recon-sigma-margins D,…] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX | --limits-tv-scene WEIGHT | --limits-spectral-scene NODES | --limits-placed-spectral-scene NODES] [--out PATH] \
                      [--scene-transform none|flip-cols|flip-rows|transpose|coarse|real-band-light|flip-bands|dark-right-COLS|dark-left-COLS|smooth-PX] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--snapshots N [--joint [--joint-model MODEL]]] [--verbose]";
 
 fn parse_args(argv: &[String]) -> Result<Args> {
@@ -670,7 +672,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
     let mut fine_pass_detail = false;
     let mut fine_pass_nodes: Option<usize> = None;
     let mut fine_pass_off_grid_nodes: Option<usize> = None;
-    let mut fine_pass_off_grid_run: Option<OffGridRun> = None;
+    let mut fine_pass_off_grid_run: Option<Option<OffGridRun>> = None;
     let mut fine_pass_high_pass: Option<f64> = None;
     let mut fine_pass_spectra: Option<usize> = None;
     let mut on_grid_from_answer = false;
@@ -925,9 +927,13 @@ fn parse_args(argv: &[String]) -> Result<Args> {
             }
             "--fine-pass-off-grid-run" => {
                 let v = value()?;
-                let (iterations, free) = v
-                    .split_once(',')
-                    .ok_or_else(|| anyhow!("--fine-pass-off-grid-run {v}: want ITERATIONS,FREE"))?;
+                if v == "none" {
+                    fine_pass_off_grid_run = Some(None);
+                    continue;
+                }
+                let (iterations, free) = v.split_once(',').ok_or_else(|| {
+                    anyhow!("--fine-pass-off-grid-run {v}: want ITERATIONS,FREE or none")
+                })?;
                 let iterations: usize = iterations
                     .parse()
                     .with_context(|| format!("--fine-pass-off-grid-run {v}"))?;
@@ -935,7 +941,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
                     iterations >= 1,
                     "--fine-pass-off-grid-run {v}: at least one CGLS iteration"
                 );
-                fine_pass_off_grid_run = Some(OffGridRun {
+                fine_pass_off_grid_run = Some(Some(OffGridRun {
                     warm_solve: CglsParams {
                         iterations,
                         ..SceneFitSettings::default().warm_solve
@@ -943,7 +949,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
                     free: free
                         .parse()
                         .map_err(|e: String| anyhow!("--fine-pass-off-grid-run {e}"))?,
-                });
+                }));
             }
             "--no-on-grid-nodes" => no_on_grid_nodes = true,
             "--on-grid-from-answer" => on_grid_from_answer = true,
@@ -1555,12 +1561,15 @@ fn parse_args(argv: &[String]) -> Result<Args> {
         let Some(pass) = settings.fine_pass.as_mut() else {
             bail!("--fine-pass-off-grid-run: the fine pass is off");
         };
-        pass.off_grid_run = Some(run);
-        preset_name += &format!(
-            " (fine pass off the pixel grid: warm solves {}, refitting {})",
-            run.warm_solve.iterations,
-            run.free.key()
-        );
+        pass.off_grid_run = run;
+        preset_name += &match run {
+            Some(run) => format!(
+                " (fine pass off the pixel grid: warm solves {}, refitting {})",
+                run.warm_solve.iterations,
+                run.free.key()
+            ),
+            None => " (fine pass off the pixel grid as on it)".to_string(),
+        };
     }
     if let Some(components) = fine_pass_spectra {
         let settings = scene_fit_settings(&mut preset, "--fine-pass-principal-spectra")?;
