@@ -1001,7 +1001,27 @@ fn scene_fit_stage(
                     fit_scene_from(&fine, &found.best.psi, Some(&scene), &moved)?
                 };
                 stage.count(refined.evaluations);
-                Ok((fine, refined))
+                match pass.then() {
+                    // the same objective with the pass's own solves, from
+                    // this run's answer and scene (the same nodes)
+                    Some(then) => {
+                        let (again, _) = then.scene_fit(
+                            problem,
+                            settings,
+                            (coarse, fine_from),
+                            fine_detail.clone(),
+                        )?;
+                        let second = fit_scene_from(
+                            &again,
+                            &refined.best.psi,
+                            Some(&refined.best.z),
+                            &moved_by(then.free),
+                        )?;
+                        stage.count(second.evaluations);
+                        Ok((again, second))
+                    }
+                    None => Ok((fine, refined)),
+                }
             };
             let (rows, cols) = problem.nominal_mask().shape();
             let start_phase = grid_phase(rows, cols, problem.bands(), &found.best.psi);
@@ -1045,9 +1065,9 @@ fn scene_fit_stage(
                     }
                 }
             };
-            // the answering run's free set
-            let moved = moved_by(answering.run_free());
-            let floors = match answering.run_free() {
+            // the answering run's last free set
+            let moved = moved_by(answering.answer_free());
+            let floors = match answering.answer_free() {
                 _ if detailed.is_some() => Fit::SceneDetailPass,
                 FinePassFree::Geometry | FinePassFree::All | FinePassFree::GeometryAndCurvature => {
                     Fit::SceneFinePass

@@ -105,10 +105,12 @@
 //! again on 10 where its answer lands on the pixel grid since stop 59);
 //! `--fine-pass-off-grid-nodes N`: the same but the on-grid run kept
 //! (`FinePass::off_grid_nodes`; with `--scene-nodes`, a probe of stop 66);
-//! `--fine-pass-off-grid-run ITERATIONS,FREE|none`: the fine pass's run off
-//! the pixel grid with warm solves of ITERATIONS CGLS iterations and FREE
-//! refitted (`FinePass::off_grid_run`; the on-grid run keeps the pass's;
-//! 60,pose-and-slope by default since stop 72), or `none`: the pass's own
+//! `--fine-pass-off-grid-run ITERATIONS,FREE[,then-the-pass]|none`: the fine
+//! pass's run off the pixel grid with warm solves of ITERATIONS CGLS
+//! iterations and FREE refitted (`FinePass::off_grid_run`; the on-grid run
+//! keeps the pass's; 60,pose-and-slope by default since stop 72), with
+//! `then-the-pass` the pass's own free set refitted after it
+//! (`OffGridRun::then_the_pass`), or `none`: the pass's own
 //! (`--fine-pass-free`'s) in both runs, the default before stop 72;
 //! `--fine-pass-high-pass PX`: the fine pass's high-pass σ
 //! (`FinePass::high_pass_px`); `--fine-pass-principal-spectra N`: its scene
@@ -620,7 +622,7 @@ impl SceneTransform {
 
 const USAGE: &str = "calibrate [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] \
                      [--no-aligned] [--no-inverse-crime] [--no-wide-blur] [--model rounded|subpixel|dispersed-mask|crisp-cells] \
-                     [--preset NAME | --preset-file PATH] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start | [--nominal-start-gap G] [--nominal-start-ridge BAND]] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all|geometry-and-curvature] [--scene-cell PX] [--first-pass-ridge R] [--scene-nodes N] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv N] [--detail-pre-smooth PX] [--detail-pass-nodes N] [--search-rows N] [--fine-pass-detail] [--fine-pass-weighted WINDOW_PX,FLOOR_QUANTILE] [--fine-pass-nodes N] [--fine-pass-off-grid-nodes N] [--fine-pass-off-grid-run ITERATIONS,FREE|none] [--fine-pass-high-pass PX] [--fine-pass-principal-spectra N] [--no-on-grid-nodes | --on-grid-from-answer] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N] [--blur-pass-start scene-fit|texture-fit] [--blur-pass-reconstructs model-fit|blur-pass] [--blur-pass-on-grid-margin PX|none] [--blur-pass-gap-blur PX|truth] [--blur-pass-imprint-removed] [--blur-pass-detail-groups G] [--blur-pass-pre-smooth PX]] [--no-recon] [--rho-sensitivity] [--recon-sigma-margins D,…] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX | --limits-tv-scene WEIGHT | --limits-spectral-scene NODES | --limits-placed-spectral-scene NODES] [--out PATH] \
+                     [--preset NAME | --preset-file PATH] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start | [--nominal-start-gap G] [--nominal-start-ridge BAND]] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all|geometry-and-curvature] [--scene-cell PX] [--first-pass-ridge R] [--scene-nodes N] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv N] [--detail-pre-smooth PX] [--detail-pass-nodes N] [--search-rows N] [--fine-pass-detail] [--fine-pass-weighted WINDOW_PX,FLOOR_QUANTILE] [--fine-pass-nodes N] [--fine-pass-off-grid-nodes N] [--fine-pass-off-grid-run ITERATIONS,FREE[,then-the-pass]|none] [--fine-pass-high-pass PX] [--fine-pass-principal-spectra N] [--no-on-grid-nodes | --on-grid-from-answer] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N] [--blur-pass-start scene-fit|texture-fit] [--blur-pass-reconstructs model-fit|blur-pass] [--blur-pass-on-grid-margin PX|none] [--blur-pass-gap-blur PX|truth] [--blur-pass-imprint-removed] [--blur-pass-detail-groups G] [--blur-pass-pre-smooth PX]] [--no-recon] [--rho-sensitivity] [--recon-sigma-margins D,…] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX | --limits-tv-scene WEIGHT | --limits-spectral-scene NODES | --limits-placed-spectral-scene NODES] [--out PATH] \
                      [--scene-transform none|flip-cols|flip-rows|transpose|coarse|real-band-light|flip-bands|dark-right-COLS|dark-left-COLS|smooth-PX] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--snapshots N [--joint [--joint-model MODEL]]] [--verbose]";
 
 fn parse_args(argv: &[String]) -> Result<Args> {
@@ -931,9 +933,14 @@ fn parse_args(argv: &[String]) -> Result<Args> {
                     fine_pass_off_grid_run = Some(None);
                     continue;
                 }
-                let (iterations, free) = v.split_once(',').ok_or_else(|| {
-                    anyhow!("--fine-pass-off-grid-run {v}: want ITERATIONS,FREE or none")
-                })?;
+                let parts: Vec<&str> = v.split(',').collect();
+                let (iterations, free, then_the_pass) = match parts[..] {
+                    [iterations, free] => (iterations, free, false),
+                    [iterations, free, "then-the-pass"] => (iterations, free, true),
+                    _ => bail!(
+                        "--fine-pass-off-grid-run {v}: want ITERATIONS,FREE[,then-the-pass] or none"
+                    ),
+                };
                 let iterations: usize = iterations
                     .parse()
                     .with_context(|| format!("--fine-pass-off-grid-run {v}"))?;
@@ -949,6 +956,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
                     free: free
                         .parse()
                         .map_err(|e: String| anyhow!("--fine-pass-off-grid-run {e}"))?,
+                    then_the_pass,
                 }));
             }
             "--no-on-grid-nodes" => no_on_grid_nodes = true,
@@ -1564,9 +1572,14 @@ fn parse_args(argv: &[String]) -> Result<Args> {
         pass.off_grid_run = run;
         preset_name += &match run {
             Some(run) => format!(
-                " (fine pass off the pixel grid: warm solves {}, refitting {})",
+                " (fine pass off the pixel grid: warm solves {}, refitting {}{})",
                 run.warm_solve.iterations,
-                run.free.key()
+                run.free.key(),
+                if run.then_the_pass {
+                    ", then the pass's own"
+                } else {
+                    ""
+                }
             ),
             None => " (fine pass off the pixel grid as on it)".to_string(),
         };
