@@ -457,6 +457,9 @@ impl Preset {
                         )
                     })?;
                 pass.free = FinePassFree::GeometryAndCurvature;
+                // in both of the pass's runs, as it was measured (stop 53):
+                // an off-grid run's own free set would hold a2
+                pass.off_grid_run = None;
                 Ok(Self::Default(p))
             }
             Self::Paper(_) => Err(refused(

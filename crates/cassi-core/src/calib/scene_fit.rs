@@ -1516,10 +1516,13 @@ pub(crate) mod tests {
             .into_iter()
             .flat_map(|a| FinePassFree::ALL.map(|f| (a, f)));
         for (anchor, free) in pairs {
+            // (without an off-grid run: written before `free` existed, as
+            // the check below needs; the run's own free set is another test's)
             let with = SceneFitSettings {
                 fine_pass: Some(FinePass {
                     anchor,
                     free,
+                    off_grid_run: None,
                     ..FinePass::default()
                 }),
                 ..plain

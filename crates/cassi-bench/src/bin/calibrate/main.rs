@@ -87,7 +87,9 @@
 //! `--fine-pass RIDGE`: the pass with this ridge and, with
 //! `--fine-pass-anchor` and `--fine-pass-free`, this anchor and these
 //! parameters; `geometry-and-curvature` fits a2 too, from `--model-a2`,
-//! each case's `curvature` then holding it against the instrument's); `--detail-pass FREE`: the scene fit's detail pass
+//! each case's `curvature` then holding it against the instrument's) — in
+//! both of its runs, as the records made with it ran (before stop 72: no
+//! off-grid run of its own; `--fine-pass-off-grid-run` adds one); `--detail-pass FREE`: the scene fit's detail pass
 //! (`calib::DetailPass`) refitting these, `--detail-groups G` with G
 //! detail maps (spectral groups of bands), `--detail-gap-tv N` its maps
 //! from GAP-TV's scene (N iterations) instead of the proxy's, `--detail-cold-above PX|none` its
@@ -1524,6 +1526,8 @@ fn parse_args(argv: &[String]) -> Result<Args> {
             ridge,
             anchor: fine_pass_anchor,
             free: fine_pass_free,
+            // as the records made with the flag ran (the free set in both runs)
+            off_grid_run: None,
             ..FinePass::default()
         });
         preset_name += &format!(
