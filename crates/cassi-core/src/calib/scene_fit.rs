@@ -1594,11 +1594,11 @@ pub(crate) mod tests {
         );
     }
 
-    /// With principal spectra the fine pass's scene lives on them: as many
-    /// coefficients per node as spectra (3 here against the default's 6
-    /// nodes), its start the first pass's scene projected onto them.
-    #[test]
-    fn the_fine_pass_on_principal_spectra_solves_its_scene_on_them() {
+    /// `f` given a fine pass's start: the scene fit's tests' measurement, the
+    /// default settings, the first pass's fit and its solve at the truth.
+    fn from_a_first_pass<R>(
+        f: impl FnOnce(&CalibrationProblem<'_>, SceneFitSettings, &SceneFit<'_>, &Solved) -> R,
+    ) -> R {
         let truth = truth();
         let (y, mask) = measured(&truth, false);
         let problem =
@@ -1607,26 +1607,36 @@ pub(crate) mod tests {
         let settings = SceneFitSettings::default();
         let coarse = SceneFit::new(&problem, settings.first_pass_only()).unwrap();
         let first = coarse.solve(&truth, None).unwrap();
-        let per_spectrum = |spectral_basis: Option<SpectralBasis>, m: usize| {
-            let pass = FinePass {
-                spectral_basis,
-                ..FinePass::default()
+        f(&problem, settings, &coarse, &first)
+    }
+
+    /// With principal spectra the fine pass's scene lives on them: as many
+    /// coefficients per node as spectra (3 here against the default's 6
+    /// nodes), its start the first pass's scene projected onto them.
+    #[test]
+    fn the_fine_pass_on_principal_spectra_solves_its_scene_on_them() {
+        from_a_first_pass(|problem, settings, coarse, first| {
+            let per_spectrum = |spectral_basis: Option<SpectralBasis>, m: usize| {
+                let pass = FinePass {
+                    spectral_basis,
+                    ..FinePass::default()
+                };
+                let (fine, scene) = pass
+                    .scene_fit(problem, settings, (coarse, first), None)
+                    .unwrap();
+                assert_eq!(scene.len(), fine.basis.domain_len());
+                assert_eq!(scene.len() % m, 0);
+                scene.len() / m
             };
-            let (fine, scene) = pass
-                .scene_fit(&problem, settings, (&coarse, &first), None)
-                .unwrap();
-            assert_eq!(scene.len(), fine.basis.domain_len());
-            assert_eq!(scene.len() % m, 0);
-            scene.len() / m
-        };
-        let basis = SpectralBasis {
-            components: 3,
-            gap_iterations: 10,
-        };
-        assert_eq!(
-            per_spectrum(Some(basis), 3),
-            per_spectrum(None, settings.spectral_nodes)
-        );
+            let basis = SpectralBasis {
+                components: 3,
+                gap_iterations: 10,
+            };
+            assert_eq!(
+                per_spectrum(Some(basis), 3),
+                per_spectrum(None, settings.spectral_nodes)
+            );
+        });
     }
 
     /// The fine pass takes its on-grid nodes below their phase only, and
@@ -1732,24 +1742,18 @@ pub(crate) mod tests {
             assert_eq!(again.off_grid_run, None);
             assert_eq!(again.run_free(), FinePassFree::Geometry);
         }
-        let truth = truth();
-        let (y, mask) = measured(&truth, false);
-        let problem =
-            CalibrationProblem::nominal(&y, &mask, BANDS, 2.0, DispersionModel::DispersedMask)
-                .unwrap();
-        let settings = SceneFitSettings::default();
-        let coarse = SceneFit::new(&problem, settings.first_pass_only()).unwrap();
-        let first = coarse.solve(&truth, None).unwrap();
-        let warm_of = |pass: &FinePass| {
-            let (fine, _) = pass
-                .scene_fit(&problem, settings, (&coarse, &first), None)
-                .unwrap();
-            fine.settings.warm_solve
-        };
-        assert_ne!(run.warm_solve, settings.warm_solve);
-        assert_eq!(warm_of(&pass), run.warm_solve);
-        assert_eq!(warm_of(&pass.again_at(0.2).unwrap()), settings.warm_solve);
-        assert_eq!(warm_of(&without), settings.warm_solve);
+        from_a_first_pass(|problem, settings, coarse, first| {
+            let warm_of = |pass: &FinePass| {
+                let (fine, _) = pass
+                    .scene_fit(problem, settings, (coarse, first), None)
+                    .unwrap();
+                fine.settings.warm_solve
+            };
+            assert_ne!(run.warm_solve, settings.warm_solve);
+            assert_eq!(warm_of(&pass), run.warm_solve);
+            assert_eq!(warm_of(&pass.again_at(0.2).unwrap()), settings.warm_solve);
+            assert_eq!(warm_of(&without), settings.warm_solve);
+        });
         let json = serde_json::to_string(&without).unwrap();
         assert!(!json.contains("off_grid_run"), "{json}");
         assert_eq!(serde_json::from_str::<FinePass>(&json).unwrap(), without);
