@@ -332,9 +332,12 @@ pub enum FinePassFree {
     /// aligned dx RMSE 0.258 → 0.015 px (`…_fine_pass_r0.01.json`). With
     /// the ridge toward zero (a probe, not recorded) freeing dy and α too
     /// let them slide along their ridge on random poses. Its stated errors
-    /// use the floors derived for `Geometry` (the default).
+    /// use the floors derived for `Geometry` (the default). Since stop 72
+    /// the default's off-grid run's ([`OffGridRun`]), its scene solved
+    /// further.
     PoseAndSlope,
-    /// dx, dy, θ, a1 and α; σ stays the first pass's. The default. Tuning
+    /// dx, dy, θ, a1 and α; σ stays the first pass's. The default (since
+    /// stop 72 the on-grid run's; the off-grid run has its own). Tuning
     /// half, four configurations (`…_fine_pass_geometry*.json` against
     /// `PoseAndSlope`'s): aligned dy RMSE 0.069–0.174 → 0.017–0.109 px, α
     /// 0.103–0.235 → 0.028–0.148°, all six within tolerance 69 → 77 of
