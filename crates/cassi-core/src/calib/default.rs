@@ -1332,6 +1332,40 @@ mod tests {
     use crate::calib::{CalibrationProblem, Preset};
     use crate::optics::DispersionModel;
 
+    /// Off the pixel grid (the scene fit's tests' rotated mask) the
+    /// default's fine pass refits dx, θ and a1 and leaves dy and α where
+    /// the detail pass put them: its off-grid run's free set reaches the
+    /// fit. Without that run the pass refits them too.
+    #[test]
+    fn the_off_grid_run_holds_dy_and_alpha_at_the_detail_passs() {
+        let (y, mask) = measured(&truth(), true);
+        let p = CalibrationProblem::nominal(&y, &mask, BANDS, 2.0, DispersionModel::DispersedMask)
+            .unwrap();
+        let stage = |c: &Calibration, name: &str| {
+            c.stages
+                .iter()
+                .find(|s| s.name.starts_with(name))
+                .unwrap_or_else(|| panic!("no stage {name}"))
+                .parameters
+        };
+        let passes = |preset: &DefaultPreset| {
+            let c = calibrate_default(&p, preset, &mut |_| {}).unwrap();
+            (
+                stage(&c, DETAIL_PASS_STAGE),
+                stage(&c, "scene fit's fine pass"),
+            )
+        };
+        let preset = DefaultPreset::default();
+        let (detail, fine) = passes(&preset);
+        assert_eq!((fine.dy, fine.alpha_deg), (detail.dy, detail.alpha_deg));
+        assert_ne!((fine.dx, fine.a1), (detail.dx, detail.a1));
+        let mut without = preset;
+        let settings = without.scene_fit.as_mut().unwrap();
+        settings.fine_pass.as_mut().unwrap().off_grid_run = None;
+        let (detail, fine) = passes(&without);
+        assert_ne!((fine.dy, fine.alpha_deg), (detail.dy, detail.alpha_deg));
+    }
+
     /// A prism whose dispersion is curved (a2 = −0.03 px/band² over 16 bands:
     /// the last band 6.75 px short of a1·k, 0.84 px off the best straight line),
     /// calibrated from a design value a third off (−0.02): held, a1 and the
