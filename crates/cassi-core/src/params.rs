@@ -208,6 +208,12 @@ impl Parameter {
         !matches!(self, Self::A1 | Self::BlurSigmaPx)
     }
 
+    /// The least value the parameter can take, if any: a blur's width is
+    /// never negative.
+    pub fn lower_bound(self) -> Option<f64> {
+        matches!(self, Self::BlurSigmaPx).then_some(0.0)
+    }
+
     /// Whether files may leave the parameter out (it then takes its nominal
     /// value): files written before the parameter existed stay readable.
     pub fn optional_in_files(self) -> bool {

@@ -544,6 +544,32 @@ pub(crate) mod tests {
         assert!(!uncertainty_lines(&scene).contains("ran short"));
     }
 
+    /// A σ whose 95 % interval reaches below 0 prints the range it leaves,
+    /// bounded above only; one clear of 0, and every other parameter
+    /// (signed offsets reach below 0 as they may), keep "± half-width".
+    #[test]
+    fn a_blur_interval_reaching_below_zero_is_printed_as_bounded_above() {
+        let lines = uncertainty_lines(&calibration(0.0, 0.05));
+        assert!(
+            lines.contains("blur  0.050 ± 0.010 px   (95 %: 0.000 to 0.111, bounded above only)"),
+            "{lines}"
+        );
+        assert!(
+            lines.contains("α     +0.00 ± 0.01 °   (95 %: ± 0.06)"),
+            "{lines}"
+        );
+        assert!(
+            lines.contains("dx    +0.000 ± 0.010 px   (95 %: ± 0.061)"),
+            "{lines}"
+        );
+        let clear = uncertainty_lines(&calibration(0.0, 0.5));
+        assert!(
+            clear.contains("blur  0.500 ± 0.010 px   (95 %: ± 0.061)"),
+            "{clear}"
+        );
+        assert!(!clear.contains("bounded above only"), "{clear}");
+    }
+
     /// The ridge probes' lines: nothing when they did not run, one line
     /// saying so when no dip came near, one per alternative naming its
     /// ridge, the band moved and where it ended.

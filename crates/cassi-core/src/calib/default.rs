@@ -1069,9 +1069,10 @@ fn scene_fit_stage(
             let moved = moved_by(answering.answer_free());
             let floors = match answering.answer_free() {
                 _ if detailed.is_some() => Fit::SceneDetailPass,
-                FinePassFree::Geometry | FinePassFree::All | FinePassFree::GeometryAndCurvature => {
-                    Fit::SceneFinePass
-                }
+                FinePassFree::Geometry
+                | FinePassFree::All
+                | FinePassFree::GeometryAndCurvature
+                | FinePassFree::DyAndAlpha => Fit::SceneFinePass,
                 FinePassFree::PoseAndSlope => Fit::ScenePoseAndSlopePass,
             };
             let first = (first_fit, &found, free.as_slice());

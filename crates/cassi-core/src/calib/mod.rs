@@ -231,18 +231,30 @@ impl Calibration {
 
     /// "dx    -0.567 ± 0.881 px   (95 %: ± 2.012)": `p`'s estimate with its
     /// standard error and, where stated, its 95 % half-width; `None` where
-    /// no standard error was estimated. What the CLI and the Python repr print.
+    /// no standard error was estimated. Where that interval reaches below
+    /// what the parameter can take (a blur's 0), it is printed as the range
+    /// it leaves, "(95 %: 0.000 to 2.269, bounded above only)": a σ the
+    /// data do not resolve from 0 (the small-σ reads of stop 73's held-out
+    /// pool) says so rather than "± 2.173" about 0.096. What the CLI and the
+    /// Python repr print.
     pub fn uncertainty_line(&self, p: Parameter) -> Option<String> {
         let u = self.uncertainty.get(p)?;
         let prec = p.decimals();
-        let interval = self
-            .interval_95
-            .get(p)
-            .map_or(String::new(), |w| format!("   (95 %: ± {w:.prec$})"));
+        let value = p.get(&self.parameters);
+        let interval = self.interval_95.get(p).map_or(String::new(), |w| {
+            match p.lower_bound().filter(|&low| value - w < low) {
+                Some(low) => format!(
+                    "   (95 %: {} to {}, bounded above only)",
+                    p.format(low),
+                    p.format(value + w)
+                ),
+                None => format!("   (95 %: ± {w:.prec$})"),
+            }
+        });
         Some(format!(
             "{:<5} {} ± {u:.prec$} {}{interval}",
             p.name(),
-            p.format(p.get(&self.parameters)),
+            p.format(value),
             p.unit(),
         ))
     }

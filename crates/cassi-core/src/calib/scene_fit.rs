@@ -238,6 +238,12 @@ pub struct OffGridRun {
     /// 34 → 31, the RMSEs the same (dx 0.105 px), one more BFGS run.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub then_the_pass: bool,
+    /// What that refit after the run frees; `None` (and settings written
+    /// before the field, as they ran): the pass's own free set. A probe
+    /// (stop 73): [`FinePassFree::DyAndAlpha`] frees only what the run
+    /// held.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub then_free: Option<FinePassFree>,
 }
 
 impl Default for OffGridRun {
@@ -249,6 +255,7 @@ impl Default for OffGridRun {
             },
             free: FinePassFree::PoseAndSlope,
             then_the_pass: false,
+            then_free: None,
         }
     }
 }
@@ -371,14 +378,20 @@ pub enum FinePassFree {
     /// along their ridge; a2's own is the fine pass's block sandwich with
     /// its floors ([`super::model_error_floor`]).
     GeometryAndCurvature,
+    /// dy and α alone, the code's shift and the dispersion's tilt across
+    /// the rows: for a refit after a run that held them
+    /// ([`OffGridRun::then_free`]), dx, θ and a1 left where that run put
+    /// them. A probe (stop 73).
+    DyAndAlpha,
 }
 
 impl FinePassFree {
-    pub const ALL: [FinePassFree; 4] = [
+    pub const ALL: [FinePassFree; 5] = [
         FinePassFree::PoseAndSlope,
         FinePassFree::Geometry,
         FinePassFree::All,
         FinePassFree::GeometryAndCurvature,
+        FinePassFree::DyAndAlpha,
     ];
 
     /// The name in settings files and on command lines.
@@ -388,6 +401,7 @@ impl FinePassFree {
             FinePassFree::Geometry => "geometry",
             FinePassFree::All => "all",
             FinePassFree::GeometryAndCurvature => "geometry-and-curvature",
+            FinePassFree::DyAndAlpha => "dy-and-alpha",
         }
     }
 
@@ -404,6 +418,7 @@ impl FinePassFree {
             FinePassFree::Geometry => &[Dx, Dy, ThetaDeg, A1, AlphaDeg],
             FinePassFree::All => &Parameter::CALIBRATED,
             FinePassFree::GeometryAndCurvature => &[Dx, Dy, ThetaDeg, A1, AlphaDeg, A2],
+            FinePassFree::DyAndAlpha => &[Dy, AlphaDeg],
         }
     }
 }
@@ -536,18 +551,20 @@ impl FinePass {
     }
 
     /// The refit after this run's own, if any ([`OffGridRun::then_the_pass`]):
-    /// the pass without its off-grid run, whose free set and warm solves
-    /// that refit takes.
+    /// the pass without its off-grid run, whose warm solves that refit
+    /// takes, and whose free set unless [`OffGridRun::then_free`] names one.
     pub(crate) fn then(&self) -> Option<Self> {
         self.off_grid_run
             .filter(|run| run.then_the_pass)
-            .map(|_| Self {
+            .map(|run| Self {
                 off_grid_run: None,
+                free: run.then_free.unwrap_or(self.free),
                 ..*self
             })
     }
 
-    /// The parameters this run's answer was last refitted over.
+    /// The parameters this run's answer was last refitted over (the fit
+    /// its stated errors' fine block comes from).
     pub(crate) fn answer_free(&self) -> FinePassFree {
         self.then().map_or(self.run_free(), |then| then.free)
     }
@@ -1745,6 +1762,21 @@ pub(crate) mod tests {
         assert_eq!(then.then(), Some(without));
         assert_eq!(then.answer_free(), FinePassFree::Geometry);
         assert_eq!(then.run_free(), FinePassFree::PoseAndSlope);
+        // a refit of what the run held alone, whose fit states the fine block
+        let across = FinePass {
+            off_grid_run: Some(OffGridRun {
+                then_the_pass: true,
+                then_free: Some(FinePassFree::DyAndAlpha),
+                ..run
+            }),
+            ..pass
+        };
+        let across_then = across.then().expect("a refit after the run");
+        assert_eq!(across_then.free, FinePassFree::DyAndAlpha);
+        assert_eq!(across_then.off_grid_run, None);
+        assert_eq!(across.answer_free(), FinePassFree::DyAndAlpha);
+        let json = serde_json::to_string(&across).unwrap();
+        assert_eq!(serde_json::from_str::<FinePass>(&json).unwrap(), across);
         for again in [pass.again_at(0.2), pass.again_from_start(0.2)] {
             let again = again.expect("run again on the grid");
             assert_eq!(again.off_grid_run, None);

@@ -67,7 +67,7 @@
 //! [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] [--no-aligned]
 //! [--no-inverse-crime] [--model rounded|subpixel|dispersed-mask|crisp-cells] [--preset NAME | --preset-file PATH]
 //! [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start | [--nominal-start-gap G] [--nominal-start-ridge BAND]] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene]
-//! [--fine-pass-free pose-and-slope|geometry|all|geometry-and-curvature] [--scene-cell PX] [--first-pass-ridge R] [--scene-nodes N]
+//! [--fine-pass-free pose-and-slope|geometry|all|geometry-and-curvature|dy-and-alpha] [--scene-cell PX] [--first-pass-ridge R] [--scene-nodes N]
 //! [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv ITERATIONS] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N] [--blur-pass-start scene-fit|texture-fit] [--blur-pass-reconstructs model-fit|blur-pass] [--blur-pass-on-grid-margin PX|none] [--blur-pass-gap-blur PX|truth] [--blur-pass-imprint-removed] [--blur-pass-detail-groups G] [--blur-pass-pre-smooth PX]]
 //! [--no-recon] [--rho-sensitivity] [--recon-sigma-margins D,…] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX | --limits-tv-scene WEIGHT | --limits-spectral-scene NODES | --limits-placed-spectral-scene NODES] [--out PATH] [--scene-transform none|flip-cols|flip-rows|transpose|coarse|real-band-light|flip-bands|dark-right-COLS|dark-left-COLS|smooth-PX] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--model-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--detail-cold-above PX|none] [--blur-bootstrap crisp-cells|dispersed-mask [--blur-bootstrap-noise] [--blur-bootstrap-residual] [--blur-bootstrap-min PX]] [--snapshots N [--joint [--joint-model MODEL]]] [--verbose]`
 //! (`--no-texture`: the default preset without its texture fit, as it was
@@ -107,12 +107,13 @@
 //! again on 10 where its answer lands on the pixel grid since stop 59);
 //! `--fine-pass-off-grid-nodes N`: the same but the on-grid run kept
 //! (`FinePass::off_grid_nodes`; with `--scene-nodes`, a probe of stop 66);
-//! `--fine-pass-off-grid-run ITERATIONS,FREE[,then-the-pass]|none`: the fine
+//! `--fine-pass-off-grid-run ITERATIONS,FREE[,then-the-pass|,then-FREE]|none`: the fine
 //! pass's run off the pixel grid with warm solves of ITERATIONS CGLS
 //! iterations and FREE refitted (`FinePass::off_grid_run`; the on-grid run
 //! keeps the pass's; 60,pose-and-slope by default since stop 72), with
 //! `then-the-pass` the pass's own free set refitted after it
-//! (`OffGridRun::then_the_pass`), or `none`: the pass's own
+//! (`OffGridRun::then_the_pass`), with `then-FREE` that FREE instead
+//! (`OffGridRun::then_free`; `then-dy-and-alpha` a probe of stop 73), or `none`: the pass's own
 //! (`--fine-pass-free`'s) in both runs, the default before stop 72;
 //! `--fine-pass-high-pass PX`: the fine pass's high-pass σ
 //! (`FinePass::high_pass_px`); `--fine-pass-principal-spectra N`: its scene
@@ -624,7 +625,7 @@ impl SceneTransform {
 
 const USAGE: &str = "calibrate [--half tuning|held-out|both] [--scenes N] [--cases K] [--first-case F] [--seed-round R] \
                      [--no-aligned] [--no-inverse-crime] [--no-wide-blur] [--model rounded|subpixel|dispersed-mask|crisp-cells] \
-                     [--preset NAME | --preset-file PATH] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start | [--nominal-start-gap G] [--nominal-start-ridge BAND]] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all|geometry-and-curvature] [--scene-cell PX] [--first-pass-ridge R] [--scene-nodes N] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv N] [--detail-pre-smooth PX] [--detail-pass-nodes N] [--search-rows N] [--fine-pass-detail] [--fine-pass-weighted WINDOW_PX,FLOOR_QUANTILE] [--fine-pass-nodes N] [--fine-pass-off-grid-nodes N] [--fine-pass-off-grid-run ITERATIONS,FREE[,then-the-pass]|none] [--fine-pass-high-pass PX] [--fine-pass-principal-spectra N] [--no-on-grid-nodes | --on-grid-from-answer] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N] [--blur-pass-start scene-fit|texture-fit] [--blur-pass-reconstructs model-fit|blur-pass] [--blur-pass-on-grid-margin PX|none] [--blur-pass-gap-blur PX|truth] [--blur-pass-imprint-removed] [--blur-pass-detail-groups G] [--blur-pass-pre-smooth PX]] [--no-recon] [--rho-sensitivity] [--recon-sigma-margins D,…] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX | --limits-tv-scene WEIGHT | --limits-spectral-scene NODES | --limits-placed-spectral-scene NODES] [--out PATH] \
+                     [--preset NAME | --preset-file PATH] [--no-texture] [--no-scene-fit] [--no-fine-pass] [--no-nominal-start | [--nominal-start-gap G] [--nominal-start-ridge BAND]] [--fine-pass RIDGE] [--fine-pass-anchor zero|first-pass-scene] [--fine-pass-free pose-and-slope|geometry|all|geometry-and-curvature|dy-and-alpha] [--scene-cell PX] [--first-pass-ridge R] [--scene-nodes N] [--detail-pass pose-and-slope|geometry|all] [--detail-groups G] [--detail-gap-tv N] [--detail-pre-smooth PX] [--detail-pass-nodes N] [--search-rows N] [--fine-pass-detail] [--fine-pass-weighted WINDOW_PX,FLOOR_QUANTILE] [--fine-pass-nodes N] [--fine-pass-off-grid-nodes N] [--fine-pass-off-grid-run ITERATIONS,FREE[,then-the-pass|,then-FREE]|none] [--fine-pass-high-pass PX] [--fine-pass-principal-spectra N] [--no-on-grid-nodes | --on-grid-from-answer] [--no-detail-pass] [--no-blur-pass | --blur-pass [--blur-pass-gap N] [--blur-pass-share F|all] [--blur-pass-steps N] [--blur-pass-start scene-fit|texture-fit] [--blur-pass-reconstructs model-fit|blur-pass] [--blur-pass-on-grid-margin PX|none] [--blur-pass-gap-blur PX|truth] [--blur-pass-imprint-removed] [--blur-pass-detail-groups G] [--blur-pass-pre-smooth PX]] [--no-recon] [--rho-sensitivity] [--recon-sigma-margins D,…] [--no-limits] [--limits-gap-tv FAMILY] [--limits-smoothed-scene PX | --limits-tv-scene WEIGHT | --limits-spectral-scene NODES | --limits-placed-spectral-scene NODES] [--out PATH] \
                      [--scene-transform none|flip-cols|flip-rows|transpose|coarse|real-band-light|flip-bands|dark-right-COLS|dark-left-COLS|smooth-PX] [--halo SHARE,SIGMA_PX] [--dispersion-a2 A2] [--mask-capture SIGMA_PX] [--mask-sharpen V] [--snapshots N [--joint [--joint-model MODEL]]] [--verbose]";
 
 fn parse_args(argv: &[String]) -> Result<Args> {
@@ -936,12 +937,20 @@ fn parse_args(argv: &[String]) -> Result<Args> {
                     continue;
                 }
                 let parts: Vec<&str> = v.split(',').collect();
-                let (iterations, free, then_the_pass) = match parts[..] {
-                    [iterations, free] => (iterations, free, false),
-                    [iterations, free, "then-the-pass"] => (iterations, free, true),
-                    _ => bail!(
-                        "--fine-pass-off-grid-run {v}: want ITERATIONS,FREE[,then-the-pass] or none"
-                    ),
+                let want = "want ITERATIONS,FREE[,then-the-pass|,then-FREE] or none";
+                let (iterations, free, then_the_pass, then_free) = match parts[..] {
+                    [iterations, free] => (iterations, free, false, None),
+                    [iterations, free, "then-the-pass"] => (iterations, free, true, None),
+                    [iterations, free, then] => {
+                        let Some(then) = then.strip_prefix("then-") else {
+                            bail!("--fine-pass-off-grid-run {v}: {want}");
+                        };
+                        let then: FinePassFree = then
+                            .parse()
+                            .map_err(|e: String| anyhow!("--fine-pass-off-grid-run {e}"))?;
+                        (iterations, free, true, Some(then))
+                    }
+                    _ => bail!("--fine-pass-off-grid-run {v}: {want}"),
                 };
                 let iterations: usize = iterations
                     .parse()
@@ -959,6 +968,7 @@ fn parse_args(argv: &[String]) -> Result<Args> {
                         .parse()
                         .map_err(|e: String| anyhow!("--fine-pass-off-grid-run {e}"))?,
                     then_the_pass,
+                    then_free,
                 }));
             }
             "--no-on-grid-nodes" => no_on_grid_nodes = true,
@@ -1579,10 +1589,10 @@ fn parse_args(argv: &[String]) -> Result<Args> {
                 " (fine pass off the pixel grid: warm solves {}, refitting {}{})",
                 run.warm_solve.iterations,
                 run.free.key(),
-                if run.then_the_pass {
-                    ", then the pass's own"
-                } else {
-                    ""
+                match (run.then_the_pass, run.then_free) {
+                    (false, _) => String::new(),
+                    (true, None) => ", then the pass's own".to_string(),
+                    (true, Some(then)) => format!(", then {}", then.key()),
                 }
             ),
             None => " (fine pass off the pixel grid as on it)".to_string(),
