@@ -239,9 +239,14 @@ pub struct OffGridRun {
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub then_the_pass: bool,
     /// What that refit after the run frees; `None` (and settings written
-    /// before the field, as they ran): the pass's own free set. A probe
-    /// (stop 73): [`FinePassFree::DyAndAlpha`] frees only what the run
-    /// held.
+    /// before the field, as they ran): the pass's own free set. A probe,
+    /// not adopted (stop 73): [`FinePassFree::DyAndAlpha`], only what the
+    /// run held, dx, θ and a1 left bitwise the run's — tuning half, four
+    /// seed rounds, 120 random poses
+    /// (`bench/results/default_stop73/dy_alpha_probe/`): dy within 106 →
+    /// 108, α 106 → 108, geometry 58 → 58, σ 97 → 96, all six 45 → 44;
+    /// the σ flips are the blur pass's small-σ reads moving up to 0.075 px
+    /// where dy and α moved under 0.002 px (`sigma_moves.txt`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub then_free: Option<FinePassFree>,
 }
@@ -381,7 +386,7 @@ pub enum FinePassFree {
     /// dy and α alone, the code's shift and the dispersion's tilt across
     /// the rows: for a refit after a run that held them
     /// ([`OffGridRun::then_free`]), dx, θ and a1 left where that run put
-    /// them. A probe (stop 73).
+    /// them. A probe (stop 73; not adopted: [`OffGridRun::then_free`]).
     DyAndAlpha,
 }
 
