@@ -1330,7 +1330,7 @@ mod tests {
         BANDS, measured, measured_physical, measured_stepped, truth,
     };
     use super::*;
-    use crate::calib::{CalibrationProblem, Preset};
+    use crate::calib::{CalibrationProblem, OffGridRun, Preset};
     use crate::optics::DispersionModel;
 
     /// Off the pixel grid (the scene fit's tests' rotated mask) the
@@ -1360,6 +1360,30 @@ mod tests {
         let (detail, fine) = passes(&preset);
         assert_eq!((fine.dy, fine.alpha_deg), (detail.dy, detail.alpha_deg));
         assert_ne!((fine.dx, fine.a1), (detail.dx, detail.a1));
+        // the probe's refit of what the run held (stop 73): dy and α move
+        // from the detail pass's, dx, θ and a1 stay the run's, and the
+        // answer states an error for each (its fine block the refit's)
+        let mut then = preset;
+        let run = then.scene_fit.as_mut().unwrap().fine_pass.as_mut().unwrap();
+        run.off_grid_run = run.off_grid_run.map(|r| OffGridRun {
+            then_the_pass: true,
+            then_free: Some(FinePassFree::DyAndAlpha),
+            ..r
+        });
+        let c = calibrate_default(&p, &then, &mut |_| {}).unwrap();
+        let refitted = stage(&c, "scene fit's fine pass");
+        assert_eq!(
+            (refitted.dx, refitted.theta_deg, refitted.a1),
+            (fine.dx, fine.theta_deg, fine.a1)
+        );
+        assert_ne!(
+            (refitted.dy, refitted.alpha_deg),
+            (detail.dy, detail.alpha_deg)
+        );
+        for param in Parameter::CALIBRATED {
+            let u = c.uncertainty.get(param);
+            assert!(u.is_some_and(|u| u > 0.0), "{param:?}: {u:?}");
+        }
         let mut without = preset;
         let settings = without.scene_fit.as_mut().unwrap();
         settings.fine_pass.as_mut().unwrap().off_grid_run = None;
