@@ -42,9 +42,9 @@ def main(paths):
             c["truth"]["blur_sigma_px"] <= c["estimate"]["blur_sigma_px"] + c["interval_95"]["blur_sigma_px"]
             for c in low
         )
-        deciles = ", ".join(f"{truths[min(len(truths) - 1, len(truths) * q // 10)]:.3f}" for q in range(0, 11, 2))
+        quintiles = ", ".join(f"{truths[min(len(truths) - 1, len(truths) * q // 10)]:.3f}" for q in range(0, 11, 2))
         print(f"σ read below {LOW_READ_PX} px: {len(low)} poses, true σ {truths[0]:.3f} … {truths[-1]:.3f} "
-              f"(quintiles {deciles}), within its tolerance in "
+              f"(quintiles {quintiles}), within its tolerance in "
               f"{sum(abs(c['error']['blur_sigma_px']) <= tolerances['blur_sigma_px'] for c in low)}; "
               f"the 95 % interval from 0 holds the truth in {held}")
 

@@ -238,8 +238,10 @@ pub struct OffGridRun {
     /// 34 → 31, the RMSEs the same (dx 0.105 px), one more BFGS run.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub then_the_pass: bool,
-    /// What that refit after the run frees; `None` (and settings written
-    /// before the field, as they ran): the pass's own free set. A probe,
+    /// What that refit after the run frees (set, it implies the refit, so
+    /// no setting names a free set that never runs); `None` (and settings
+    /// written before the field, as they ran): the pass's own free set,
+    /// where [`Self::then_the_pass`] asks for the refit. A probe,
     /// not adopted (stop 73): [`FinePassFree::DyAndAlpha`], only what the
     /// run held, dx, θ and a1 left bitwise the run's — tuning half, four
     /// seed rounds, 120 random poses
@@ -560,7 +562,7 @@ impl FinePass {
     /// takes, and whose free set unless [`OffGridRun::then_free`] names one.
     pub(crate) fn then(&self) -> Option<Self> {
         self.off_grid_run
-            .filter(|run| run.then_the_pass)
+            .filter(|run| run.then_the_pass || run.then_free.is_some())
             .map(|run| Self {
                 off_grid_run: None,
                 free: run.then_free.unwrap_or(self.free),
@@ -1780,6 +1782,16 @@ pub(crate) mod tests {
         assert_eq!(across_then.free, FinePassFree::DyAndAlpha);
         assert_eq!(across_then.off_grid_run, None);
         assert_eq!(across.answer_free(), FinePassFree::DyAndAlpha);
+        // a free set named without the flag still runs its refit
+        let named = FinePass {
+            off_grid_run: Some(OffGridRun {
+                then_the_pass: false,
+                then_free: Some(FinePassFree::DyAndAlpha),
+                ..run
+            }),
+            ..pass
+        };
+        assert_eq!(named.then(), across.then());
         let json = serde_json::to_string(&across).unwrap();
         assert_eq!(serde_json::from_str::<FinePass>(&json).unwrap(), across);
         for again in [pass.again_at(0.2), pass.again_from_start(0.2)] {
