@@ -107,6 +107,10 @@ class Calibration:
         """Half-width of the 95 % interval per parameter (heavy-tailed errors:
         wider than 2 × the standard error); None where not estimated."""
     @property
+    def ranges_95(self) -> Dict[str, Optional[Tuple[float, float]]]:
+        """95 % interval per parameter as (low, high): the estimate ∓ its half-width, the low
+        end raised to what the parameter can take (a blur's 0); None where not estimated."""
+    @property
     def trade_offs(self) -> List[Tuple[str, str, float]]:
         """(key_a, key_b, correlation) of parameters pinned only in combination."""
     @property

@@ -94,6 +94,20 @@ impl PyCalibration {
         per_parameter(py, &self.inner.interval_95)
     }
 
+    /// Each parameter's 95 % interval as (low, high) (same keys and
+    /// units): the estimate ∓ `intervals_95`, the low end raised to what
+    /// the parameter can take — a blur's 0, so a σ the data do not resolve
+    /// from 0 reads (0.0, high), bounded above only, as the repr prints
+    /// it. None where no half-width was stated.
+    #[getter]
+    fn ranges_95<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let d = PyDict::new(py);
+        for p in Parameter::ALL {
+            d.set_item(p.key(), self.inner.range_95(p))?;
+        }
+        Ok(d)
+    }
+
     /// Pairs of parameters whose errors are correlated by at least 0.8
     /// (the data pin their combination, not each): a list of
     /// (key_a, key_b, correlation).

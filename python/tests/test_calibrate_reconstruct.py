@@ -74,6 +74,17 @@ def test_default_calibration_reports_trade_offs_and_blur(case):
     assert all(wide[k] is not None and wide[k] > se[k] for k in fitted), (wide, se)
     assert "95 %" in repr(cal)
     assert cassi.Calibration.from_json(cal.to_json()).intervals_95 == wide
+    # the ranges: estimate ∓ half-width, a blur's low end raised to 0 (σ here is near 0,
+    # its half-width not: the range says "bounded above only" rather than reaching below 0)
+    ranges = cal.ranges_95
+    for k in fitted:
+        low, high = ranges[k]
+        assert abs(high - (e[k] + wide[k])) < 1e-12, (k, ranges[k], e[k], wide[k])
+        want_low = max(e[k] - wide[k], 0.0) if k == "blur_sigma_px" else e[k] - wide[k]
+        assert abs(low - want_low) < 1e-12, (k, ranges[k], e[k], wide[k])
+    assert ranges["a2"] is None
+    assert e["blur_sigma_px"] < wide["blur_sigma_px"] and ranges["blur_sigma_px"][0] == 0.0
+    assert "bounded above only" in repr(cal)
     # a curvature given is held and comes back in the parameters
     bent = cassi.calibrate(y, mask, bands=8, band_spread=POINT, dispersion_a2=-0.004)
     assert bent.parameters["a2"] == -0.004

@@ -568,6 +568,19 @@ pub(crate) mod tests {
             "{clear}"
         );
         assert!(!clear.contains("bounded above only"), "{clear}");
+        // the range the line prints, as the Python `ranges_95` returns it
+        let near_zero = calibration(0.0, 0.05);
+        let (low, high) = near_zero.range_95(Parameter::BlurSigmaPx).unwrap();
+        assert!(low == 0.0 && (high - 0.1106).abs() < 1e-12, "{low} {high}");
+        let (low, high) = near_zero.range_95(Parameter::Dx).unwrap();
+        assert!((low + 0.0606).abs() < 1e-12 && (high - 0.0606).abs() < 1e-12);
+        let (low, _) = calibration(0.0, 0.5)
+            .range_95(Parameter::BlurSigmaPx)
+            .unwrap();
+        assert!((low - 0.4394).abs() < 1e-12, "{low}");
+        let mut none = near_zero;
+        none.interval_95 = Uncertainty::default();
+        assert_eq!(none.range_95(Parameter::BlurSigmaPx), None);
     }
 
     /// The ridge probes' lines: nothing when they did not run, one line

@@ -229,6 +229,21 @@ impl Calibration {
         }
     }
 
+    /// `p`'s 95 % interval as (low, high): the estimate ∓ its stated
+    /// half-width, the low end raised to the least value the parameter can
+    /// take ([`Parameter::lower_bound`]: a blur's 0), so a σ the data do
+    /// not resolve from 0 reads (0, high). `None` where no half-width was
+    /// stated. The Python `ranges_95`; the line [`Self::uncertainty_line`]
+    /// prints.
+    pub fn range_95(&self, p: Parameter) -> Option<(f64, f64)> {
+        let w = self.interval_95.get(p)?;
+        let value = p.get(&self.parameters);
+        let low = p
+            .lower_bound()
+            .map_or(value - w, |least| (value - w).max(least));
+        Some((low, value + w))
+    }
+
     /// "dx    -0.567 ± 0.881 px   (95 %: ± 2.012)": `p`'s estimate with its
     /// standard error and, where stated, its 95 % half-width; `None` where
     /// no standard error was estimated. Where that interval reaches below
@@ -241,16 +256,15 @@ impl Calibration {
         let u = self.uncertainty.get(p)?;
         let prec = p.decimals();
         let value = p.get(&self.parameters);
-        let interval = self.interval_95.get(p).map_or(String::new(), |w| {
-            match p.lower_bound().filter(|&low| value - w < low) {
-                Some(low) => format!(
-                    "   (95 %: {} to {}, bounded above only)",
-                    p.format(low),
-                    p.format(value + w)
-                ),
-                None => format!("   (95 %: ± {w:.prec$})"),
-            }
-        });
+        let interval = match (self.interval_95.get(p), self.range_95(p)) {
+            (Some(w), Some((low, high))) if low > value - w => format!(
+                "   (95 %: {} to {}, bounded above only)",
+                p.format(low),
+                p.format(high)
+            ),
+            (Some(w), _) => format!("   (95 %: ± {w:.prec$})"),
+            (None, _) => String::new(),
+        };
         Some(format!(
             "{:<5} {} ± {u:.prec$} {}{interval}",
             p.name(),
