@@ -166,7 +166,12 @@ pub struct DefaultPreset {
     /// read all six within tolerance in 30 of 45 against 29 (stop 51), but
     /// with one re-fitted hypothesis it moved three of the five real
     /// snapshots along the dx–a1 and dy–α ridges (legoplant dy +0.10 →
-    /// +1.38 px): not the default. `None` in records made before it.
+    /// +1.38 px): not the default. Stop 74, on today's passes (tuning half
+    /// round 0, `bench/results/default_stop74/`): 200 and 800 both lower all
+    /// six 29 → 24 and 25 of 45, an aligned instrument (beads, σ 0.7) off
+    /// the grid by dx +0.22 and +0.27 px — the fine pass's on-grid run
+    /// then never starts — and 200 moves legoman dx 0.22 px along dx–a1.
+    /// `None` in records made before it.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub texture_evaluations: Option<usize>,
     /// After the scene fit's fine pass: the objective profiled along the
